@@ -1,0 +1,178 @@
+"""An episode: the world stepped deterministically from a seed, one :class:`StepRecord` per step.
+
+Gymnasium-style core: ``Episode(scenario, controller, config, seed)``, then ``step()`` until ``done``
+(or iterate ``run()``). Each step: sense (sonar, laser) at time t -> perceive moving obstacles -> decide
+-> move the robot (unicycle) and the obstacles to t + dt -> check contacts (swept over the step), goal
+and step limit. Same scenario, controller, config and seed give identical records.
+
+Outcomes: ``goal`` (within the goal tolerance), ``collision`` (a contact with ``terminate_on_collision``;
+otherwise contacts are counted and the run goes on), ``timeout`` (``max_steps`` steps without reaching
+the goal). Units: cm, s, degrees, cm/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fuzzynav import laser as laser_mod
+from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.fuzzy_spec import ControllerSpec
+from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
+from fuzzynav.laser import LaserConfig, LaserScan
+from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation
+from fuzzynav.obstacle_motion import ObstacleMotion
+from fuzzynav.perception import PerceptionConfig, perceive
+from fuzzynav.planner import PlannerConfig
+from fuzzynav.scenario import Scenario
+from fuzzynav.sonar import Sonar, SonarConfig
+from fuzzynav.tracking import Track, TrackerState
+from fuzzynav.world import World
+
+OUTCOMES = ("goal", "collision", "timeout")
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    """Everything but the scenario and the controller definition. ``dt`` in seconds."""
+
+    dt: float = 1.0
+    robot: RobotLimits = field(default_factory=RobotLimits)
+    sonar: SonarConfig = field(default_factory=SonarConfig)
+    laser: LaserConfig = field(default_factory=LaserConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
+    terminate_on_collision: bool = True
+
+    def __post_init__(self) -> None:
+        if not (self.dt > 0 and math.isfinite(self.dt)):
+            raise ValueError(f"dt: must be a positive number of seconds, got {self.dt}")
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One step. ``state`` is the robot at sensing time ``time_s``; ``next_state`` after moving.
+
+    ``obstacle_positions`` / ``obstacle_velocities`` are the true moving obstacles at ``time_s`` (cm,
+    cm/s; order of ``Episode.obstacle_ids``), ``obstacle_next_positions`` at ``time_s + dt``.
+    ``contact_static`` / ``contact_dynamic`` tell whether the robot touched something during the step
+    (swept); ``new_contacts`` counts contacts that started on this step. ``outcome`` is set on the last
+    record only."""
+
+    step: int
+    time_s: float
+    state: RobotState
+    next_state: RobotState
+    sonar: tuple[float, float, float]
+    scan: LaserScan
+    tracks: tuple[Track, ...]
+    static_points: np.ndarray
+    decision: Decision
+    obstacle_positions: np.ndarray
+    obstacle_velocities: np.ndarray
+    obstacle_next_positions: np.ndarray
+    contact_static: bool
+    contact_dynamic: tuple[str, ...]
+    new_contacts: int
+    distance_to_goal: float
+    outcome: str | None
+
+
+class Episode:
+    """One run of a scenario (see the module docstring)."""
+
+    def __init__(self, scenario: Scenario, controller: ControllerSpec | FastEvaluator,
+                 config: EpisodeConfig | None = None, seed: int = 0) -> None:
+        self.scenario = scenario
+        self.config = config or EpisodeConfig()
+        self.seed = seed
+        self.world = World(scenario.bounds, scenario.static_obstacles)
+        self.motion = ObstacleMotion(scenario.dynamic_obstacles)
+        self.obstacle_ids = self.motion.ids
+        evaluator = controller if isinstance(controller, FastEvaluator) else FastEvaluator(controller)
+        r = scenario.robot.radius
+        self.sonar = Sonar(self.config.sonar, r)
+        self.navigator = Navigator(evaluator, self.config.planner, self.config.navigator, self.config.robot, r,
+                                   self.config.dt, self.config.sonar.front)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the start (same seed, same run)."""
+        robot = self.scenario.robot
+        self.state = RobotState(robot.start[0], robot.start[1], robot.heading % 360.0, 0.0)
+        self.step_index = 0
+        self.outcome: str | None = None
+        self.contacts = 0
+        self._rng = np.random.default_rng(self.seed)
+        self._tracker = TrackerState()
+        self._plan: ActivePlan | None = None
+        self._touching: set[str] = set()
+
+    @property
+    def done(self) -> bool:
+        return self.outcome is not None
+
+    def step(self) -> StepRecord:
+        """Advance one time step and return its record."""
+        if self.done:
+            raise RuntimeError("episode is over; call reset()")
+        cfg, dt, s = self.config, self.config.dt, self.state
+        t = self.step_index * dt
+        pos, vel = self.motion.at(t)
+        discs = np.column_stack([pos, self.motion.radii]) if len(pos) else np.zeros((0, 3))
+        sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs)
+        scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
+                              self._rng)
+        self._tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.motion.radii,
+                                       self._rng)
+        goal = self.scenario.robot.goal
+        obs = Observation(s, goal, sonar, seen.tracks, seen.static_points)
+        decision, self._plan = self.navigator.decide(obs, self._plan)
+        nxt = step_unicycle(s, decision.dtheta_deg, decision.v_cm_s, dt, cfg.robot)
+        next_pos, _ = self.motion.at(t + dt)
+        p0, p1 = np.array([s.x, s.y]), np.array([nxt.x, nxt.y])
+        r = self.scenario.robot.radius
+        static_hit = self.world.static_contact(p0, p1, r)
+        dynamic_hit = tuple(self.obstacle_ids[k] for k in _swept_contacts(p0, p1, pos, next_pos, r,
+                                                                            self.motion.radii))
+        touching = set(dynamic_hit) | ({"static"} if static_hit else set())
+        new_contacts = len(touching - self._touching)
+        self._touching = touching
+        self.contacts += new_contacts
+        dist = math.dist((nxt.x, nxt.y), goal)
+        self.state = nxt
+        self.step_index += 1
+        if touching and cfg.terminate_on_collision:
+            self.outcome = "collision"
+        elif dist <= self.scenario.tolerance:
+            self.outcome = "goal"
+        elif self.step_index >= self.scenario.max_steps:
+            self.outcome = "timeout"
+        return StepRecord(step=self.step_index - 1, time_s=t, state=s, next_state=nxt, sonar=sonar, scan=scan,
+                          tracks=seen.tracks, static_points=seen.static_points, decision=decision,
+                          obstacle_positions=pos, obstacle_velocities=vel, obstacle_next_positions=next_pos,
+                          contact_static=static_hit, contact_dynamic=dynamic_hit, new_contacts=new_contacts,
+                          distance_to_goal=dist, outcome=self.outcome)
+
+    def run(self) -> Iterator[StepRecord]:
+        """Yield records until the episode ends."""
+        while not self.done:
+            yield self.step()
+
+
+def _swept_contacts(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray, radius: float,
+                    radii: np.ndarray) -> list[int]:
+    """Indices of obstacles that come closer than the sum of radii to the robot while both move
+    straight from (p0, o0) to (p1, o1) over the step."""
+    if len(o0) == 0:
+        return []
+    rel0 = p0[None, :] - o0
+    d = (p1 - p0)[None, :] - (o1 - o0)
+    dd = (d**2).sum(1)
+    s = np.clip(-(rel0 * d).sum(1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    closest = np.linalg.norm(rel0 + s[:, None] * d, axis=1)
+    return [int(k) for k in np.nonzero(closest < radius + radii)[0]]

@@ -1,0 +1,226 @@
+"""Vectorised numpy Mamdani evaluator (single input and batch).
+
+It computes exactly what scikit-fuzzy's ``skfuzzy.control`` computes for the same definition, without its
+per-call graph walk:
+
+1. fuzzification: linear interpolation of each term's sampled membership function at the (clipped) input,
+   as ``skfuzzy.interp_membership`` does; crisp variables are evaluated exactly;
+2. rule activation: minimum over the antecedent memberships (AND);
+3. accumulation: per output term, the maximum activation over the rules that name it (the *cut*);
+4. aggregation: the output membership is ``max_t min(cut_t, mf_t)`` sampled on the universe grid **plus**
+   the points where each term's sampled membership crosses its cut level (scikit-fuzzy's upsampling);
+5. defuzzification: centroid of that polyline (trapezoid rule on each segment).
+
+Inputs and outputs are in the variables' own units (for the default controllers: cm, degrees, cm/s).
+When no rule fires (zero output area) the definition's ``fallback`` output is returned.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuzzynav.fuzzy_spec import ControllerSpec, Variable, sample_membership
+
+_CHUNK = 2048  # batch rows per block (bounds memory at ~ chunk x grid x terms floats)
+
+
+@dataclass(frozen=True)
+class _Output:
+    grid: np.ndarray  # (G,)
+    step: float
+    mfs: np.ndarray  # (T, G) sampled memberships
+    rising_end: np.ndarray  # (T,) first index of the maximum
+    falling_start: np.ndarray  # (T,) last index of the maximum
+    rule_mask: np.ndarray  # (T, R) True where rule r has this term as consequent
+    fallback: float
+
+
+class FastEvaluator:
+    """Evaluate a :class:`ControllerSpec` with numpy.
+
+    ``evaluate(inputs)`` takes a mapping from input-variable name to a scalar or 1-D array (variable units)
+    and returns ``(dtheta_deg, v_cm_s)`` as floats or arrays.
+    """
+
+    def __init__(self, spec: ControllerSpec) -> None:
+        self.spec = spec
+        self._inputs: list[tuple[Variable, np.ndarray, int]] = []  # variable, sampled mfs, offset
+        offset = 0
+        for var in spec.inputs:
+            mfs = np.stack([sample_membership(t, var.grid, var.universe[1]) for t in var.terms])
+            self._inputs.append((var, mfs, offset))
+            offset += len(var.terms)
+        self._n_terms_in = offset
+        # antecedent index table: rules x max_clauses, padded with a constant-1 row
+        width = max(len(r.antecedent) for r in spec.rules)
+        one_row = offset
+        table = np.full((len(spec.rules), width), one_row, dtype=np.intp)
+        offsets = {var.name: off for var, _, off in self._inputs}
+        variables = spec.variables
+        for i, rule in enumerate(spec.rules):
+            for j, (vname, tname) in enumerate(rule.antecedent):
+                table[i, j] = offsets[vname] + variables[vname].term_index(tname)
+        self._antecedents = table
+        self._outputs: dict[str, _Output] = {}
+        for var in spec.outputs:
+            mfs = np.stack([sample_membership(t, var.grid, var.universe[1]) for t in var.terms])
+            mask = np.zeros((len(var.terms), len(spec.rules)), dtype=bool)
+            for r, rule in enumerate(spec.rules):
+                for vname, tname in rule.consequent:
+                    if vname == var.name:
+                        mask[var.term_index(tname), r] = True
+            peak = mfs.max(axis=1, keepdims=True)
+            at_peak = mfs == peak
+            fallback = spec.fallback_dtheta if var.role == "dtheta" else spec.fallback_v
+            self._outputs[var.role] = _Output(
+                grid=var.grid, step=var.resolution, mfs=mfs,
+                rising_end=at_peak.argmax(axis=1),
+                falling_start=mfs.shape[1] - 1 - at_peak[:, ::-1].argmax(axis=1),
+                rule_mask=mask, fallback=fallback)
+
+    # -- public API -------------------------------------------------------------------------------------
+    def evaluate(self, inputs: Mapping[str, float | np.ndarray]) -> tuple:
+        """Return ``(dtheta, v)`` for scalar inputs (floats) or 1-D arrays (arrays of the same length)."""
+        arrays = {k: np.asarray(v, dtype=float) for k, v in inputs.items()}
+        scalar = all(a.ndim == 0 for a in arrays.values())
+        n = 1 if scalar else max(a.size for a in arrays.values())
+        cols = {k: np.broadcast_to(a.reshape(-1), (n,)) if a.size == 1 else a.reshape(-1) for k, a in arrays.items()}
+        for var in self.spec.inputs:
+            if var.name not in cols:
+                raise KeyError(f"missing input {var.name!r}")
+        dtheta = np.empty(n)
+        v = np.empty(n)
+        for start in range(0, n, _CHUNK):
+            sl = slice(start, min(n, start + _CHUNK))
+            dtheta[sl], v[sl] = self._evaluate_block({k: c[sl] for k, c in cols.items()})
+        if scalar:
+            return float(dtheta[0]), float(v[0])
+        return dtheta, v
+
+    def rule_activations(self, inputs: Mapping[str, float | np.ndarray]) -> np.ndarray:
+        """Firing strength of every rule, shape (R, N) (for explanations and tests)."""
+        cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in inputs.items()}
+        return self._activations(cols)
+
+    # -- internals ----------------------------------------------------------------------------------------
+    def _memberships(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        n = len(next(iter(cols.values())))
+        mu = np.empty((self._n_terms_in + 1, n))
+        mu[-1] = 1.0
+        for var, mfs, off in self._inputs:
+            x = np.clip(cols[var.name], var.universe[0], var.universe[1])
+            k = len(var.terms)
+            if var.is_crisp:
+                for i, term in enumerate(var.terms):
+                    lo, hi = term.params
+                    upper = (x < hi) | ((hi >= var.universe[1]) & (x <= hi))
+                    mu[off + i] = ((x >= lo) & upper).astype(float)
+                continue
+            pos = (x - var.universe[0]) / var.resolution
+            idx = np.clip(np.floor(pos).astype(np.intp), 0, mfs.shape[1] - 2)
+            frac = pos - idx
+            mu[off:off + k] = mfs[:, idx] * (1.0 - frac) + mfs[:, idx + 1] * frac
+        return mu
+
+    def _activations(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
+        mu = self._memberships(cols)
+        return mu[self._antecedents].min(axis=1)  # (R, N)
+
+    def _evaluate_block(self, cols: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        act = self._activations(cols)
+        return self._defuzz(self._outputs["dtheta"], act), self._defuzz(self._outputs["v"], act)
+
+    @staticmethod
+    def _defuzz(out: _Output, act: np.ndarray) -> np.ndarray:
+        n = act.shape[1]
+        # cut level of each output term: max over the rules naming it (0 when none fires)
+        cuts = np.where(out.rule_mask[:, :, None], act[None, :, :], 0.0).max(axis=1)  # (T, N)
+        grid, mfs = out.grid, out.mfs
+        g = len(grid)
+        # output membership on the grid and the polyline integral over the plain grid
+        y = np.minimum(cuts[:, :, None], mfs[:, None, :]).max(axis=0)  # (N, G)
+        area, moment = _trapezoids(grid[:-1], grid[1:], y[:, :-1], y[:, 1:])
+        total_area = area.sum(axis=1)
+        total_moment = moment.sum(axis=1)
+        # scikit-fuzzy adds the points where each term crosses its cut level; split those grid segments
+        xs, segs = _cut_points(out, cuts)  # (N, K) positions, segment index (-1 = none)
+        order = np.argsort(np.where(segs >= 0, xs, np.inf), axis=1, kind="stable")
+        xs = np.take_along_axis(xs, order, axis=1)
+        segs = np.take_along_axis(segs, order, axis=1)
+        valid = segs >= 0
+        if valid.any():
+            ys = _polyline_at(out, cuts, xs, segs)
+            seg_c = np.clip(segs, 0, g - 2)
+            rows = np.arange(n)[:, None]
+            prev_same = np.zeros_like(valid)
+            prev_same[:, 1:] = valid[:, 1:] & valid[:, :-1] & (segs[:, 1:] == segs[:, :-1])
+            next_same = np.zeros_like(valid)
+            next_same[:, :-1] = prev_same[:, 1:]
+            x_left = np.where(prev_same, np.roll(xs, 1, axis=1), grid[seg_c])
+            y_left = np.where(prev_same, np.roll(ys, 1, axis=1), y[rows, seg_c])
+            a1, m1 = _trapezoids(x_left, xs, y_left, ys)  # piece ending at each cut point
+            last = valid & ~next_same  # last cut in its segment: also the piece to the segment's end
+            a2, m2 = _trapezoids(xs, grid[seg_c + 1], ys, y[rows, seg_c + 1])
+            a0, m0 = _trapezoids(grid[seg_c], grid[seg_c + 1], y[rows, seg_c], y[rows, seg_c + 1])
+            total_area += np.where(valid, a1, 0).sum(1) + np.where(last, a2 - a0, 0).sum(1)
+            total_moment += np.where(valid, m1, 0).sum(1) + np.where(last, m2 - m0, 0).sum(1)
+        ok = total_area > 0
+        result = np.full(n, out.fallback)
+        result[ok] = total_moment[ok] / total_area[ok]
+        return result
+
+
+def _trapezoids(x1, x2, y1, y2):
+    """Area and first moment of the straight segment(s) (x1, y1)-(x2, y2) above zero."""
+    dx = x2 - x1
+    area = 0.5 * dx * (y1 + y2)
+    moment = 0.5 * dx * ((y1 + y2) * x1 + dx * (y1 + 2.0 * y2) / 3.0)
+    return area, moment
+
+
+def _cut_points(out: _Output, cuts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Crossing points of each term's sampled membership with its cut level (as scikit-fuzzy finds them).
+
+    Returns positions and grid-segment indices, shape (N, 2T); segment -1 marks "no point". A term
+    membership is unimodal, so it crosses a level at most once while rising and once while falling.
+    """
+    t_count, n = cuts.shape
+    h, grid, mfs = out.step, out.grid, out.mfs
+    xs = np.zeros((n, 2 * t_count))
+    segs = np.full((n, 2 * t_count), -1, dtype=np.intp)
+    for t in range(t_count):
+        level = cuts[t]
+        positive = level > 0.0  # a zero cut adds only grid points, which change nothing
+        rise = mfs[t, : out.rising_end[t] + 1]
+        j = np.searchsorted(rise, level, side="left")  # first index with mf >= level
+        ok = positive & (j >= 1) & (j < len(rise))
+        jj = np.clip(j, 1, len(rise) - 1)
+        x_r = grid[jj - 1] + (level - rise[jj - 1]) * h / (rise[jj] - rise[jj - 1] + (~ok))
+        xs[:, 2 * t] = np.where(ok, x_r, 0.0)
+        segs[:, 2 * t] = np.where(ok, jj - 1, -1)
+        start = out.falling_start[t]
+        fall = mfs[t, start:]
+        cnt = np.searchsorted(-fall, -level, side="right")  # number of leading samples >= level
+        ok = positive & (cnt >= 1) & (cnt < len(fall))
+        k = np.clip(cnt - 1, 0, max(len(fall) - 2, 0))
+        if len(fall) >= 2:
+            x_f = grid[start + k] + (level - fall[k]) * h / (fall[k + 1] - fall[k] - (~ok))
+        else:
+            x_f = np.zeros(n)
+            ok = np.zeros(n, dtype=bool)
+        xs[:, 2 * t + 1] = np.where(ok, x_f, 0.0)
+        segs[:, 2 * t + 1] = np.where(ok, start + k, -1)
+    return xs, segs
+
+
+def _polyline_at(out: _Output, cuts: np.ndarray, xs: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """Output membership ``max_t min(cut_t, interp(mf_t))`` at positions ``xs`` inside segments ``segs``."""
+    seg = np.clip(segs, 0, len(out.grid) - 2)
+    frac = (xs - out.grid[seg]) / out.step
+    lo = out.mfs[:, seg]  # (T, N, K)
+    hi = out.mfs[:, seg + 1]
+    vals = lo * (1.0 - frac) + hi * frac
+    return np.minimum(cuts[:, :, None], vals).max(axis=0)

@@ -1,0 +1,336 @@
+"""A fuzzy controller as data: variables, terms and rules.
+
+A controller definition is a plain mapping (it comes from YAML, e.g. ``conf/controller/table1.yaml``)::
+
+    name: table1
+    inputs:
+      left:                       # variable name, used in rules
+        source: left              # which observation feeds it: left | front | right | angle
+        scale: 1.0                # input value = scale * observation (default 1)
+        universe: [0, 130]        # [min, max], in the observation's unit times scale
+        resolution: 1.0           # grid step of the sampled universe
+        terms:
+          near: {mf: trap, params: [0, 0, 30, 60]}
+    outputs:
+      dtheta:
+        role: dtheta              # dtheta (steering increment, degrees) | v (speed, cm/s)
+        universe: [-120, 120]
+        resolution: 1.0
+        terms:
+          NB: {mf: trap, params: [-120, -120, -90, -45]}
+    fallback: {dtheta: 0.0, v: 10.0}   # returned when no rule fires
+    rules:
+      - "left=near & front=near & right=near & angle=right -> dtheta=NB, v=slow"
+
+Membership function types and their ``params``:
+
+- ``trap``: ``[a, b, c, d]`` with a <= b <= c <= d (0 at a, 1 on [b, c], 0 at d; a == b is a left shoulder).
+- ``tri``: ``[a, b, c]`` with a <= b <= c.
+- ``gauss``: ``[mean, sigma]`` with sigma > 0 (note: MATLAB's ``gaussmf`` orders them ``[sigma, c]``).
+- ``crisp``: ``[lo, hi]``: membership 1 on [lo, hi), 0 elsewhere (hi is included when it is the universe
+  maximum). Inputs only. A crisp input is snapped to the midpoint of the interval it falls in before the
+  reference evaluator sees it, so that scikit-fuzzy's linear interpolation cannot blur the boundary.
+
+A rule is ``"<var>=<term> & <var>=<term> ... -> <out>=<term>, <out>=<term>"``: the antecedent is the
+minimum (AND) of its memberships, each consequent term is cut at that level and several rules on the same
+term are accumulated with the maximum (Mamdani min/max, centroid defuzzification).
+
+Every error raises :class:`ControllerSpecError` naming the field, e.g.
+``inputs.left.terms.near.params: breakpoints must be non-decreasing``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+SOURCES = ("left", "front", "right", "angle")
+ROLES = ("dtheta", "v")
+MF_PARAM_COUNT = {"trap": 4, "tri": 3, "gauss": 2, "crisp": 2}
+
+
+class ControllerSpecError(ValueError):
+    """A controller definition is malformed; the message starts with the offending field."""
+
+
+@dataclass(frozen=True)
+class Term:
+    """One linguistic term: a membership function type and its parameters (in the variable's unit)."""
+
+    name: str
+    mf: str
+    params: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """A fuzzy variable on a uniformly sampled universe ``[lo, hi]`` with step ``resolution``.
+
+    For inputs ``source`` names the observation (``left``/``front``/``right``: sonar distance in cm;
+    ``angle``: included angle in degrees) and ``scale`` converts it to the variable's unit. For outputs
+    ``role`` says which command it is (``dtheta`` in degrees, ``v`` in cm/s).
+    """
+
+    name: str
+    universe: tuple[float, float]
+    resolution: float
+    terms: tuple[Term, ...]
+    source: str | None = None
+    scale: float = 1.0
+    role: str | None = None
+
+    @property
+    def grid(self) -> np.ndarray:
+        """The sampled universe (shared by both evaluators)."""
+        lo, hi = self.universe
+        n = round((hi - lo) / self.resolution) + 1
+        return np.linspace(lo, hi, n)
+
+    @property
+    def is_crisp(self) -> bool:
+        return all(t.mf == "crisp" for t in self.terms)
+
+    def term_index(self, name: str) -> int:
+        for i, t in enumerate(self.terms):
+            if t.name == name:
+                return i
+        raise KeyError(name)
+
+
+@dataclass(frozen=True)
+class Rule:
+    """A parsed rule: antecedent and consequent as (variable, term) pairs; ``text`` is the source."""
+
+    antecedent: tuple[tuple[str, str], ...]
+    consequent: tuple[tuple[str, str], ...]
+    text: str
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """A complete controller definition (see the module docstring for the data format)."""
+
+    name: str
+    inputs: tuple[Variable, ...]
+    outputs: tuple[Variable, ...]
+    rules: tuple[Rule, ...]
+    fallback_dtheta: float
+    fallback_v: float
+
+    @property
+    def variables(self) -> dict[str, Variable]:
+        return {v.name: v for v in (*self.inputs, *self.outputs)}
+
+    def output_for(self, role: str) -> Variable:
+        for v in self.outputs:
+            if v.role == role:
+                return v
+        raise KeyError(role)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ControllerSpec:
+        """Build and validate a definition from plain data; raises :class:`ControllerSpecError`."""
+        return parse_controller(data)
+
+
+def _number(value: Any, field: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ControllerSpecError(f"{field}: expected a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ControllerSpecError(f"{field}: must be finite, got {value!r}")
+    return x
+
+
+def _mapping(value: Any, field: str) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        raise ControllerSpecError(f"{field}: expected a mapping, got {type(value).__name__}")
+    return value
+
+
+def _check_keys(data: Mapping[str, Any], allowed: set[str], required: set[str], field: str) -> None:
+    for key in data:
+        if key not in allowed:
+            prefix = f"{field}." if field else ""
+            raise ControllerSpecError(f"{prefix}{key}: unknown key (allowed: {', '.join(sorted(allowed))})")
+    for key in sorted(required):
+        if key not in data:
+            prefix = f"{field}." if field else ""
+            raise ControllerSpecError(f"{prefix}{key}: missing")
+
+
+def _parse_term(name: str, data: Any, field: str, universe: tuple[float, float], is_input: bool) -> Term:
+    data = _mapping(data, field)
+    _check_keys(data, {"mf", "params"}, {"mf", "params"}, field)
+    mf = data["mf"]
+    if mf not in MF_PARAM_COUNT:
+        raise ControllerSpecError(f"{field}.mf: unknown membership function {mf!r} "
+                                  f"(known: {', '.join(MF_PARAM_COUNT)})")
+    if mf == "crisp" and not is_input:
+        raise ControllerSpecError(f"{field}.mf: crisp terms are for inputs only")
+    raw = data["params"]
+    if not isinstance(raw, list | tuple):
+        raise ControllerSpecError(f"{field}.params: expected a list of numbers")
+    params = tuple(_number(p, f"{field}.params[{i}]") for i, p in enumerate(raw))
+    if len(params) != MF_PARAM_COUNT[mf]:
+        raise ControllerSpecError(f"{field}.params: {mf} takes {MF_PARAM_COUNT[mf]} numbers, got {len(params)}")
+    if mf in ("trap", "tri", "crisp") and any(b < a for a, b in itertools.pairwise(params)):
+        raise ControllerSpecError(f"{field}.params: breakpoints must be non-decreasing, got {list(params)}")
+    if mf == "gauss" and params[1] <= 0:
+        raise ControllerSpecError(f"{field}.params: gauss sigma must be > 0, got {params[1]}")
+    if mf == "crisp" and params[0] == params[1]:
+        raise ControllerSpecError(f"{field}.params: crisp interval is empty")
+    return Term(name=name, mf=mf, params=params)
+
+
+def _parse_variable(name: str, data: Any, field: str, is_input: bool) -> Variable:
+    data = _mapping(data, field)
+    allowed = {"universe", "resolution", "terms"} | ({"source", "scale"} if is_input else {"role"})
+    _check_keys(data, allowed, {"universe", "terms"} | ({"source"} if is_input else set()), field)
+    uni = data["universe"]
+    if not isinstance(uni, list | tuple) or len(uni) != 2:
+        raise ControllerSpecError(f"{field}.universe: expected [min, max]")
+    lo, hi = (_number(u, f"{field}.universe[{i}]") for i, u in enumerate(uni))
+    if not lo < hi:
+        raise ControllerSpecError(f"{field}.universe: min must be < max, got [{lo}, {hi}]")
+    res = _number(data.get("resolution", 1.0), f"{field}.resolution")
+    steps = (hi - lo) / res if res > 0 else -1
+    if res <= 0 or abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+        raise ControllerSpecError(f"{field}.resolution: must be > 0 and divide the universe width {hi - lo}")
+    if round(steps) > 100_000:
+        raise ControllerSpecError(f"{field}.resolution: too fine ({round(steps)} steps; at most 100000)")
+    terms_raw = _mapping(data["terms"], f"{field}.terms")
+    if not terms_raw:
+        raise ControllerSpecError(f"{field}.terms: at least one term is needed")
+    terms = tuple(_parse_term(str(t), d, f"{field}.terms.{t}", (lo, hi), is_input) for t, d in terms_raw.items())
+    kinds = {t.mf == "crisp" for t in terms}
+    if len(kinds) > 1:
+        raise ControllerSpecError(f"{field}.terms: crisp and fuzzy terms cannot be mixed in one variable")
+    source, scale, role = None, 1.0, None
+    if is_input:
+        source = data["source"]
+        if source not in SOURCES:
+            raise ControllerSpecError(f"{field}.source: unknown source {source!r} (known: {', '.join(SOURCES)})")
+        scale = _number(data.get("scale", 1.0), f"{field}.scale")
+        if scale <= 0:
+            raise ControllerSpecError(f"{field}.scale: must be > 0")
+    else:
+        role = data.get("role", name)
+        if role not in ROLES:
+            raise ControllerSpecError(f"{field}.role: unknown role {role!r} (known: {', '.join(ROLES)})")
+    return Variable(name=name, universe=(lo, hi), resolution=res, terms=terms, source=source, scale=scale,
+                    role=role)
+
+
+_CLAUSE = re.compile(r"^\s*([A-Za-z_][\w]*)\s*=\s*([A-Za-z_][\w]*)\s*$")
+
+
+def _parse_clauses(text: str, sep: str, field: str) -> tuple[tuple[str, str], ...]:
+    clauses = []
+    for part in text.split(sep):
+        m = _CLAUSE.match(part)
+        if not m:
+            raise ControllerSpecError(f"{field}: cannot read {part.strip()!r} (expected var=term)")
+        clauses.append((m.group(1), m.group(2)))
+    return tuple(clauses)
+
+
+def parse_rule(text: str, variables: Mapping[str, Variable], inputs: set[str], outputs: set[str],
+               field: str) -> Rule:
+    """Parse ``"a=x & b=y -> out=z, out2=w"`` and check every variable and term exists."""
+    if not isinstance(text, str):
+        raise ControllerSpecError(f"{field}: expected a string")
+    if text.count("->") != 1:
+        raise ControllerSpecError(f"{field}: expected exactly one '->' in {text!r}")
+    left, right = text.split("->")
+    ante = _parse_clauses(left, "&", field)
+    cons = _parse_clauses(right, ",", field)
+    for group, names, what in ((ante, inputs, "input"), (cons, outputs, "output")):
+        seen = set()
+        for var, term in group:
+            if var not in names:
+                raise ControllerSpecError(f"{field}: unknown {what} variable {var!r} in {text!r}")
+            if var in seen:
+                raise ControllerSpecError(f"{field}: variable {var!r} appears twice in {text!r}")
+            seen.add(var)
+            if term not in {t.name for t in variables[var].terms}:
+                raise ControllerSpecError(f"{field}: unknown term {term!r} of variable {var!r} in {text!r}")
+    return Rule(antecedent=ante, consequent=cons, text=text.strip())
+
+
+def parse_controller(data: Mapping[str, Any]) -> ControllerSpec:
+    """Validate and convert a controller definition mapping (see the module docstring)."""
+    data = _mapping(data, "controller")
+    _check_keys(data, {"name", "description", "inputs", "outputs", "rules", "fallback"},
+                {"inputs", "outputs", "rules"}, "")
+    inputs = tuple(_parse_variable(str(n), d, f"inputs.{n}", True)
+                   for n, d in _mapping(data["inputs"], "inputs").items())
+    outputs = tuple(_parse_variable(str(n), d, f"outputs.{n}", False)
+                    for n, d in _mapping(data["outputs"], "outputs").items())
+    if not inputs:
+        raise ControllerSpecError("inputs: at least one input variable is needed")
+    names = [v.name for v in (*inputs, *outputs)]
+    for n in names:
+        if names.count(n) > 1:
+            raise ControllerSpecError(f"outputs.{n}: name used by both an input and an output variable")
+    roles = [v.role for v in outputs]
+    for role in ROLES:
+        if roles.count(role) != 1:
+            raise ControllerSpecError(f"outputs: exactly one output variable must have role {role!r} "
+                                      f"(found {roles.count(role)})")
+    variables = {v.name: v for v in (*inputs, *outputs)}
+    rules_raw = data["rules"]
+    if not isinstance(rules_raw, list | tuple) or not rules_raw:
+        raise ControllerSpecError("rules: at least one rule is needed")
+    rules = tuple(parse_rule(r, variables, {v.name for v in inputs}, {v.name for v in outputs}, f"rules[{i}]")
+                  for i, r in enumerate(rules_raw))
+    fb = _mapping(data.get("fallback", {}), "fallback")
+    _check_keys(fb, set(ROLES), set(), "fallback")
+    dtheta_var = next(v for v in outputs if v.role == "dtheta")
+    v_var = next(v for v in outputs if v.role == "v")
+    fb_dtheta = _number(fb.get("dtheta", 0.0), "fallback.dtheta")
+    fb_v = _number(fb.get("v", v_var.universe[0]), "fallback.v")
+    for value, var, key in ((fb_dtheta, dtheta_var, "dtheta"), (fb_v, v_var, "v")):
+        if not var.universe[0] <= value <= var.universe[1]:
+            raise ControllerSpecError(f"fallback.{key}: {value} is outside the universe {list(var.universe)}")
+    return ControllerSpec(name=str(data.get("name", "controller")), inputs=inputs, outputs=outputs, rules=rules,
+                          fallback_dtheta=fb_dtheta, fallback_v=fb_v)
+
+
+def sample_membership(term: Term, grid: np.ndarray, universe_max: float) -> np.ndarray:
+    """Sample a term's membership function on ``grid`` (numpy only; independent of scikit-fuzzy)."""
+    x = grid
+    p = term.params
+    if term.mf == "trap":
+        a, b, c, d = p
+        rise = np.ones_like(x) if b == a else np.clip((x - a) / (b - a), 0.0, 1.0)
+        fall = np.ones_like(x) if d == c else np.clip((d - x) / (d - c), 0.0, 1.0)
+        y = np.minimum(rise, fall)
+        y[(x < a) | (x > d)] = 0.0
+        return y
+    if term.mf == "tri":
+        return sample_membership(Term(term.name, "trap", (p[0], p[1], p[1], p[2])), grid, universe_max)
+    if term.mf == "gauss":
+        mean, sigma = p
+        return np.exp(-((x - mean) ** 2) / (2.0 * sigma**2))
+    lo, hi = p
+    inside = (x >= lo) & ((x < hi) | ((hi >= universe_max) & (x <= hi)))
+    return inside.astype(float)
+
+
+def crisp_snap(var: Variable, values: np.ndarray) -> np.ndarray:
+    """Replace each value of a crisp variable by the midpoint of the crisp interval it belongs to."""
+    out = np.array(values, dtype=float, copy=True)
+    lo_u, hi_u = var.universe
+    clipped = np.clip(out, lo_u, hi_u)
+    for term in var.terms:
+        lo, hi = term.params
+        inside = (clipped >= lo) & ((clipped < hi) | ((hi >= hi_u) & (clipped <= hi)))
+        out = np.where(inside, 0.5 * (max(lo, lo_u) + min(hi, hi_u)), out)
+    return out

@@ -1,0 +1,58 @@
+"""Unicycle kinematics of the robot. Positions in cm, headings in degrees (CCW from +x), speeds in cm/s."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class RobotLimits:
+    """Steering and speed limits: |dtheta| <= max_turn_deg per step; v in [v_min, v_max] cm/s when moving."""
+
+    max_turn_deg: float = 120.0
+    v_min: float = 10.0
+    v_max: float = 40.0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.max_turn_deg <= 180:
+            raise ValueError(f"robot.max_turn_deg: must be in (0, 180], got {self.max_turn_deg}")
+        if not 0 < self.v_min <= self.v_max:
+            raise ValueError(f"robot.v_min/v_max: need 0 < v_min <= v_max, got {self.v_min}, {self.v_max}")
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """Pose (x, y in cm; heading in degrees CCW from +x, in [0, 360)) and last commanded speed v (cm/s)."""
+
+    x: float
+    y: float
+    heading: float
+    v: float = 0.0
+
+    @property
+    def position(self) -> tuple[float, float]:
+        return (self.x, self.y)
+
+
+def wrap_deg(angle: float) -> float:
+    """Wrap an angle in degrees to [-180, 180)."""
+    return (angle + 180.0) % 360.0 - 180.0
+
+
+def bearing_deg(x: float, y: float, tx: float, ty: float) -> float:
+    """Absolute bearing in degrees [0, 360) from (x, y) to (tx, ty)."""
+    return math.degrees(math.atan2(ty - y, tx - x)) % 360.0
+
+
+def step_unicycle(state: RobotState, dtheta_deg: float, v_cm_s: float, dt: float,
+                  limits: RobotLimits) -> RobotState:
+    """Turn by ``dtheta_deg`` (clamped to ±max_turn_deg), then move ``v·dt`` along the new heading.
+
+    ``v_cm_s`` is clamped to [v_min, v_max]; a speed of 0 (or less) means stand still (waiting)."""
+    dtheta = max(-limits.max_turn_deg, min(limits.max_turn_deg, dtheta_deg))
+    heading = (state.heading + dtheta) % 360.0
+    v = 0.0 if v_cm_s <= 0.0 else max(limits.v_min, min(limits.v_max, v_cm_s))
+    rad = math.radians(heading)
+    return RobotState(x=state.x + v * dt * math.cos(rad), y=state.y + v * dt * math.sin(rad),
+                      heading=heading, v=v)

@@ -1,0 +1,174 @@
+"""The navigation decision of one time step: the main loop of the paper's Fig. 1.
+
+    detect moving obstacles -> Trajectory Prediction Table
+    if no predicted collision:  straight to the target if no static obstacle is near, else fuzzy control
+    else:                       follow the wait / detour plan of the dynamic path planner
+
+Our choices where the paper is silent (README, "Navigation loop"):
+
+- "A static obstacle is near" when any sonar reading is below ``static_near_cm`` (default 100 cm: the
+  distance from which the default "far" term is fully true). With ``goal_overrides_static`` the robot
+  still heads straight for the goal when the goal lies in the front sector and is nearer than the front
+  reading (otherwise the fuzzy rules, which ignore the target, can circle a goal placed near a wall).
+- Going straight to the target: turn towards it and drive at ``v_max``, slowing to land on the goal.
+- A plan, once made, is followed step by step and re-checked against each new table; the robot re-plans
+  when the plan would now collide or the robot is more than ``plan_tolerance_cm`` off it
+  (``replan_every_step`` re-plans on every step instead).
+- The table predicts the robot at its present speed; standing still, at ``cruise_speed``.
+
+Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.kinematics import RobotLimits, RobotState, bearing_deg, wrap_deg
+from fuzzynav.planner import Plan, PlannerConfig, find_new_path, path_collides, plan_heading_change
+from fuzzynav.tpt import TrajectoryPredictionTable, build_tpt
+from fuzzynav.tracking import Track
+
+MODES = ("direct", "fuzzy", "wait", "detour", "stop")
+
+
+@dataclass(frozen=True)
+class NavigatorConfig:
+    """When static navigation uses the fuzzy controller (see the module docstring)."""
+
+    static_near_cm: float = 100.0
+    goal_overrides_static: bool = True
+
+    def __post_init__(self) -> None:
+        if self.static_near_cm < 0:
+            raise ValueError(f"navigator.static_near_cm: must be >= 0, got {self.static_near_cm}")
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What the robot knows at one step: its own state (odometry), the goal (cm), sonar readings
+    (left, front, right; cm), perceived moving obstacles and static laser points (P, 2; cm)."""
+
+    state: RobotState
+    goal: tuple[float, float]
+    sonar: tuple[float, float, float]
+    tracks: tuple[Track, ...]
+    static_points: np.ndarray
+
+
+@dataclass(frozen=True)
+class ActivePlan:
+    """A plan being followed: ``done`` of its steps have been executed."""
+
+    plan: Plan
+    done: int = 0
+
+    @property
+    def remaining(self) -> np.ndarray:
+        return self.plan.path[self.done:]
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The command of one step and why: ``mode`` (direct | fuzzy | wait | detour | stop), the steering
+    increment (degrees) and speed (cm/s; 0 = stand still), the controller inputs (left, front, right in cm;
+    included angle in degrees), the table (None when no moving obstacle is perceived or strategy none),
+    the plan being followed and whether it was made on this step."""
+
+    mode: str
+    dtheta_deg: float
+    v_cm_s: float
+    inputs: tuple[float, float, float, float]
+    tpt: TrajectoryPredictionTable | None
+    plan: Plan | None
+    new_plan: bool
+
+
+def included_angle_deg(state: RobotState, goal: tuple[float, float]) -> float:
+    """Angle (degrees, [0, 180]) between the robot's right-hand axis and the bearing to the goal:
+    0 = goal to the right, 90 = straight ahead, 180 = to the left; a goal behind is clipped to 0 or 180."""
+    rel = wrap_deg(bearing_deg(state.x, state.y, goal[0], goal[1]) - state.heading)
+    return float(min(180.0, max(0.0, 90.0 + rel)))
+
+
+class Navigator:
+    """Decides one step at a time; holds no state between steps (the active plan is passed in and out)."""
+
+    def __init__(self, evaluator: FastEvaluator, planner: PlannerConfig, navigator: NavigatorConfig,
+                 limits: RobotLimits, robot_radius: float, dt: float = 1.0,
+                 front_sector_deg: tuple[float, float] = (-30.0, 30.0)) -> None:
+        self.evaluator = evaluator
+        self.planner = planner
+        self.config = navigator
+        self.limits = limits
+        self.robot_radius = robot_radius
+        self.dt = dt
+        self.front_sector = front_sector_deg
+        self._sources = {v.name: (v.source, v.scale) for v in evaluator.spec.inputs}
+
+    def fuzzy(self, inputs: Mapping[str, float]) -> tuple[float, float]:
+        """Controller output (dtheta degrees, v cm/s) for observations keyed by source
+        (left/front/right in cm, angle in degrees)."""
+        values = {name: inputs[src] * scale for name, (src, scale) in self._sources.items()}
+        return self.evaluator.evaluate(values)
+
+    def decide(self, obs: Observation, active: ActivePlan | None) -> tuple[Decision, ActivePlan | None]:
+        """The decision for this step, and the plan to carry into the next step."""
+        s = obs.state
+        left, front, right = obs.sonar
+        angle = included_angle_deg(s, obs.goal)
+        inputs = (left, front, right, angle)
+        tpt = None
+        if self.planner.strategy != "none" and obs.tracks:
+            speed = s.v if s.v > 0 else self.planner.cruise_speed
+            tpt = build_tpt((s.x, s.y), obs.goal, speed, obs.tracks, self.robot_radius, self.planner.n_traj,
+                            self.dt, self.planner.safety_margin_cm)
+        if active is not None and (self.planner.replan_every_step or not self._still_valid(active, obs, tpt)):
+            active = None
+        new_plan = False
+        if active is None and tpt is not None and tpt.any_collision:
+            plan = find_new_path(tpt, self.planner, s.heading, obs.static_points, self.robot_radius,
+                                 self.limits.max_turn_deg)
+            if plan is not None:
+                active, new_plan = ActivePlan(plan), True
+        if active is not None:
+            target = active.remaining[0]
+            here = (s.x, s.y)
+            step = math.dist(here, target)
+            after = ActivePlan(active.plan, active.done + 1)
+            carry = after if after.done < len(after.plan.path) else None
+            if step < 1e-6:
+                mode = "stop" if active.plan.strategy == "stop" else "wait"
+                return Decision(mode, 0.0, 0.0, inputs, tpt, active.plan, new_plan), carry
+            mode = "detour" if active.plan.strategy == "detour" else "wait"
+            return Decision(mode, plan_heading_change(s.heading, here, target), step / self.dt, inputs, tpt,
+                            active.plan, new_plan), carry
+        if min(obs.sonar) < self.config.static_near_cm and not self._goal_in_reach(obs, angle):
+            dtheta, v = self.fuzzy({"left": left, "front": front, "right": right, "angle": angle})
+            return Decision("fuzzy", dtheta, v, inputs, tpt, None, False), None
+        dist = math.dist((s.x, s.y), obs.goal)
+        v = min(self.limits.v_max, dist / self.dt)
+        dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
+        return Decision("direct", dtheta, v, inputs, tpt, None, False), None
+
+    def _goal_in_reach(self, obs: Observation, angle: float) -> bool:
+        if not self.config.goal_overrides_static:
+            return False
+        rel = angle - 90.0  # bearing of the goal relative to the heading, degrees
+        lo, hi = self.front_sector
+        dist = math.dist(obs.state.position, obs.goal) - self.robot_radius
+        return lo <= rel <= hi and dist < obs.sonar[1]
+
+    def _still_valid(self, active: ActivePlan, obs: Observation, tpt: TrajectoryPredictionTable | None) -> bool:
+        expected = active.plan.path[active.done - 1] if active.done > 0 else None
+        here = np.array(obs.state.position)
+        if expected is not None and math.dist(here, expected) > self.planner.plan_tolerance_cm:
+            return False
+        if tpt is None:
+            return True
+        pts = obs.static_points if self.planner.avoid_static_points else None
+        return not path_collides(tpt, active.remaining, here, pts, self.robot_radius + self.planner.static_margin_cm)

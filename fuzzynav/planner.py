@@ -1,0 +1,377 @@
+"""Dynamic path planning with the Trajectory Prediction Table: the paper's listing, lines 1-60.
+
+Names follow the listing: ``tc`` (first predicted collision step), ``tS = tc - 1`` (last safe step),
+``tG`` (first collision-free step after ``tc``; ``n_traj + 1`` if the collision lasts to the end of the
+table), ``wait_time = tG - tS - 1``, ``h_wait``, ``find_new_path``, ``get_successors``, ``φLow``.
+Steps are counted from now: step 0 is the present, step k is ``k·dt`` seconds ahead. Positions in cm,
+speeds in cm/s, angles in degrees (CCW from +x).
+
+A plan is the list of positions the robot should occupy at steps 1, 2, ..., L.
+
+- **Wait** (line 17): follow the predicted robot trajectory to ``rS = rTraj(tS)`` and stay there until
+  step ``tG - 1`` (``wait_time`` steps of waiting). Chosen when ``wait_time < h_wait`` or
+  ``tG == n_traj + 1``, and the robot standing at ``rS`` collides with nothing during the wait.
+- **Detour** (lines 19-35): back up one step (``tS' = tS - 1`` if ``tS > 1``), follow ``rTraj`` to
+  ``rS' = rTraj(tS')``, then repeatedly move to the successor with minimal ``f = g + h`` (``g``: step
+  length, ``h``: distance to ``rG = rTraj(tG)``; a successor whose move collides costs ∞) until within
+  ``detour_tolerance_cm`` of ``rG``.
+
+Choices where the listing is silent (documented in the README, tested):
+
+- ``tc = 1``: ``tS = 0`` is the present position; waiting means standing still now, a detour starts here.
+- A move "collides" if, during the step, the robot disc comes closer to any tracked obstacle than the sum
+  of radii plus the safety margin (exact minimum distance of the two straight motions over the step), or,
+  with ``avoid_static_points``, closer than the robot radius plus ``static_margin_cm`` to a laser return
+  that is not a moving obstacle. With ``respect_turn_limit`` a successor that needs a sharper turn than
+  the robot can make in one step also costs ∞ (so that every plan is executable).
+- Ties in ``f`` go to the first successor in the listing's order (speeds outer, headings inner).
+- The detour fails when no successor is finite or ``rG`` is not reached within ``detour_max_steps``.
+  Then ``auto`` waits at ``rS`` if that is collision-free (whatever ``h_wait`` says), else stops for one
+  step; ``detour`` stops for one step. ``wait`` waits at ``rS``, else in place, else stops for one step.
+  A stop is a one-step plan at the present position; the robot re-plans on the next step.
+- ``φLow``: ``phi_low_rule = paper`` is lines 39-49 literally. Its 19 headings span the half-plane on
+  one side of the obstacle's line of motion, so a robot that has stepped off that line can never come
+  back to it: with a head-on obstacle (rG on the obstacle's line) no detour can reach rG. The literal
+  rule also picks the half-plane *not* containing the target for φ < 180° and θ < φ (and for
+  φ >= 180° and θ < φ - 180°). ``target_side`` picks the half-plane that contains the bearing θ to rG
+  (what the text describes). ``toward_goal`` (the default, ours) centres the 19 headings on θ
+  (φLow = θ - 90°), so the robot can side-step either way and return; it is what makes head-on
+  obstacles avoidable.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuzzynav.kinematics import wrap_deg
+from fuzzynav.tpt import TrajectoryPredictionTable
+
+STRATEGIES = ("auto", "wait", "detour", "none")
+PHI_LOW_RULES = ("paper", "target_side", "toward_goal")
+DETOUR_SEARCHES = ("greedy", "astar")
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Dynamic path planning parameters (see the module docstring)."""
+
+    strategy: str = "auto"
+    h_wait: int = 2
+    n_traj: int = 9
+    safety_margin_cm: float = 10.0
+    successor_speeds: tuple[float, ...] = (10.0, 25.0, 40.0)
+    n_headings: int = 19
+    heading_step_deg: float = 10.0
+    phi_low_rule: str = "toward_goal"
+    detour_search: str = "greedy"
+    astar_max_expansions: int = 3000
+    detour_tolerance_cm: float = 10.0
+    detour_max_steps: int = 30
+    respect_turn_limit: bool = True
+    avoid_static_points: bool = True
+    static_margin_cm: float = 5.0
+    cruise_speed: float = 25.0
+    plan_tolerance_cm: float = 10.0
+    replan_every_step: bool = False
+
+    def __post_init__(self) -> None:
+        if self.strategy not in STRATEGIES:
+            raise ValueError(f"planner.strategy: unknown strategy {self.strategy!r} "
+                             f"(known: {', '.join(STRATEGIES)})")
+        if self.phi_low_rule not in PHI_LOW_RULES:
+            raise ValueError(f"planner.phi_low_rule: unknown rule {self.phi_low_rule!r} "
+                             f"(known: {', '.join(PHI_LOW_RULES)})")
+        if self.detour_search not in DETOUR_SEARCHES:
+            raise ValueError(f"planner.detour_search: unknown search {self.detour_search!r} "
+                             f"(known: {', '.join(DETOUR_SEARCHES)})")
+        if self.astar_max_expansions < 1:
+            raise ValueError(f"planner.astar_max_expansions: must be >= 1, got {self.astar_max_expansions}")
+        if self.h_wait < 0:
+            raise ValueError(f"planner.h_wait: must be >= 0, got {self.h_wait}")
+        if self.n_traj < 1:
+            raise ValueError(f"planner.n_traj: must be >= 1, got {self.n_traj}")
+        if not self.successor_speeds or any(v <= 0 for v in self.successor_speeds):
+            raise ValueError(f"planner.successor_speeds: need positive speeds, got {self.successor_speeds}")
+        if self.n_headings < 1 or self.heading_step_deg <= 0:
+            raise ValueError("planner.n_headings / heading_step_deg: must be positive")
+        for name in ("safety_margin_cm", "static_margin_cm"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"planner.{name}: must be >= 0, got {getattr(self, name)}")
+        for name in ("detour_tolerance_cm", "cruise_speed", "plan_tolerance_cm"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"planner.{name}: must be > 0, got {getattr(self, name)}")
+        if self.detour_max_steps < 1:
+            raise ValueError(f"planner.detour_max_steps: must be >= 1, got {self.detour_max_steps}")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A short-term path: ``path[i]`` is the position (cm) to occupy at step i+1 after planning.
+
+    ``strategy``: wait | detour | stop. The listing's quantities are kept for logs and explanations;
+    ``detour_start`` is tS' (detour only) and ``obstacle_id`` the colliding track."""
+
+    strategy: str
+    path: np.ndarray
+    tc: int
+    tS: int
+    tG: int
+    wait_time: int
+    obstacle_id: int
+    detour_start: int | None = None
+    phi_low_deg: float | None = None
+    reason: str = ""
+
+
+def find_collision_window(tpt: TrajectoryPredictionTable) -> tuple[int, int, int, int] | None:
+    """Lines 1-5: (tc, tS, tG, obstacle column) of the first predicted collision, or None.
+
+    ``tG`` is the first step after ``tc`` at which the robot does not collide with that obstacle
+    (``n_traj + 1`` if it collides until the end of the table)."""
+    first = tpt.first_collision()
+    if first is None:
+        return None
+    tc, col = first
+    t_g = tpt.n_traj + 1
+    for k in range(tc + 1, tpt.n_traj + 1):
+        if not tpt.collide[k, col]:
+            t_g = k
+            break
+    return tc, tc - 1, t_g, col
+
+
+def phi_low(theta_deg: float, phi_deg: float, rule: str = "paper") -> float:
+    """Lines 39-49: the first of the 19 successor headings (degrees, [0, 360)).
+
+    ``theta_deg``: bearing from the robot to rG; ``phi_deg``: the obstacle's moving angle (both [0, 360))."""
+    theta, phi = theta_deg % 360.0, phi_deg % 360.0
+    if rule == "toward_goal":
+        return (theta - 90.0) % 360.0
+    if rule == "target_side":
+        return phi if (theta - phi) % 360.0 < 180.0 else (phi + 180.0) % 360.0
+    if phi < 180.0:
+        return phi if theta < phi + 180.0 else phi + 180.0
+    return phi - 180.0 if theta < phi else phi
+
+
+def get_successors(r: Sequence[float], r_goal: Sequence[float], phi_deg: float, speeds: Sequence[float],
+                   dt: float = 1.0, n_headings: int = 19, heading_step_deg: float = 10.0,
+                   rule: str = "paper") -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Lines 38-60: the 3 × 19 = 57 next positions from ``r`` (cm).
+
+    Returns positions (S, 2) cm in the listing's order (speed outer, heading inner), their speeds (cm/s),
+    their headings (degrees) and φLow."""
+    theta = math.degrees(math.atan2(r_goal[1] - r[1], r_goal[0] - r[0])) % 360.0
+    low = phi_low(theta, phi_deg, rule)
+    headings = low + heading_step_deg * np.arange(n_headings)
+    v = np.repeat(np.asarray(speeds, dtype=float), n_headings)
+    h = np.tile(headings, len(speeds))
+    rad = np.radians(h)
+    pos = np.stack([r[0] + v * dt * np.cos(rad), r[1] + v * dt * np.sin(rad)], axis=1)
+    return pos, v, h % 360.0, low
+
+
+def moves_collide(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.ndarray, step: int,
+                  static_points: np.ndarray | None, static_clearance: float) -> np.ndarray:
+    """For moves from ``start`` (at step-1) to each of ``ends`` (at ``step``), True where the robot comes
+    too close to a tracked obstacle during the step (exact, both moving straight) or to a static point."""
+    ends = np.atleast_2d(ends)
+    out = np.zeros(len(ends), dtype=bool)
+    if len(tpt.obstacle_ids):
+        o0 = tpt.obstacles_at(step - 1)  # (J, 2)
+        o1 = tpt.obstacles_at(step)
+        limit = tpt.robot_radius + tpt.obstacle_radii + tpt.safety_margin  # (J,)
+        p0 = start[None, None, :] - o0[None, :, :]  # relative position at the start, (1, J, 2)
+        dp = (ends[:, None, :] - start[None, None, :]) - (o1 - o0)[None, :, :]  # (S, J, 2)
+        dd = (dp**2).sum(-1)
+        s = np.clip(-(p0 * dp).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        closest = np.linalg.norm(p0 + s[..., None] * dp, axis=-1)
+        out |= (closest < limit[None, :]).any(axis=1)
+    if static_points is not None and len(static_points):
+        seg = ends - start[None, :]  # (S, 2)
+        rel = static_points[None, :, :] - start[None, None, :]  # (1, P, 2)
+        ll = (seg**2).sum(-1)[:, None]
+        s = np.clip((rel * seg[:, None, :]).sum(-1) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
+        d = np.linalg.norm(rel - s[..., None] * seg[:, None, :], axis=-1)
+        out |= (d < static_clearance).any(axis=1)
+    return out
+
+
+def path_collides(tpt: TrajectoryPredictionTable, path: np.ndarray, start: np.ndarray,
+                  static_points: np.ndarray | None, static_clearance: float) -> bool:
+    """True if following ``path`` (positions at steps 1..L) from ``start`` collides at any step."""
+    prev = np.asarray(start, dtype=float)
+    for k, p in enumerate(path, start=1):
+        if moves_collide(tpt, prev, p[None, :], k, static_points, static_clearance)[0]:
+            return True
+        prev = p
+    return False
+
+
+def _wait_path(tpt: TrajectoryPredictionTable, t_s: int, t_g: int) -> np.ndarray:
+    """Line 17: rTraj(1 -> tS-1), then stay at rTraj(tS) up to step tG-1."""
+    steps = [tpt.robot_at(min(k, t_s)) for k in range(1, max(t_g, 2))]
+    return np.array(steps).reshape(-1, 2)
+
+
+def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, heading_deg: float,
+            config: PlannerConfig, static_points: np.ndarray | None, static_clearance: float,
+            max_turn_deg: float) -> tuple[np.ndarray | None, int, float, str]:
+    """Lines 19-35. Returns (path or None, tS', φLow of the first expansion, reason)."""
+    t_s1 = t_s - 1 if t_s > 1 else t_s
+    r_goal = tpt.robot_at(t_g)
+    prefix = [tpt.robot_at(k) for k in range(1, t_s1 + 1)]
+    start = tpt.robot_at(t_s1)
+    heading = heading_deg if t_s1 == 0 else _bearing(tpt.robot[0], tpt.goal, heading_deg)
+    phi = float(tpt.obstacle_angles_deg[col])
+
+    def expand(current: np.ndarray, head: float, time: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Successors of ``current`` at step ``time`` with their f = g + h (∞ when the move collides)."""
+        succ, _speeds, heads, low = get_successors(current, r_goal, phi, config.successor_speeds, tpt.dt,
+                                                   config.n_headings, config.heading_step_deg,
+                                                   config.phi_low_rule)
+        g = np.linalg.norm(succ - current, axis=1)
+        f = g + np.linalg.norm(succ - r_goal, axis=1)
+        bad = moves_collide(tpt, current, succ, time + 1, static_points, static_clearance)
+        if config.respect_turn_limit:
+            bad |= np.abs((heads - head + 180.0) % 360.0 - 180.0) > max_turn_deg + 1e-9
+        return succ, heads, np.where(bad, np.inf, f), low
+
+    search = _greedy if config.detour_search == "greedy" else _astar
+    path, low, why = search(expand, start, heading, t_s1, r_goal, config)
+    if path is None:
+        return None, t_s1, low, why
+    return np.array(prefix + path).reshape(-1, 2), t_s1, low, why
+
+
+def _greedy(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndarray,
+            config: PlannerConfig) -> tuple[list | None, float, str]:
+    """Lines 23-35 literally: always move to the successor with minimal f, no backtracking."""
+    current, time, path, first_low = start, t_s1, [], None
+    while math.dist(current, r_goal) > config.detour_tolerance_cm:
+        if time - t_s1 >= config.detour_max_steps:
+            return None, first_low or 0.0, f"rG not reached within {config.detour_max_steps} steps"
+        succ, heads, f, low = expand(current, heading, time)
+        first_low = low if first_low is None else first_low
+        best = int(np.argmin(f))
+        if not np.isfinite(f[best]):
+            return None, first_low, f"no collision-free successor at step {time + 1}"
+        current, heading = succ[best], float(heads[best])
+        path.append(current)
+        time += 1
+    return path, first_low or 0.0, "rG reached"
+
+
+def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndarray,
+           config: PlannerConfig) -> tuple[list | None, float, str]:
+    """Our extension (the paper calls its search "similar to A*"): best-first search over the same
+    successors and costs, with g accumulated along the path and backtracking, in (position, step) space.
+    States are merged on a 10 cm grid (first arrival wins); ties in f go to the path with fewer steps."""
+    first_low = None
+    h0 = float(np.linalg.norm(start - r_goal))
+    heap: list = [(h0, 0, 0, 0.0, tuple(start), heading, t_s1, None)]
+    parents: dict[int, tuple] = {}
+    seen: set[tuple[int, int]] = set()
+    counter = 0
+    expansions = 0
+    while heap:
+        _f, depth, node_id, g, pos, head, time, parent = heapq.heappop(heap)
+        parents[node_id] = (pos, parent)
+        here = np.array(pos)
+        if math.dist(pos, r_goal) <= config.detour_tolerance_cm and depth > 0:
+            path = []
+            nid = node_id
+            while nid is not None and parents[nid][1] is not None:
+                path.append(np.array(parents[nid][0]))
+                nid = parents[nid][1]
+            return path[::-1], first_low or 0.0, f"rG reached ({expansions} expansions)"
+        key = (round(pos[0] / 10.0), round(pos[1] / 10.0))
+        if key in seen or depth >= config.detour_max_steps:
+            continue
+        seen.add(key)
+        expansions += 1
+        if expansions > config.astar_max_expansions:
+            return None, first_low or 0.0, f"rG not reached within {config.astar_max_expansions} expansions"
+        succ, heads, f, low = expand(here, head, time)
+        first_low = low if first_low is None else first_low
+        steps = np.linalg.norm(succ - here, axis=1)
+        for i in np.nonzero(np.isfinite(f))[0]:
+            counter += 1
+            g2 = g + float(steps[i])
+            h2 = float(np.linalg.norm(succ[i] - r_goal))
+            heapq.heappush(heap, (g2 + h2, depth + 1, counter, g2, tuple(succ[i]), float(heads[i]), time + 1,
+                                  node_id))
+    return None, first_low or 0.0, "no collision-free path to rG"
+
+
+def _bearing(p: np.ndarray, goal: Sequence[float], default: float) -> float:
+    dx, dy = goal[0] - p[0], goal[1] - p[1]
+    return default if dx == 0 and dy == 0 else math.degrees(math.atan2(dy, dx)) % 360.0
+
+
+def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading_deg: float,
+                  static_points: np.ndarray | None = None, robot_radius: float | None = None,
+                  max_turn_deg: float = 120.0) -> Plan | None:
+    """Lines 1-37: plan around the first predicted collision of ``tpt``; None when none is predicted.
+
+    ``heading_deg`` is the robot's present heading; ``static_points`` (P, 2) cm are laser returns that
+    are not moving obstacles (used when ``config.avoid_static_points``)."""
+    window = find_collision_window(tpt)
+    if window is None:
+        return None
+    tc, t_s, t_g, col = window
+    wait_time = t_g - t_s - 1
+    oid = tpt.obstacle_ids[col]
+    radius = tpt.robot_radius if robot_radius is None else robot_radius
+    pts = static_points if config.avoid_static_points else None
+    clearance = radius + config.static_margin_cm
+    here = tpt.robot[0]
+
+    def make(strategy: str, path: np.ndarray, reason: str, **kw) -> Plan:
+        return Plan(strategy=strategy, path=path, tc=tc, tS=t_s, tG=t_g, wait_time=wait_time,
+                    obstacle_id=oid, reason=reason, **kw)
+
+    def wait_plan() -> np.ndarray | None:
+        path = _wait_path(tpt, t_s, t_g)
+        return None if path_collides(tpt, path, here, pts, clearance) else path
+
+    stop = make("stop", here[None, :].copy(), "no safe wait or detour: stand still and re-plan")
+    strategy = config.strategy
+    if strategy == "auto":
+        if wait_time < config.h_wait or t_g == tpt.n_traj + 1:
+            path = wait_plan()
+            if path is not None:
+                return make("wait", path, f"waitTime {wait_time} < hWait {config.h_wait}"
+                            if wait_time < config.h_wait else "collision lasts to the end of the table")
+        path, t_s1, low, why = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
+        if path is not None:
+            return make("detour", path, f"waitTime {wait_time} >= hWait {config.h_wait}: detour",
+                        detour_start=t_s1, phi_low_deg=low)
+        path = wait_plan()
+        if path is not None:
+            return make("wait", path, f"detour failed ({why}): wait instead")
+        return stop
+    if strategy == "wait":
+        path = wait_plan()
+        if path is not None:
+            return make("wait", path, "wait strategy")
+        in_place = np.repeat(here[None, :], max(t_g - 1, 1), axis=0)
+        if not path_collides(tpt, in_place, here, pts, clearance):
+            return make("wait", in_place, "wait strategy: waiting at rS collides, wait in place")
+        return stop
+    path, t_s1, low, why = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
+    if path is not None:
+        return make("detour", path, "detour strategy", detour_start=t_s1, phi_low_deg=low)
+    return make("stop", here[None, :].copy(), f"detour failed ({why}): stand still and re-plan")
+
+
+def plan_heading_change(heading_deg: float, here: Sequence[float], target: Sequence[float]) -> float:
+    """Steering increment (degrees) that points the robot at ``target``; 0 when already there."""
+    if math.dist(here, target) < 1e-9:
+        return 0.0
+    return wrap_deg(math.degrees(math.atan2(target[1] - here[1], target[0] - here[0])) - heading_deg)

@@ -1,0 +1,299 @@
+"""Scenario model: the world an episode runs in, as a frozen dataclass tree that maps 1:1 onto YAML.
+
+All lengths are in cm, speeds in cm/s, headings in degrees counter-clockwise from +x::
+
+    name: head_on
+    bounds: [0, 0, 1000, 600]              # xmin, ymin, xmax, ymax; leaving them is a static collision
+    robot: {start: [100, 300], heading: 0, goal: [900, 300], radius: 20}
+    static_obstacles:
+      - polygon: [[400, 0], [450, 0], [450, 150]]
+      - circle: {center: [600, 450], radius: 40}
+    dynamic_obstacles:
+      - {id: walker, radius: 20, start: [900, 300], velocity: [-20, 0]}
+      - {id: loop, radius: 25, waypoints: [[200, 100], [800, 100]], speed: 30, loop: true}
+    max_steps: 200
+    goal_tolerance: 20                     # default: robot radius
+
+:func:`scenario_from_dict` validates plain data and raises one :class:`ScenarioError` per problem, its
+message starting with the field, e.g. ``static_obstacles[2].polygon: self-intersecting``. Constructing
+:class:`Scenario` directly runs the same geometric checks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import shapely
+from shapely.geometry import Point, Polygon, box
+from shapely.validation import explain_validity
+
+Vec2 = tuple[float, float]
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario; the message starts with the offending field."""
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot: start position (cm), initial heading (degrees CCW from +x), goal (cm), radius (cm)."""
+
+    start: Vec2
+    goal: Vec2
+    heading: float = 0.0
+    radius: float = 20.0
+
+
+@dataclass(frozen=True)
+class Circle:
+    """A circle: centre (cm) and radius (cm)."""
+
+    center: Vec2
+    radius: float
+
+
+@dataclass(frozen=True)
+class StaticObstacle:
+    """A static obstacle: exactly one of ``polygon`` (vertices, cm) or ``circle``."""
+
+    polygon: tuple[Vec2, ...] | None = None
+    circle: Circle | None = None
+
+    def geometry(self) -> shapely.Geometry:
+        """The obstacle as a shapely geometry (circles are 64-gon approximations, inscribed to < 0.1 %)."""
+        if self.circle is not None:
+            return Point(self.circle.center).buffer(self.circle.radius, quad_segs=16)
+        return Polygon(self.polygon)
+
+
+@dataclass(frozen=True)
+class DynamicObstacle:
+    """A moving disc. Either constant velocity (``start`` cm, ``velocity`` cm/s) or a waypoint path
+    (``waypoints`` cm, ``speed`` cm/s, ``loop``: return to the first waypoint and repeat; otherwise the
+    obstacle stops at the last waypoint). Moving obstacles are scripted: they pass through everything."""
+
+    id: str
+    radius: float
+    start: Vec2 | None = None
+    velocity: Vec2 | None = None
+    waypoints: tuple[Vec2, ...] | None = None
+    speed: float | None = None
+    loop: bool = False
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A complete scenario (cm, s, degrees). ``goal_tolerance`` None means the robot radius."""
+
+    bounds: tuple[float, float, float, float]
+    robot: RobotSpec
+    static_obstacles: tuple[StaticObstacle, ...] = ()
+    dynamic_obstacles: tuple[DynamicObstacle, ...] = ()
+    max_steps: int = 300
+    goal_tolerance: float | None = None
+    name: str = "unnamed"
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        validate_geometry(self)
+
+    @property
+    def tolerance(self) -> float:
+        """Goal tolerance in cm (the robot radius unless set)."""
+        return self.robot.radius if self.goal_tolerance is None else self.goal_tolerance
+
+
+# -- parsing from plain data ----------------------------------------------------------------------------
+
+
+def _finite(value: Any, path: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ScenarioError(f"{path}: expected a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ScenarioError(f"{path}: must be finite, got {value!r}")
+    if abs(x) > 1e9:
+        raise ScenarioError(f"{path}: {value!r} is out of range (|x| <= 1e9 cm)")
+    return x
+
+
+def _positive(value: Any, path: str) -> float:
+    x = _finite(value, path)
+    if x <= 0:
+        raise ScenarioError(f"{path}: must be > 0, got {value!r}")
+    return x
+
+
+def _vec2(value: Any, path: str) -> Vec2:
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
+        raise ScenarioError(f"{path}: expected [x, y], got {value!r}")
+    return (_finite(value[0], f"{path}[0]"), _finite(value[1], f"{path}[1]"))
+
+
+def _points(value: Any, path: str, minimum: int) -> tuple[Vec2, ...]:
+    if not isinstance(value, Sequence) or isinstance(value, str):
+        raise ScenarioError(f"{path}: expected a list of [x, y] points, got {value!r}")
+    if len(value) < minimum:
+        raise ScenarioError(f"{path}: needs at least {minimum} point(s), got {len(value)}")
+    return tuple(_vec2(p, f"{path}[{i}]") for i, p in enumerate(value))
+
+
+def _mapping(value: Any, path: str) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        raise ScenarioError(f"{path}: expected a mapping, got {type(value).__name__}")
+    return value
+
+
+def _keys(data: Mapping[str, Any], allowed: set[str], required: set[str], path: str) -> None:
+    prefix = f"{path}." if path else ""
+    for key in data:
+        if key not in allowed:
+            raise ScenarioError(f"{prefix}{key}: unknown key (allowed: {', '.join(sorted(allowed))})")
+    for key in sorted(required):
+        if key not in data or data[key] is None:
+            raise ScenarioError(f"{prefix}{key}: missing")
+
+
+def _robot(data: Any) -> RobotSpec:
+    data = _mapping(data, "robot")
+    _keys(data, {"start", "goal", "heading", "radius"}, {"start", "goal"}, "robot")
+    return RobotSpec(start=_vec2(data["start"], "robot.start"), goal=_vec2(data["goal"], "robot.goal"),
+                     heading=_finite(data.get("heading", 0.0), "robot.heading"),
+                     radius=_positive(data.get("radius", 20.0), "robot.radius"))
+
+
+def _static(data: Any, path: str) -> StaticObstacle:
+    data = _mapping(data, path)
+    _keys(data, {"polygon", "circle"}, set(), path)
+    has = [k for k in ("polygon", "circle") if data.get(k) is not None]
+    if len(has) != 1:
+        raise ScenarioError(f"{path}: give exactly one of polygon or circle")
+    if has[0] == "polygon":
+        return StaticObstacle(polygon=_points(data["polygon"], f"{path}.polygon", 3))
+    c = _mapping(data["circle"], f"{path}.circle")
+    _keys(c, {"center", "radius"}, {"center", "radius"}, f"{path}.circle")
+    return StaticObstacle(circle=Circle(center=_vec2(c["center"], f"{path}.circle.center"),
+                                        radius=_positive(c["radius"], f"{path}.circle.radius")))
+
+
+def _dynamic(data: Any, path: str) -> DynamicObstacle:
+    data = _mapping(data, path)
+    _keys(data, {"id", "radius", "start", "velocity", "waypoints", "speed", "loop"}, {"id", "radius"}, path)
+    oid = data["id"]
+    if isinstance(oid, bool) or not isinstance(oid, str | int) or str(oid) == "":
+        raise ScenarioError(f"{path}.id: expected a non-empty string or integer, got {oid!r}")
+    radius = _positive(data["radius"], f"{path}.radius")
+    has_cv = data.get("start") is not None or data.get("velocity") is not None
+    has_wp = data.get("waypoints") is not None
+    if has_cv == has_wp:
+        raise ScenarioError(f"{path}: give either start + velocity or waypoints + speed")
+    if has_cv:
+        for key in ("start", "velocity"):
+            if data.get(key) is None:
+                raise ScenarioError(f"{path}.{key}: missing")
+        if data.get("speed") is not None or data.get("loop"):
+            raise ScenarioError(f"{path}: speed and loop go with waypoints, not with start + velocity")
+        return DynamicObstacle(id=str(oid), radius=radius, start=_vec2(data["start"], f"{path}.start"),
+                               velocity=_vec2(data["velocity"], f"{path}.velocity"))
+    waypoints = _points(data["waypoints"], f"{path}.waypoints", 1)
+    if data.get("speed") is None:
+        raise ScenarioError(f"{path}.speed: missing")
+    speed = _positive(data["speed"], f"{path}.speed")
+    loop = data.get("loop", False)
+    if not isinstance(loop, bool):
+        raise ScenarioError(f"{path}.loop: expected true or false, got {loop!r}")
+    return DynamicObstacle(id=str(oid), radius=radius, waypoints=waypoints, speed=speed, loop=loop)
+
+
+def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
+    """Validate plain data (as loaded from YAML) and build a :class:`Scenario`."""
+    data = _mapping(data, "scenario")
+    _keys(data, {"name", "description", "bounds", "robot", "static_obstacles", "dynamic_obstacles",
+                 "max_steps", "goal_tolerance"}, {"bounds", "robot"}, "")
+    b = data["bounds"]
+    if not isinstance(b, Sequence) or isinstance(b, str) or len(b) != 4:
+        raise ScenarioError(f"bounds: expected [xmin, ymin, xmax, ymax], got {b!r}")
+    bounds = tuple(_finite(v, f"bounds[{i}]") for i, v in enumerate(b))
+    statics = data.get("static_obstacles") or []
+    dynamics = data.get("dynamic_obstacles") or []
+    for key, value in (("static_obstacles", statics), ("dynamic_obstacles", dynamics)):
+        if not isinstance(value, Sequence) or isinstance(value, str):
+            raise ScenarioError(f"{key}: expected a list")
+    max_steps = data.get("max_steps", 300)
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise ScenarioError(f"max_steps: expected a positive integer, got {max_steps!r}")
+    tol = data.get("goal_tolerance")
+    return Scenario(
+        name=str(data.get("name", "unnamed")), description=str(data.get("description", "")),
+        bounds=bounds, robot=_robot(data["robot"]),  # type: ignore[arg-type]
+        static_obstacles=tuple(_static(o, f"static_obstacles[{i}]") for i, o in enumerate(statics)),
+        dynamic_obstacles=tuple(_dynamic(o, f"dynamic_obstacles[{i}]") for i, o in enumerate(dynamics)),
+        max_steps=max_steps, goal_tolerance=None if tol is None else _positive(tol, "goal_tolerance"))
+
+
+# -- geometric validation ---------------------------------------------------------------------------------
+
+
+def validate_geometry(s: Scenario) -> None:
+    """Check the relations between the parts of a scenario; raise :class:`ScenarioError` on the first."""
+    xmin, ymin, xmax, ymax = s.bounds
+    if not (xmin < xmax and ymin < ymax):
+        raise ScenarioError(f"bounds: need xmin < xmax and ymin < ymax, got {list(s.bounds)}")
+    area = box(xmin, ymin, xmax, ymax)
+    r = s.robot.radius
+    if r <= 0:
+        raise ScenarioError(f"robot.radius: must be > 0, got {r}")
+    start, goal = Point(s.robot.start), Point(goal_xy := s.robot.goal)
+    if not area.contains(start):
+        raise ScenarioError(f"robot.start: {list(s.robot.start)} is outside bounds {list(s.bounds)}")
+    if not area.contains(goal):
+        raise ScenarioError(f"robot.goal: {list(goal_xy)} is outside bounds {list(s.bounds)}")
+    if start.distance(area.exterior) < r:
+        raise ScenarioError(f"robot.start: the robot (radius {r} cm) does not fit inside the bounds there")
+    if s.tolerance <= 0:
+        raise ScenarioError(f"goal_tolerance: must be > 0, got {s.goal_tolerance}")
+    if start.distance(goal) <= s.tolerance:
+        raise ScenarioError(f"robot.goal: equal to robot.start (within goal_tolerance {s.tolerance} cm)")
+    for i, obs in enumerate(s.static_obstacles):
+        path = f"static_obstacles[{i}]"
+        if obs.circle is not None:
+            if obs.circle.radius <= 0:
+                raise ScenarioError(f"{path}.circle.radius: must be > 0, got {obs.circle.radius}")
+            geom = obs.geometry()
+        else:
+            if obs.polygon is None or len(obs.polygon) < 3:
+                raise ScenarioError(f"{path}.polygon: needs at least 3 points")
+            geom = obs.geometry()
+            if not geom.is_valid:
+                reason = explain_validity(geom)
+                what = "self-intersecting" if "Self-intersection" in reason else reason
+                raise ScenarioError(f"{path}.polygon: {what}")
+            if geom.area <= 0:
+                raise ScenarioError(f"{path}.polygon: has zero area")
+        if geom.contains(start) or geom.distance(start) < r:
+            raise ScenarioError(f"{path}: overlaps the robot at robot.start (radius {r} cm)")
+        if geom.covers(goal):
+            raise ScenarioError(f"robot.goal: inside {path}")
+    seen: set[str] = set()
+    for i, dyn in enumerate(s.dynamic_obstacles):
+        path = f"dynamic_obstacles[{i}]"
+        if dyn.id in seen:
+            raise ScenarioError(f"{path}.id: duplicate id {dyn.id!r}")
+        seen.add(dyn.id)
+        if dyn.radius <= 0:
+            raise ScenarioError(f"{path}.radius: must be > 0, got {dyn.radius}")
+        if dyn.waypoints is not None:
+            if len(dyn.waypoints) == 0:
+                raise ScenarioError(f"{path}.waypoints: empty")
+            if dyn.speed is None or dyn.speed <= 0:
+                raise ScenarioError(f"{path}.speed: must be > 0 with waypoints, got {dyn.speed}")
+            first = dyn.waypoints[0]
+        else:
+            if dyn.start is None or dyn.velocity is None:
+                raise ScenarioError(f"{path}: constant-velocity obstacles need start and velocity")
+            first = dyn.start
+        if Point(first).distance(start) < r + dyn.radius:
+            raise ScenarioError(f"{path}: overlaps the robot at robot.start")

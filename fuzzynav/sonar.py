@@ -1,0 +1,76 @@
+"""Sonar: distance from the robot's surface to the nearest obstacle in the Left, Front and Right sectors.
+
+Sector angles are degrees relative to the heading (positive = to the left); distances in cm. Each sector
+is a wedge with its apex at the robot centre and radius ``robot radius + range``; the reading is the
+distance from the robot's surface to the nearest point of an obstacle or wall inside the wedge, clipped
+to [0, range], and ``range`` when the wedge is empty. The wedges are intersected with the world in one
+vectorised shapely call.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+SECTOR_NAMES = ("left", "front", "right")
+
+
+@dataclass(frozen=True)
+class SonarConfig:
+    """Sectors (degrees relative to the heading), range (cm), arc sampling step (degrees), and whether the
+    sonar also sees moving obstacles (the paper's sonar sees static obstacles only)."""
+
+    left: tuple[float, float] = (30.0, 90.0)
+    front: tuple[float, float] = (-30.0, 30.0)
+    right: tuple[float, float] = (-90.0, -30.0)
+    range_cm: float = 130.0
+    arc_step_deg: float = 2.0
+    sees_dynamic: bool = False
+
+    def __post_init__(self) -> None:
+        for name in SECTOR_NAMES:
+            lo, hi = getattr(self, name)
+            if not lo < hi or hi - lo > 360:
+                raise ValueError(f"sensors.sonar.{name}: need lo < hi (degrees), got [{lo}, {hi}]")
+        if self.range_cm <= 0:
+            raise ValueError(f"sensors.sonar.range_cm: must be > 0, got {self.range_cm}")
+        if not 0 < self.arc_step_deg <= 30:
+            raise ValueError(f"sensors.sonar.arc_step_deg: must be in (0, 30], got {self.arc_step_deg}")
+
+
+class Sonar:
+    """Sonar model for one robot radius; :meth:`read` returns (left, front, right) in cm."""
+
+    def __init__(self, config: SonarConfig, robot_radius: float) -> None:
+        self.config = config
+        self.robot_radius = robot_radius
+        reach = robot_radius + config.range_cm
+        # wedge templates in the robot frame (apex at the origin, heading along +x), one per sector
+        self._templates = []
+        for name in SECTOR_NAMES:
+            lo, hi = getattr(config, name)
+            n = max(2, math.ceil((hi - lo) / config.arc_step_deg) + 1)
+            ang = np.radians(np.linspace(lo, hi, n))
+            arc = np.stack([np.cos(ang), np.sin(ang)], axis=1) * reach
+            self._templates.append(np.vstack([[0.0, 0.0], arc, [0.0, 0.0]]))
+
+    def read(self, x: float, y: float, heading_deg: float, solid: shapely.Geometry,
+             discs: np.ndarray | None = None) -> tuple[float, float, float]:
+        """Readings (left, front, right) in cm for a robot at (x, y) cm with ``heading_deg``.
+
+        ``solid`` is the static world (obstacles + walls); ``discs`` (K, 3) rows ``x, y, r`` are moving
+        obstacles, used only when ``sees_dynamic`` is set."""
+        c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
+        rot = np.array([[c, s], [-s, c]])
+        wedges = shapely.polygons([t @ rot + (x, y) for t in self._templates])
+        target = solid
+        if self.config.sees_dynamic and discs is not None and len(discs):
+            target = shapely.union_all([solid, *shapely.buffer(shapely.points(discs[:, :2]), discs[:, 2])])
+        hits = shapely.intersection(wedges, target)
+        dist = shapely.distance(hits, shapely.Point(x, y))  # NaN for an empty intersection
+        out = np.where(np.isnan(dist), self.config.range_cm, np.clip(dist - self.robot_radius, 0.0,
+                                                                        self.config.range_cm))
+        return float(out[0]), float(out[1]), float(out[2])

@@ -1,0 +1,104 @@
+"""Trajectory Prediction Table (paper section III.C, Table 2).
+
+Row ``k`` (k = 1 .. n_traj) is the prediction for time ``now + k·dt``; row 0 holds the present. The
+robot is predicted to move straight towards the target at its current speed (stopping on it); every
+tracked obstacle at constant velocity. ``collide[k, j]`` is True when robot and obstacle j are closer than
+the sum of their radii plus ``safety_margin_cm`` at step k. Units: cm, s, cm/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuzzynav.tracking import Track
+
+
+@dataclass(frozen=True)
+class TrajectoryPredictionTable:
+    """The table as arrays (row 0 = now, rows 1..n_traj = future steps).
+
+    ``robot``: (n_traj+1, 2) cm; ``obstacles``: (n_traj+1, J, 2) cm; ``collide``: (n_traj+1, J) bool;
+    ``obstacle_ids``, ``obstacle_radii`` (cm), ``obstacle_angles_deg`` (moving angle φ); the robot's
+    predicted speed (cm/s), its radius and the safety margin (cm), ``dt`` (s)."""
+
+    robot: np.ndarray
+    obstacles: np.ndarray
+    collide: np.ndarray
+    obstacle_ids: tuple[int, ...]
+    obstacle_radii: np.ndarray
+    obstacle_velocities: np.ndarray
+    robot_speed: float
+    robot_radius: float
+    safety_margin: float
+    dt: float
+    goal: tuple[float, float]
+
+    @property
+    def n_traj(self) -> int:
+        return self.robot.shape[0] - 1
+
+    @property
+    def obstacle_angles_deg(self) -> np.ndarray:
+        """Moving angle φ of each obstacle, degrees [0, 360)."""
+        v = self.obstacle_velocities.reshape(-1, 2)
+        return np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0
+
+    @property
+    def any_collision(self) -> bool:
+        return bool(self.collide[1:].any())
+
+    def first_collision(self) -> tuple[int, int] | None:
+        """(tc, obstacle column) of the earliest predicted collision in rows 1..n_traj, or None.
+
+        Follows the listing's loop order: time outer, obstacles inner."""
+        rows, cols = np.nonzero(self.collide[1:])
+        if len(rows) == 0:
+            return None
+        return int(rows[0]) + 1, int(cols[0])
+
+    def robot_at(self, k: int) -> np.ndarray:
+        """Robot position (cm) at step k, extrapolated beyond the table (needed for tG = n_traj + 1)."""
+        return predict_robot(self.robot[0], self.goal, self.robot_speed, self.dt, k)[-1]
+
+    def obstacles_at(self, k: float) -> np.ndarray:
+        """Obstacle positions (J, 2) cm at (possibly fractional or beyond-table) step k."""
+        return self.obstacles[0] + self.obstacle_velocities * (k * self.dt)
+
+
+def predict_robot(position: Sequence[float], goal: Sequence[float], speed: float, dt: float,
+                  n: int) -> np.ndarray:
+    """Positions (n+1, 2) cm of a robot moving straight to ``goal`` at ``speed`` cm/s, stopping on it."""
+    p = np.asarray(position, dtype=float)
+    g = np.asarray(goal, dtype=float)
+    d = g - p
+    dist = math.hypot(d[0], d[1])
+    steps = np.arange(n + 1) * speed * dt
+    travel = np.minimum(steps, dist)
+    unit = d / dist if dist > 0 else np.zeros(2)
+    return p + travel[:, None] * unit
+
+
+def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tracks: Sequence[Track],
+              robot_radius: float, n_traj: int = 9, dt: float = 1.0,
+              safety_margin: float = 10.0) -> TrajectoryPredictionTable:
+    """Build the table for a robot at ``position`` (cm) heading for ``goal`` at ``speed`` (cm/s)."""
+    if n_traj < 1:
+        raise ValueError(f"planner.n_traj: must be >= 1, got {n_traj}")
+    robot = predict_robot(position, goal, speed, dt, n_traj)
+    j = len(tracks)
+    pos0 = np.array([[t.x, t.y] for t in tracks], dtype=float).reshape(j, 2)
+    vel = np.array([[t.vx, t.vy] for t in tracks], dtype=float).reshape(j, 2)
+    radii = np.array([t.radius for t in tracks], dtype=float)
+    k = np.arange(n_traj + 1)[:, None, None] * dt
+    obstacles = pos0[None, :, :] + vel[None, :, :] * k
+    gap = np.linalg.norm(obstacles - robot[:, None, :], axis=2)
+    collide = gap < (robot_radius + radii[None, :] + safety_margin)
+    return TrajectoryPredictionTable(
+        robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
+        obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),
+        robot_radius=float(robot_radius), safety_margin=float(safety_margin), dt=float(dt),
+        goal=(float(goal[0]), float(goal[1])))

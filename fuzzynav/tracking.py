@@ -1,0 +1,205 @@
+"""Moving-obstacle tracking from successive laser frames (not from the simulator's state).
+
+Per frame:
+
+1. **Segmentation.** Beams are taken in angular order; two neighbouring returns whose end points are at
+   most ``cluster_gap_cm`` apart belong to one cluster.
+2. **Disc fit.** Each cluster of at least ``min_points`` returns is fitted with a circle (Kasa's algebraic
+   least squares). Clusters that are not small discs — radius above ``max_radius_cm``, a poor fit (walls,
+   polygon corners), or a centre nearer to the robot than the returns — are static structure.
+3. **Association.** Detections are matched to the tracks' predicted positions (constant velocity) by the
+   Hungarian method (``scipy.optimize.linear_sum_assignment``), gated at ``gate_cm``.
+4. **Velocity.** Finite difference of successive fitted centres over the elapsed time, blended with the
+   previous estimate by ``velocity_alpha`` (1 = plain finite difference).
+
+A track is reported as a moving obstacle once it has been seen in two frames and its speed is at least
+``min_speed_cm_s``; small static obstacles therefore never enter the Trajectory Prediction Table.
+Units: cm, s, cm/s; moving angle φ in degrees [0, 360) CCW from +x.
+
+Known limits (documented in the README): an obstacle touching a wall or another obstacle merges with it
+into one cluster and is lost while they touch; occlusion hides obstacles behind others.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from fuzzynav.laser import LaserScan
+
+
+@dataclass(frozen=True)
+class Track:
+    """A moving obstacle as perceived: position (cm), velocity (cm/s), radius (cm)."""
+
+    id: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    radius: float
+
+    @property
+    def speed(self) -> float:
+        """Speed in cm/s."""
+        return math.hypot(self.vx, self.vy)
+
+    @property
+    def moving_angle_deg(self) -> float:
+        """Moving angle φ in degrees [0, 360), counter-clockwise from +x."""
+        return math.degrees(math.atan2(self.vy, self.vx)) % 360.0
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Parameters of the laser tracker (cm, cm/s)."""
+
+    cluster_gap_cm: float = 15.0
+    min_points: int = 3
+    max_radius_cm: float = 60.0
+    max_fit_rms_cm: float = 3.0
+    gate_cm: float = 60.0
+    min_speed_cm_s: float = 5.0
+    max_missed: int = 2
+    velocity_alpha: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("cluster_gap_cm", "max_radius_cm", "max_fit_rms_cm", "gate_cm"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"perception.tracker.{name}: must be > 0, got {getattr(self, name)}")
+        if self.min_points < 3:
+            raise ValueError(f"perception.tracker.min_points: need at least 3, got {self.min_points}")
+        if not 0 < self.velocity_alpha <= 1:
+            raise ValueError(f"perception.tracker.velocity_alpha: must be in (0, 1], got {self.velocity_alpha}")
+
+
+@dataclass(frozen=True)
+class _Tracked:
+    id: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    radius: float
+    time: float  # time (s) of the last measurement
+    hits: int
+    missed: int
+
+
+@dataclass(frozen=True)
+class TrackerState:
+    """Everything the tracker remembers between frames."""
+
+    tracks: tuple[_Tracked, ...] = ()
+    next_id: int = 1
+
+
+@dataclass(frozen=True)
+class Detection:
+    """A disc found in one frame: centre (cm), radius (cm), and the beam indices it came from."""
+
+    x: float
+    y: float
+    radius: float
+    beams: np.ndarray
+
+
+def segment(scan: LaserScan, gap_cm: float) -> list[np.ndarray]:
+    """Split the returned beams into clusters of neighbouring returns; each cluster is an index array."""
+    n = len(scan.ranges)
+    ret = scan.ranges < scan.range_cm
+    if not ret.any():
+        return []
+    pts = np.stack([scan.ranges * np.cos(scan.angles_world_rad), scan.ranges * np.sin(scan.angles_world_rad)], 1)
+    nxt = np.roll(np.arange(n), -1)
+    linked = ret & ret[nxt] & (np.hypot(*(pts[nxt] - pts).T) <= gap_cm)
+    if linked.all():
+        return [np.arange(n)]
+    # start a cluster at each returned beam not linked from its predecessor; rotate so index 0 starts one
+    starts = ret & ~np.roll(linked, 1)
+    first = int(np.argmax(starts))
+    order = np.roll(np.arange(n), -first)
+    label = np.cumsum(starts[order])
+    keep = ret[order]
+    return [order[keep & (label == k)] for k in np.unique(label[keep])]
+
+
+def fit_disc(points: np.ndarray) -> tuple[float, float, float, float]:
+    """Kasa least-squares circle fit: centre x, y, radius and RMS radial residual (cm)."""
+    x, y = points[:, 0], points[:, 1]
+    a = np.stack([x, y, np.ones_like(x)], axis=1)
+    b = x * x + y * y
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    cx, cy = sol[0] / 2.0, sol[1] / 2.0
+    r = math.sqrt(max(sol[2] + cx * cx + cy * cy, 0.0))
+    rms = float(np.sqrt(np.mean((np.hypot(x - cx, y - cy) - r) ** 2)))
+    return float(cx), float(cy), r, rms
+
+
+def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
+    """Disc-shaped clusters of one laser frame (world coordinates)."""
+    ox, oy = scan.origin
+    out = []
+    for beams in segment(scan, config.cluster_gap_cm):
+        if len(beams) < config.min_points:
+            continue
+        r = scan.ranges[beams]
+        a = scan.angles_world_rad[beams]
+        pts = np.stack([ox + r * np.cos(a), oy + r * np.sin(a)], axis=1)
+        extent = np.hypot(*(pts.max(0) - pts.min(0)))
+        if extent > 2.0 * config.max_radius_cm:
+            continue
+        cx, cy, radius, rms = fit_disc(pts)
+        if radius > config.max_radius_cm or rms > config.max_fit_rms_cm:
+            continue
+        if math.hypot(cx - ox, cy - oy) <= float(r.min()):  # concave side towards us: not a disc
+            continue
+        out.append(Detection(cx, cy, radius, beams))
+    return out
+
+
+def update(state: TrackerState, scan: LaserScan, time_s: float,
+           config: TrackerConfig) -> tuple[TrackerState, list[Track], np.ndarray]:
+    """Advance the tracker by one frame taken at ``time_s`` seconds.
+
+    Returns the new state, the moving obstacles (confirmed tracks at least ``min_speed_cm_s`` fast, seen
+    in this frame), and a boolean mask over the beams that belong to those moving obstacles."""
+    dets = detect(scan, config)
+    prev = state.tracks
+    matched: dict[int, int] = {}
+    if prev and dets:
+        cost = np.empty((len(prev), len(dets)))
+        for i, t in enumerate(prev):
+            dt = time_s - t.time
+            px, py = t.x + t.vx * dt, t.y + t.vy * dt
+            for j, d in enumerate(dets):
+                cost[i, j] = math.hypot(d.x - px, d.y - py)
+        rows, cols = linear_sum_assignment(np.where(cost <= config.gate_cm, cost, 1e9))
+        matched = {int(c): int(r) for r, c in zip(rows, cols, strict=True) if cost[r, c] <= config.gate_cm}
+    tracks: list[_Tracked] = []
+    next_id = state.next_id
+    used = set(matched.values())
+    moving_mask = np.zeros(len(scan.ranges), dtype=bool)
+    reported: list[Track] = []
+    for j, d in enumerate(dets):
+        if j in matched:
+            t = prev[matched[j]]
+            dt = time_s - t.time
+            vx_m, vy_m = (d.x - t.x) / dt, (d.y - t.y) / dt
+            al = config.velocity_alpha if t.hits >= 2 else 1.0
+            new = _Tracked(t.id, d.x, d.y, al * vx_m + (1 - al) * t.vx, al * vy_m + (1 - al) * t.vy,
+                           d.radius, time_s, t.hits + 1, 0)
+        else:
+            new = _Tracked(next_id, d.x, d.y, 0.0, 0.0, d.radius, time_s, 1, 0)
+            next_id += 1
+        tracks.append(new)
+        if new.hits >= 2 and math.hypot(new.vx, new.vy) >= config.min_speed_cm_s:
+            reported.append(Track(new.id, new.x, new.y, new.vx, new.vy, new.radius))
+            moving_mask[d.beams] = True
+    for i, t in enumerate(prev):
+        if i not in used and t.missed < config.max_missed:
+            tracks.append(_Tracked(t.id, t.x, t.y, t.vx, t.vy, t.radius, t.time, t.hits, t.missed + 1))
+    return TrackerState(tuple(tracks), next_id), reported, moving_mask

@@ -1,0 +1,61 @@
+"""Static world geometry of a scenario: obstacles and walls as shapely geometry and as numpy arrays.
+
+Lengths in cm. The walls are the edges of ``bounds``; the region outside them counts as an obstacle.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from functools import cached_property
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, box
+
+from fuzzynav.scenario import StaticObstacle
+
+_FRAME = 1.0e4  # thickness (cm) of the solid frame that stands for "outside the bounds"
+
+
+class World:
+    """Static obstacles and walls (``bounds`` = xmin, ymin, xmax, ymax in cm), prepared for sensing and
+    contact checks. Build it from a scenario with ``World(s.bounds, s.static_obstacles)``."""
+
+    def __init__(self, bounds: Sequence[float], static_obstacles: Sequence[StaticObstacle] = ()) -> None:
+        xmin, ymin, xmax, ymax = (float(b) for b in bounds)
+        self.bounds = (xmin, ymin, xmax, ymax)
+        self.area = box(xmin, ymin, xmax, ymax)
+        self.obstacles = shapely.union_all([o.geometry() for o in static_obstacles]) \
+            if static_obstacles else shapely.GeometryCollection()
+        frame = box(xmin - _FRAME, ymin - _FRAME, xmax + _FRAME, ymax + _FRAME).difference(self.area)
+        #: everything solid: static obstacles plus the frame outside the walls (what the sonar sees)
+        self.solid = shapely.union_all([self.obstacles, frame])
+        shapely.prepare(self.solid)
+        segs = [[xmin, ymin, xmax, ymin], [xmax, ymin, xmax, ymax], [xmax, ymax, xmin, ymax],
+                [xmin, ymax, xmin, ymin]]
+        circles = []
+        for o in static_obstacles:
+            if o.circle is not None:
+                circles.append([*o.circle.center, o.circle.radius])
+            else:
+                pts = [*o.polygon, o.polygon[0]]
+                segs.extend([[*a, *b] for a, b in itertools.pairwise(pts)])
+        #: (M, 4) wall and polygon edges; (C, 3) static circles (exact, for ray casting)
+        self.segments = np.array(segs, dtype=float)
+        self.circles = np.array(circles, dtype=float).reshape(-1, 3)
+
+    def static_contact(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
+        """True if a disc of ``radius`` cm moving straight from ``p0`` to ``p1`` touches an obstacle or wall."""
+        path = Point(p1) if np.allclose(p0, p1) else LineString([p0, p1])
+        return bool(shapely.dwithin(self.solid, path, radius - 1e-9))
+
+    def clearance(self, p: np.ndarray) -> float:
+        """Distance in cm from point ``p`` to the nearest static obstacle or wall (0 inside one)."""
+        return float(self.solid.distance(Point(p)))
+
+    @cached_property
+    def static_polygons(self) -> list[list[tuple[float, float]]]:
+        """Exterior rings of the static obstacles (cm), for drawing."""
+        geoms = getattr(self.obstacles, "geoms", [self.obstacles])
+        return [list(g.exterior.coords) for g in geoms if not g.is_empty]

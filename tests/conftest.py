@@ -1,0 +1,37 @@
+"""Shared fixtures: the shipped controller definitions and scenarios, loaded from conf/."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fuzzynav.fuzzy_spec import ControllerSpec
+from fuzzynav.scenario import Scenario, scenario_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+CONF = ROOT / "conf"
+
+
+def load_yaml(path: Path) -> dict:
+    with open(path) as f:
+        return yaml.safe_load(f)
+
+
+def load_controller(name: str) -> ControllerSpec:
+    return ControllerSpec.from_dict(load_yaml(CONF / "controller" / f"{name}.yaml"))
+
+
+def load_scenario(name: str) -> Scenario:
+    return scenario_from_dict(load_yaml(CONF / "scenario" / f"{name}.yaml"))
+
+
+@pytest.fixture(scope="session")
+def table1() -> ControllerSpec:
+    return load_controller("table1")
+
+
+@pytest.fixture(scope="session")
+def listing() -> ControllerSpec:
+    return load_controller("listing")

@@ -1,0 +1,35 @@
+"""The real command: `python -m runners.run` with Hydra overrides."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from tests.conftest import ROOT
+
+
+def run_cli(tmp_path, *overrides):
+    return subprocess.run([sys.executable, "-m", "runners.run", f"hydra.run.dir={tmp_path}", *overrides],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+def test_default_run_prints_outcome(tmp_path):
+    out = run_cli(tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "head_on strategy=auto seed=0: goal after" in out.stdout
+
+
+def test_overrides_and_episodes(tmp_path):
+    out = run_cli(tmp_path, "episode.planner.strategy=none", "episodes=2", "seed=5")
+    assert out.returncode == 0, out.stderr
+    lines = [ln for ln in out.stdout.splitlines() if "strategy=none" in ln]
+    assert len(lines) == 2 and "seed=6: collision" in lines[1]
+
+
+def test_bad_override_is_one_line_error(tmp_path):
+    out = run_cli(tmp_path, "episode.planner.strategy=fly")
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [
+        "error: config: planner.strategy: unknown strategy 'fly' (known: auto, wait, detour, none)"]
+    out = run_cli(tmp_path, "episode.planner.h_wait=-1")
+    assert out.returncode == 2 and "planner.h_wait: must be >= 0" in out.stderr

@@ -1,0 +1,93 @@
+"""Property tests (hypothesis): bounds, sonar range, reaching the goal alone, determinism."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fuzzynav.episode import Episode
+from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
+from fuzzynav.scenario import Circle, StaticObstacle, scenario_from_dict
+from fuzzynav.sonar import Sonar, SonarConfig
+from fuzzynav.world import World
+from tests.conftest import load_controller
+
+TABLE1 = FastEvaluator(load_controller("table1"))
+LISTING = FastEvaluator(load_controller("listing"))
+finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
+
+
+@given(finite, finite, finite, finite)
+@settings(max_examples=300)
+def test_controller_outputs_within_bounds(left, front, right, angle):
+    d, v = TABLE1.evaluate({"left": left, "front": front, "right": right, "angle": angle})
+    assert -120 <= d <= 120 and 10 <= v <= 40
+    d, v = LISTING.evaluate({"SL": left, "SS": front, "SR": right})
+    assert -120 <= d <= 120 and 10 <= v <= 40
+
+
+@st.composite
+def worlds(draw):
+    w, h = draw(st.floats(300, 2000)), draw(st.floats(300, 2000))
+    obstacles = []
+    for _ in range(draw(st.integers(0, 5))):
+        cx, cy = draw(st.floats(0, w)), draw(st.floats(0, h))
+        if draw(st.booleans()):
+            obstacles.append(StaticObstacle(circle=Circle((cx, cy), draw(st.floats(5, 100)))))
+        else:
+            sx, sy = draw(st.floats(5, 200)), draw(st.floats(5, 200))
+            obstacles.append(StaticObstacle(polygon=((cx, cy), (cx + sx, cy), (cx + sx, cy + sy), (cx, cy + sy))))
+    return World((0, 0, w, h), obstacles)
+
+
+@given(worlds(), st.floats(0, 1), st.floats(0, 1), st.floats(-720, 720))
+@settings(max_examples=60, suppress_health_check=[HealthCheck.too_slow])
+def test_sonar_readings_in_range(world, fx, fy, heading):
+    xmin, ymin, xmax, ymax = world.bounds
+    x, y = xmin + fx * (xmax - xmin), ymin + fy * (ymax - ymin)
+    readings = Sonar(SonarConfig(), 20.0).read(x, y, heading, world.solid)
+    assert all(0.0 <= r <= 130.0 for r in readings)
+
+
+@given(st.floats(-200, 200), st.floats(-100, 100), st.floats(0, 360), st.floats(0, 360))
+@settings(max_examples=200)
+def test_unicycle_respects_limits(dtheta, v, heading, _):
+    lim = RobotLimits()
+    s = step_unicycle(RobotState(0.0, 0.0, heading), dtheta, v, 1.0, lim)
+    moved = math.hypot(s.x, s.y)
+    assert moved == 0.0 if v <= 0 else 10.0 - 1e-9 <= moved <= 40.0 + 1e-9
+    turn = (s.heading - heading + 180) % 360 - 180
+    assert abs(turn) <= 120 + 1e-9
+
+
+@given(st.floats(100, 1900), st.floats(100, 1900), st.floats(100, 1900), st.floats(100, 1900),
+       st.floats(0, 360))
+@settings(max_examples=40, deadline=None)
+def test_robot_alone_reaches_goal(sx, sy, gx, gy, heading):
+    if math.hypot(gx - sx, gy - sy) <= 25:
+        return
+    s = scenario_from_dict({"bounds": [0, 0, 2000, 2000], "max_steps": 200,
+                            "robot": {"start": [sx, sy], "goal": [gx, gy], "heading": heading}})
+    ep = Episode(s, TABLE1)
+    list(ep.run())
+    assert ep.outcome == "goal"
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=10, deadline=None)
+def test_same_seed_same_records(seed):
+    s = scenario_from_dict({
+        "bounds": [0, 0, 1000, 600], "max_steps": 60,
+        "robot": {"start": [100, 300], "goal": [900, 300]},
+        "static_obstacles": [{"circle": {"center": [500, 200], "radius": 40}}],
+        "dynamic_obstacles": [{"id": "a", "radius": 20, "start": [800, 320], "velocity": [-25, 0]}]})
+    from fuzzynav.config import episode_config_from_dict
+    cfg = episode_config_from_dict({"laser": {"noise_std_cm": 1.0}})
+    a = [(r.next_state, r.decision.mode) for r in Episode(s, TABLE1, cfg, seed=seed).run()]
+    b = [(r.next_state, r.decision.mode) for r in Episode(s, TABLE1, cfg, seed=seed).run()]
+    assert a == b
+    assert np.isfinite([st_.x for st_, _ in a]).all()
