@@ -17,6 +17,8 @@ When no rule fires (zero output area) the definition's ``fallback`` output is re
 
 from __future__ import annotations
 
+import bisect
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -36,6 +38,11 @@ class _Output:
     falling_start: np.ndarray  # (T,) last index of the maximum
     rule_mask: np.ndarray  # (T, R) True where rule r has this term as consequent
     fallback: float
+    term_rules: tuple[tuple[int, ...], ...]  # rules naming each term (scalar path)
+    area_w: np.ndarray  # (G,) area of the grid polyline = area_w @ y
+    moment_w: np.ndarray  # (G,) first moment of the grid polyline = moment_w @ y
+    rising: tuple[list[float], ...]  # per term: samples up to the first maximum (non-decreasing)
+    falling_neg: tuple[list[float], ...]  # per term: negated samples from the last maximum (non-decreasing)
 
 
 class FastEvaluator:
@@ -75,15 +82,27 @@ class FastEvaluator:
             peak = mfs.max(axis=1, keepdims=True)
             at_peak = mfs == peak
             fallback = spec.fallback_dtheta if var.role == "dtheta" else spec.fallback_v
+            rising_end = at_peak.argmax(axis=1)
+            falling_start = mfs.shape[1] - 1 - at_peak[:, ::-1].argmax(axis=1)
+            area_w, moment_w = _grid_weights(var.grid)
             self._outputs[var.role] = _Output(
-                grid=var.grid, step=var.resolution, mfs=mfs,
-                rising_end=at_peak.argmax(axis=1),
-                falling_start=mfs.shape[1] - 1 - at_peak[:, ::-1].argmax(axis=1),
-                rule_mask=mask, fallback=fallback)
+                grid=var.grid, step=var.resolution, mfs=mfs, rising_end=rising_end, falling_start=falling_start,
+                rule_mask=mask, fallback=fallback,
+                term_rules=tuple(tuple(int(r) for r in np.nonzero(row)[0]) for row in mask),
+                area_w=area_w, moment_w=moment_w,
+                rising=tuple(mfs[t, : rising_end[t] + 1].tolist() for t in range(len(var.terms))),
+                falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))))
+        # plain-Python copies for the scalar path
+        self._scalar_inputs = [(var.name, var.universe[0], var.universe[1], var.resolution, var.is_crisp,
+                                [t.params for t in var.terms], mfs.T.tolist())
+                               for var, mfs, _ in self._inputs]
+        self._scalar_rules = [tuple(int(i) for i in row) for row in self._antecedents]
 
     # -- public API -------------------------------------------------------------------------------------
     def evaluate(self, inputs: Mapping[str, float | np.ndarray]) -> tuple:
         """Return ``(dtheta, v)`` for scalar inputs (floats) or 1-D arrays (arrays of the same length)."""
+        if all(isinstance(v, float | int) for v in inputs.values()):
+            return self._evaluate_scalar(inputs)
         arrays = {k: np.asarray(v, dtype=float) for k, v in inputs.items()}
         scalar = all(a.ndim == 0 for a in arrays.values())
         n = 1 if scalar else max(a.size for a in arrays.values())
@@ -171,6 +190,75 @@ class FastEvaluator:
         result = np.full(n, out.fallback)
         result[ok] = total_moment[ok] / total_area[ok]
         return result
+
+    # -- scalar path: the same computation with Python floats where arrays would be tiny ------------------
+    def _evaluate_scalar(self, inputs: Mapping[str, float]) -> tuple[float, float]:
+        mu: list[float] = []
+        for name, lo, hi, step, crisp, params, mf_rows in self._scalar_inputs:
+            x = min(max(float(inputs[name]), lo), hi)
+            if crisp:
+                mu.extend(1.0 if (a <= x < b or (b >= hi and a <= x <= b)) else 0.0 for a, b in params)
+                continue
+            pos = (x - lo) / step
+            i = min(max(math.floor(pos), 0), len(mf_rows) - 2)
+            f = pos - i
+            lo_row, hi_row = mf_rows[i], mf_rows[i + 1]
+            mu.extend(a * (1.0 - f) + b * f for a, b in zip(lo_row, hi_row, strict=True))
+        mu.append(1.0)
+        act = [min(mu[i] for i in row) for row in self._scalar_rules]
+        return (self._defuzz_scalar(self._outputs["dtheta"], act), self._defuzz_scalar(self._outputs["v"], act))
+
+    @staticmethod
+    def _defuzz_scalar(out: _Output, act: list[float]) -> float:
+        cuts = [max((act[r] for r in rules), default=0.0) for rules in out.term_rules]
+        cut_arr = np.array(cuts)
+        y = np.minimum(cut_arr[:, None], out.mfs).max(axis=0)
+        area = float(out.area_w @ y)
+        moment = float(out.moment_w @ y)
+        grid, h, mfs = out.grid, out.step, out.mfs
+        points = []  # (x, segment) where a term crosses its cut level, as scikit-fuzzy adds them
+        for t, level in enumerate(cuts):
+            if level <= 0.0:
+                continue
+            rise = out.rising[t]
+            j = bisect.bisect_left(rise, level)
+            if 1 <= j < len(rise):
+                points.append((float(grid[j - 1]) + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1))
+            fall = out.falling_neg[t]
+            cnt = bisect.bisect_right(fall, -level)
+            if 1 <= cnt < len(fall):
+                k = cnt - 1
+                start = int(out.falling_start[t])
+                points.append((float(grid[start + k]) + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k))
+        if points:
+            points.sort()
+            by_seg: dict[int, list[float]] = {}
+            for x, seg in points:
+                by_seg.setdefault(seg, []).append(x)
+            for seg, xs in by_seg.items():
+                x0, x1 = float(grid[seg]), float(grid[seg + 1])
+                ys = []
+                for x in xs:
+                    f = (x - x0) / h
+                    ys.append(max(min(c, mfs[t, seg] * (1.0 - f) + mfs[t, seg + 1] * f) for t, c in enumerate(cuts)))
+                xs_all = [x0, *xs, x1]
+                ys_all = [float(y[seg]), *ys, float(y[seg + 1])]
+                a0, m0 = _trapezoids(x0, x1, ys_all[0], ys_all[-1])
+                area -= a0
+                moment -= m0
+                for i in range(len(xs_all) - 1):
+                    a1, m1 = _trapezoids(xs_all[i], xs_all[i + 1], ys_all[i], ys_all[i + 1])
+                    area += a1
+                    moment += m1
+        return moment / area if area > 0 else out.fallback
+
+
+def _grid_weights(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weights w_a, w_m with area = w_a @ y and first moment = w_m @ y for the polyline through (grid, y)."""
+    n = len(grid)
+    eye = np.eye(n)
+    area, moment = _trapezoids(grid[:-1, None], grid[1:, None], eye[:-1], eye[1:])
+    return area.sum(axis=0), moment.sum(axis=0)
 
 
 def _trapezoids(x1, x2, y1, y2):

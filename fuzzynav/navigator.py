@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav.clearance import segment_point_clearance
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState, bearing_deg, wrap_deg
 from fuzzynav.planner import Plan, PlannerConfig, find_new_path, path_collides, plan_heading_change
@@ -42,10 +43,14 @@ class NavigatorConfig:
 
     static_near_cm: float = 100.0
     goal_overrides_static: bool = True
+    direct_needs_clear_path: bool = True
+    clear_path_margin_cm: float = 5.0
 
     def __post_init__(self) -> None:
         if self.static_near_cm < 0:
             raise ValueError(f"navigator.static_near_cm: must be >= 0, got {self.static_near_cm}")
+        if self.clear_path_margin_cm < 0:
+            raise ValueError(f"navigator.clear_path_margin_cm: must be >= 0, got {self.clear_path_margin_cm}")
 
 
 @dataclass(frozen=True)
@@ -147,13 +152,27 @@ class Navigator:
             mode = "detour" if active.plan.strategy == "detour" else "wait"
             return Decision(mode, plan_heading_change(s.heading, here, target), step / self.dt, inputs, tpt,
                             active.plan, new_plan), carry
-        if min(obs.sonar) < self.config.static_near_cm and not self._goal_in_reach(obs, angle):
+        dist = math.dist((s.x, s.y), obs.goal)
+        v = max(self.limits.v_min, min(self.limits.v_max, dist / self.dt))
+        dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
+        near = min(obs.sonar) < self.config.static_near_cm and not self._goal_in_reach(obs, angle)
+        if near or not self._direct_is_clear(obs, dtheta, v):
             dtheta, v = self.fuzzy({"left": left, "front": front, "right": right, "angle": angle})
             return Decision("fuzzy", dtheta, v, inputs, tpt, None, False), None
-        dist = math.dist((s.x, s.y), obs.goal)
-        v = min(self.limits.v_max, dist / self.dt)
-        dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
         return Decision("direct", dtheta, v, inputs, tpt, None, False), None
+
+    def _direct_is_clear(self, obs: Observation, dtheta: float, v: float) -> bool:
+        """Whether the straight move towards the goal stays clear of static laser returns (the sonar
+        only sees the front half; turning to the goal can face what it has not seen)."""
+        if not self.config.direct_needs_clear_path:
+            return True
+        s = obs.state
+        turn = max(-self.limits.max_turn_deg, min(self.limits.max_turn_deg, dtheta))
+        rad = math.radians(s.heading + turn)
+        here = np.array([s.x, s.y])
+        end = here + v * self.dt * np.array([math.cos(rad), math.sin(rad)])
+        gap = segment_point_clearance(here, end, obs.static_points)[0]
+        return bool(gap >= self.robot_radius + self.config.clear_path_margin_cm)
 
     def _goal_in_reach(self, obs: Observation, angle: float) -> bool:
         if not self.config.goal_overrides_static:

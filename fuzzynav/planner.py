@@ -48,6 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav.clearance import segment_point_clearance
 from fuzzynav.kinematics import wrap_deg
 from fuzzynav.tpt import TrajectoryPredictionTable
 
@@ -193,12 +194,7 @@ def moves_collide(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.nd
         closest = np.linalg.norm(p0 + s[..., None] * dp, axis=-1)
         out |= (closest < limit[None, :]).any(axis=1)
     if static_points is not None and len(static_points):
-        seg = ends - start[None, :]  # (S, 2)
-        rel = static_points[None, :, :] - start[None, None, :]  # (1, P, 2)
-        ll = (seg**2).sum(-1)[:, None]
-        s = np.clip((rel * seg[:, None, :]).sum(-1) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
-        d = np.linalg.norm(rel - s[..., None] * seg[:, None, :], axis=-1)
-        out |= (d < static_clearance).any(axis=1)
+        out |= segment_point_clearance(start, ends, static_points) < static_clearance
     return out
 
 

@@ -42,11 +42,13 @@ def test_fast_matches_skfuzzy_on_10000_inputs(name, table1, listing):
     assert np.max(np.abs(fast[1] - ref[1])) <= TOL_V
 
 
-def test_single_input_matches_batch_and_reference(table1):
-    fast, ref = FastEvaluator(table1), SkfuzzyEvaluator(table1)
-    inputs = _inputs(table1, 50, seed=3)
+@pytest.mark.parametrize("name", ["table1", "listing"])
+def test_single_input_matches_batch_and_reference(name, table1, listing):
+    spec = {"table1": table1, "listing": listing}[name]
+    fast, ref = FastEvaluator(spec), SkfuzzyEvaluator(spec)
+    inputs = _inputs(spec, 300, seed=3)
     batch = fast.evaluate(inputs)
-    for i in range(50):
+    for i in range(300):
         one = {k: float(v[i]) for k, v in inputs.items()}
         d, v = fast.evaluate(one)
         assert isinstance(d, float) and isinstance(v, float)
