@@ -62,6 +62,7 @@ class SkfuzzyEvaluator:
         self.system = ctrl.ControlSystem(rules)
         self._names = {role: spec.output_for(role).name for role in ("dtheta", "v")}
         self._fallback = {"dtheta": spec.fallback_dtheta, "v": spec.fallback_v}
+        self._single = self._simulation()
 
     def _simulation(self) -> ctrl.ControlSystemSimulation:
         return ctrl.ControlSystemSimulation(self.system, clip_to_bounds=True, cache=False)
@@ -89,7 +90,7 @@ class SkfuzzyEvaluator:
             return np.array([o[0] for o in out]), np.array([o[1] for o in out])
 
     def _evaluate_one(self, inputs: Mapping[str, float]) -> tuple[float, float]:
-        sim = self._simulation()
+        sim = self._single  # one simulation reused (cache=False: no state carries over between calls)
         for var in self.spec.inputs:
             value = inputs[var.name]
             if var.is_crisp:

@@ -33,3 +33,16 @@ def test_bad_override_is_one_line_error(tmp_path):
         "error: config: planner.strategy: unknown strategy 'fly' (known: auto, wait, detour, none)"]
     out = run_cli(tmp_path, "episode.planner.h_wait=-1")
     assert out.returncode == 2 and "planner.h_wait: must be >= 0" in out.stderr
+
+
+def test_bench_quick_writes_results(tmp_path):
+    out = tmp_path / "bench.json"
+    res = subprocess.run([sys.executable, "-m", "runners.bench", "--quick", "--out", str(out)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    import json
+    data = json.loads(out.read_text())
+    for row in data["fuzzy"]:
+        assert row["ratio"] > 1 and row["max_disagreement_dtheta_deg"] <= 0.01
+        assert row["max_disagreement_v_cm_s"] <= 0.01
+    assert "fuzzy decision" in res.stdout
