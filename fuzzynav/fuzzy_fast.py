@@ -119,11 +119,6 @@ class FastEvaluator:
             return float(dtheta[0]), float(v[0])
         return dtheta, v
 
-    def rule_activations(self, inputs: Mapping[str, float | np.ndarray]) -> np.ndarray:
-        """Firing strength of every rule, shape (R, N) (for explanations and tests)."""
-        cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in inputs.items()}
-        return self._activations(cols)
-
     # -- internals ----------------------------------------------------------------------------------------
     def _memberships(self, cols: Mapping[str, np.ndarray]) -> np.ndarray:
         n = len(next(iter(cols.values())))

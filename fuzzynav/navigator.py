@@ -6,8 +6,11 @@
 
 Our choices where the paper is silent (README, "Navigation loop"):
 
-- "A static obstacle is near" when any sonar reading is below ``static_near_cm`` (default 100 cm: the
-  distance from which the default "far" term is fully true). With ``goal_overrides_static`` the robot
+- "A static obstacle is near" when a sonar reading is below ``static_near_cm`` (default 100 cm: the
+  distance from which the default "far" term is fully true) in the front sector or the sector on the
+  target's side (``near_sectors = target_side``; ``all`` reads every sector). An obstacle on the far
+  side is not in the way of a robot turning to the target, and the Table 1 rules, which ignore the
+  target, would otherwise drive the robot along a wall past its goal. With ``goal_overrides_static`` the robot
   still heads straight for the goal when the goal lies in the front sector and is nearer than the front
   reading (otherwise the fuzzy rules, which ignore the target, can circle a goal placed near a wall).
 - Going straight to the target: turn towards it and drive at ``v_max``, slowing to land on the goal.
@@ -42,11 +45,14 @@ class NavigatorConfig:
     """When static navigation uses the fuzzy controller (see the module docstring)."""
 
     static_near_cm: float = 100.0
+    near_sectors: str = "target_side"
     goal_overrides_static: bool = True
     direct_needs_clear_path: bool = True
     clear_path_margin_cm: float = 5.0
 
     def __post_init__(self) -> None:
+        if self.near_sectors not in ("all", "target_side"):
+            raise ValueError(f"navigator.near_sectors: unknown value {self.near_sectors!r} (known: all, target_side)")
         if self.static_near_cm < 0:
             raise ValueError(f"navigator.static_near_cm: must be >= 0, got {self.static_near_cm}")
         if self.clear_path_margin_cm < 0:
@@ -155,7 +161,7 @@ class Navigator:
         dist = math.dist((s.x, s.y), obs.goal)
         v = max(self.limits.v_min, min(self.limits.v_max, dist / self.dt))
         dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
-        near = min(obs.sonar) < self.config.static_near_cm and not self._goal_in_reach(obs, angle)
+        near = self._static_near(obs.sonar, angle) and not self._goal_in_reach(obs, angle)
         if near or not self._direct_is_clear(obs, dtheta, v):
             dtheta, v = self.fuzzy({"left": left, "front": front, "right": right, "angle": angle})
             return Decision("fuzzy", dtheta, v, inputs, tpt, None, False), None
@@ -173,6 +179,14 @@ class Navigator:
         end = here + v * self.dt * np.array([math.cos(rad), math.sin(rad)])
         gap = segment_point_clearance(here, end, obs.static_points)[0]
         return bool(gap >= self.robot_radius + self.config.clear_path_margin_cm)
+
+    def _static_near(self, sonar: tuple[float, float, float], angle: float) -> bool:
+        """Is a static obstacle near? ``all`` sectors, or only the front and the target's side."""
+        left, front, right = sonar
+        if self.config.near_sectors == "all":
+            return min(sonar) < self.config.static_near_cm
+        side = left if angle >= 90.0 else right
+        return min(front, side) < self.config.static_near_cm
 
     def _goal_in_reach(self, obs: Observation, angle: float) -> bool:
         if not self.config.goal_overrides_static:

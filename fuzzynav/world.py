@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from functools import cached_property
 
 import numpy as np
 import shapely
@@ -49,13 +48,3 @@ class World:
         """True if a disc of ``radius`` cm moving straight from ``p0`` to ``p1`` touches an obstacle or wall."""
         path = Point(p1) if np.allclose(p0, p1) else LineString([p0, p1])
         return bool(shapely.dwithin(self.solid, path, radius - 1e-9))
-
-    def clearance(self, p: np.ndarray) -> float:
-        """Distance in cm from point ``p`` to the nearest static obstacle or wall (0 inside one)."""
-        return float(self.solid.distance(Point(p)))
-
-    @cached_property
-    def static_polygons(self) -> list[list[tuple[float, float]]]:
-        """Exterior rings of the static obstacles (cm), for drawing."""
-        geoms = getattr(self.obstacles, "geoms", [self.obstacles])
-        return [list(g.exterior.coords) for g in geoms if not g.is_empty]
