@@ -13,6 +13,7 @@ the goal). Units: cm, s, degrees, cm/s.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -61,7 +62,7 @@ class StepRecord:
     cm/s; order of ``Episode.obstacle_ids``), ``obstacle_next_positions`` at ``time_s + dt``.
     ``contact_static`` / ``contact_dynamic`` tell whether the robot touched something during the step
     (swept); ``new_contacts`` counts contacts that started on this step. ``outcome`` is set on the last
-    record only."""
+    record only. ``compute_time_us`` is the wall time of the decision (not reproducible)."""
 
     step: int
     time_s: float
@@ -80,6 +81,7 @@ class StepRecord:
     new_contacts: int
     distance_to_goal: float
     outcome: str | None
+    compute_time_us: float = 0.0
 
 
 class Episode:
@@ -131,7 +133,9 @@ class Episode:
                                        self._rng)
         goal = self.scenario.robot.goal
         obs = Observation(s, goal, sonar, seen.tracks, seen.static_points)
+        started = time.perf_counter()
         decision, self._plan = self.navigator.decide(obs, self._plan)
+        compute_us = (time.perf_counter() - started) * 1e6
         nxt = step_unicycle(s, decision.dtheta_deg, decision.v_cm_s, dt, cfg.robot)
         next_pos, _ = self.motion.at(t + dt)
         p0, p1 = np.array([s.x, s.y]), np.array([nxt.x, nxt.y])
@@ -156,7 +160,7 @@ class Episode:
                           tracks=seen.tracks, static_points=seen.static_points, decision=decision,
                           obstacle_positions=pos, obstacle_velocities=vel, obstacle_next_positions=next_pos,
                           contact_static=static_hit, contact_dynamic=dynamic_hit, new_contacts=new_contacts,
-                          distance_to_goal=dist, outcome=self.outcome)
+                          distance_to_goal=dist, outcome=self.outcome, compute_time_us=compute_us)
 
     def run(self) -> Iterator[StepRecord]:
         """Yield records until the episode ends."""

@@ -15,8 +15,9 @@ Our choices where the paper is silent (README, "Navigation loop"):
   reading (otherwise the fuzzy rules, which ignore the target, can circle a goal placed near a wall).
 - Going straight to the target: turn towards it and drive at ``v_max``, slowing to land on the goal.
 - A plan, once made, is followed step by step and re-checked against each new table; the robot re-plans
-  when the plan would now collide or the robot is more than ``plan_tolerance_cm`` off it
-  (``replan_every_step`` re-plans on every step instead).
+  when the plan would now come closer than ``plan_check_margin_cm`` (5 cm, half the planning margin, so
+  that noisy re-estimates do not discard a good plan) or the robot is more than ``plan_tolerance_cm`` off
+  it (``replan_every_step`` re-plans on every step instead).
 - The table predicts the robot at its present speed; standing still, at ``cruise_speed``.
 
 Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
@@ -37,7 +38,7 @@ from fuzzynav.planner import Plan, PlannerConfig, find_new_path, path_collides, 
 from fuzzynav.tpt import TrajectoryPredictionTable, build_tpt
 from fuzzynav.tracking import Track
 
-MODES = ("direct", "fuzzy", "wait", "detour", "stop")
+MODES = ("direct", "fuzzy", "wait", "detour", "evade", "stop")
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,7 @@ class ActivePlan:
 
 @dataclass(frozen=True)
 class Decision:
-    """The command of one step and why: ``mode`` (direct | fuzzy | wait | detour | stop), the steering
+    """The command of one step and why: ``mode`` (direct | fuzzy | wait | detour | evade | stop), the steering
     increment (degrees) and speed (cm/s; 0 = stand still), the controller inputs (left, front, right in cm;
     included angle in degrees), the table (None when no moving obstacle is perceived or strategy none),
     the plan being followed and whether it was made on this step."""
@@ -137,7 +138,7 @@ class Navigator:
         if self.planner.strategy != "none" and obs.tracks:
             speed = s.v if s.v > 0 else self.planner.cruise_speed
             tpt = build_tpt((s.x, s.y), obs.goal, speed, obs.tracks, self.robot_radius, self.planner.n_traj,
-                            self.dt, self.planner.safety_margin_cm)
+                            self.dt, self.planner.safety_margin_cm, self.planner.swept_tpt)
         if active is not None and (self.planner.replan_every_step or not self._still_valid(active, obs, tpt)):
             active = None
         new_plan = False
@@ -155,7 +156,7 @@ class Navigator:
             if step < 1e-6:
                 mode = "stop" if active.plan.strategy == "stop" else "wait"
                 return Decision(mode, 0.0, 0.0, inputs, tpt, active.plan, new_plan), carry
-            mode = "detour" if active.plan.strategy == "detour" else "wait"
+            mode = active.plan.strategy if active.plan.strategy in ("detour", "evade") else "wait"
             return Decision(mode, plan_heading_change(s.heading, here, target), step / self.dt, inputs, tpt,
                             active.plan, new_plan), carry
         dist = math.dist((s.x, s.y), obs.goal)
@@ -204,4 +205,5 @@ class Navigator:
         if tpt is None:
             return True
         pts = obs.static_points if self.planner.avoid_static_points else None
-        return not path_collides(tpt, active.remaining, here, pts, self.robot_radius + self.planner.static_margin_cm)
+        return not path_collides(tpt, active.remaining, here, pts, self.robot_radius + self.planner.static_margin_cm,
+                                 margin=self.planner.plan_check_margin_cm)

@@ -53,6 +53,7 @@ from fuzzynav.kinematics import wrap_deg
 from fuzzynav.tpt import TrajectoryPredictionTable
 
 STRATEGIES = ("auto", "wait", "detour", "none")
+PLAN_KINDS = ("wait", "detour", "evade", "stop")
 PHI_LOW_RULES = ("paper", "target_side", "toward_goal")
 DETOUR_SEARCHES = ("greedy", "astar")
 
@@ -65,6 +66,7 @@ class PlannerConfig:
     h_wait: int = 2
     n_traj: int = 9
     safety_margin_cm: float = 10.0
+    swept_tpt: bool = True
     successor_speeds: tuple[float, ...] = (10.0, 25.0, 40.0)
     n_headings: int = 19
     heading_step_deg: float = 10.0
@@ -78,7 +80,9 @@ class PlannerConfig:
     static_margin_cm: float = 5.0
     cruise_speed: float = 25.0
     plan_tolerance_cm: float = 10.0
+    plan_check_margin_cm: float = 5.0
     replan_every_step: bool = False
+    evade_when_blocked: bool = True
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -100,7 +104,7 @@ class PlannerConfig:
             raise ValueError(f"planner.successor_speeds: need positive speeds, got {self.successor_speeds}")
         if self.n_headings < 1 or self.heading_step_deg <= 0:
             raise ValueError("planner.n_headings / heading_step_deg: must be positive")
-        for name in ("safety_margin_cm", "static_margin_cm"):
+        for name in ("safety_margin_cm", "static_margin_cm", "plan_check_margin_cm"):
             if getattr(self, name) < 0:
                 raise ValueError(f"planner.{name}: must be >= 0, got {getattr(self, name)}")
         for name in ("detour_tolerance_cm", "cruise_speed", "plan_tolerance_cm"):
@@ -177,33 +181,43 @@ def get_successors(r: Sequence[float], r_goal: Sequence[float], phi_deg: float, 
     return pos, v, h % 360.0, low
 
 
+def obstacle_gaps(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.ndarray, step: int) -> np.ndarray:
+    """Smallest surface-to-surface distance (cm) between the robot and each tracked obstacle while the robot
+    moves from ``start`` (at step-1) to each of ``ends`` (at ``step``); exact, both moving straight.
+    Shape (S, J)."""
+    ends = np.atleast_2d(ends)
+    o0 = tpt.obstacles_at(step - 1)  # (J, 2)
+    o1 = tpt.obstacles_at(step)
+    p0 = start[None, None, :] - o0[None, :, :]  # relative position at the start, (1, J, 2)
+    dp = (ends[:, None, :] - start[None, None, :]) - (o1 - o0)[None, :, :]  # (S, J, 2)
+    dd = (dp**2).sum(-1)
+    s = np.clip(-(p0 * dp).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    closest = np.linalg.norm(p0 + s[..., None] * dp, axis=-1)
+    return closest - tpt.robot_radius - tpt.obstacle_radii[None, :]
+
+
 def moves_collide(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.ndarray, step: int,
-                  static_points: np.ndarray | None, static_clearance: float) -> np.ndarray:
+                  static_points: np.ndarray | None, static_clearance: float,
+                  margin: float | None = None) -> np.ndarray:
     """For moves from ``start`` (at step-1) to each of ``ends`` (at ``step``), True where the robot comes
-    too close to a tracked obstacle during the step (exact, both moving straight) or to a static point."""
+    closer than the safety margin (the table's, unless ``margin`` is given) to a tracked obstacle during
+    the step, or closer than ``static_clearance`` to a static point."""
     ends = np.atleast_2d(ends)
     out = np.zeros(len(ends), dtype=bool)
     if len(tpt.obstacle_ids):
-        o0 = tpt.obstacles_at(step - 1)  # (J, 2)
-        o1 = tpt.obstacles_at(step)
-        limit = tpt.robot_radius + tpt.obstacle_radii + tpt.safety_margin  # (J,)
-        p0 = start[None, None, :] - o0[None, :, :]  # relative position at the start, (1, J, 2)
-        dp = (ends[:, None, :] - start[None, None, :]) - (o1 - o0)[None, :, :]  # (S, J, 2)
-        dd = (dp**2).sum(-1)
-        s = np.clip(-(p0 * dp).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        closest = np.linalg.norm(p0 + s[..., None] * dp, axis=-1)
-        out |= (closest < limit[None, :]).any(axis=1)
+        limit = tpt.safety_margin if margin is None else margin
+        out |= (obstacle_gaps(tpt, start, ends, step) < limit).any(axis=1)
     if static_points is not None and len(static_points):
         out |= segment_point_clearance(start, ends, static_points) < static_clearance
     return out
 
 
 def path_collides(tpt: TrajectoryPredictionTable, path: np.ndarray, start: np.ndarray,
-                  static_points: np.ndarray | None, static_clearance: float) -> bool:
+                  static_points: np.ndarray | None, static_clearance: float, margin: float | None = None) -> bool:
     """True if following ``path`` (positions at steps 1..L) from ``start`` collides at any step."""
     prev = np.asarray(start, dtype=float)
     for k, p in enumerate(path, start=1):
-        if moves_collide(tpt, prev, p[None, :], k, static_points, static_clearance)[0]:
+        if moves_collide(tpt, prev, p[None, :], k, static_points, static_clearance, margin)[0]:
             return True
         prev = p
     return False
@@ -336,7 +350,17 @@ def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading
         path = _wait_path(tpt, t_s, t_g)
         return None if path_collides(tpt, path, here, pts, clearance) else path
 
-    stop = make("stop", here[None, :].copy(), "no safe wait or detour: stand still and re-plan")
+    def fallback(why: str, evade: bool) -> Plan:
+        """Stand still until tG - 1 if that is safe; else (auto/detour) evade; else stop for one step."""
+        in_place = np.repeat(here[None, :], max(t_g - 1, 1), axis=0)
+        if not path_collides(tpt, in_place, here, pts, clearance):
+            return make("wait", in_place, f"{why}: wait in place")
+        if evade and config.evade_when_blocked:
+            target = _evade(tpt, here, heading_deg, config, pts, clearance, max_turn_deg)
+            if target is not None:
+                return make("evade", target[None, :], f"{why}, standing still collides: evade")
+        return make("stop", here[None, :].copy(), f"{why}: stand still and re-plan")
+
     strategy = config.strategy
     if strategy == "auto":
         if wait_time < config.h_wait or t_g == tpt.n_traj + 1:
@@ -351,19 +375,36 @@ def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading
         path = wait_plan()
         if path is not None:
             return make("wait", path, f"detour failed ({why}): wait instead")
-        return stop
+        return fallback(f"detour failed ({why}), waiting at rS collides", evade=True)
     if strategy == "wait":
         path = wait_plan()
         if path is not None:
             return make("wait", path, "wait strategy")
-        in_place = np.repeat(here[None, :], max(t_g - 1, 1), axis=0)
-        if not path_collides(tpt, in_place, here, pts, clearance):
-            return make("wait", in_place, "wait strategy: waiting at rS collides, wait in place")
-        return stop
+        return fallback("wait strategy: waiting at rS collides", evade=False)
     path, t_s1, low, why = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
     if path is not None:
         return make("detour", path, "detour strategy", detour_start=t_s1, phi_low_deg=low)
-    return make("stop", here[None, :].copy(), f"detour failed ({why}): stand still and re-plan")
+    return fallback(f"detour failed ({why})", evade=True)
+
+
+def _evade(tpt: TrajectoryPredictionTable, here: np.ndarray, heading_deg: float, config: PlannerConfig,
+           static_points: np.ndarray | None, static_clearance: float, max_turn_deg: float) -> np.ndarray | None:
+    """Our safety net when nothing else is safe: the one-step move (successor speeds × headings within the
+    turn limit, 10° apart) that keeps the largest clearance to the tracked obstacles over the table,
+    assuming the robot then stands. None if every move hits a static point."""
+    headings = heading_deg + np.arange(-max_turn_deg, max_turn_deg + 1e-9, config.heading_step_deg)
+    speeds = np.asarray(config.successor_speeds, dtype=float)
+    v = np.repeat(speeds, len(headings))
+    h = np.radians(np.tile(headings, len(speeds)))
+    ends = here[None, :] + (v * tpt.dt)[:, None] * np.stack([np.cos(h), np.sin(h)], axis=1)
+    gap = obstacle_gaps(tpt, here, ends, 1).min(axis=1)  # the move itself (swept)
+    for k in range(2, tpt.n_traj + 1):  # then standing at the end point
+        dist = np.linalg.norm(ends[:, None, :] - tpt.obstacles_at(k)[None, :, :], axis=2)
+        gap = np.minimum(gap, (dist - tpt.robot_radius - tpt.obstacle_radii[None, :]).min(axis=1))
+    if static_points is not None and len(static_points):
+        gap = np.where(segment_point_clearance(here, ends, static_points) < static_clearance, -np.inf, gap)
+    best = int(np.argmax(gap))
+    return None if not np.isfinite(gap[best]) else ends[best]
 
 
 def plan_heading_change(heading_deg: float, here: Sequence[float], target: Sequence[float]) -> float:

@@ -1,56 +1,170 @@
-"""Run episodes of one configuration and print their outcomes.
+"""Run episodes of one configuration, write one MCAP log per episode, print one line per episode.
 
-    python -m runners.run                                  # the default: head_on, Table 1, strategy auto
-    python -m runners.run scenario=head_on planner.strategy=none episodes=3
+    python -m runners.run                                       # head_on, Table 1, strategy auto
+    python -m runners.run scenario=crossing_right planner=none episodes=3
+    python -m runners.run controller=listing perception=ground_truth planner.h_wait=4
 
-Configuration is composed by Hydra from ``conf/config.yaml``; any key can be overridden.
+Configuration is composed by Hydra from ``conf/`` (see ``conf/config.yaml``). Logs go to Hydra's output
+directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per sweep job).
 """
 
 from __future__ import annotations
 
 import sys
+import traceback
+from pathlib import Path
 from typing import Any
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from fuzzynav.config import episode_config_from_dict
-from fuzzynav.episode import Episode
+from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
-from fuzzynav.scenario import ScenarioError, scenario_from_dict
+from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
+from runners import schema
+from runners.mcap_log import EpisodeLogWriter, run_metadata
+
+schema.register()
+CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # absolute: works from any working directory
+
+_EVALUATORS: dict[str, FastEvaluator] = {}  # one evaluator per controller definition and worker process
 
 
-def run(cfg: dict[str, Any]) -> list[dict[str, Any]]:
-    """Run ``cfg["episodes"]`` episodes with consecutive seeds; return one summary per episode."""
-    scenario = scenario_from_dict(cfg["scenario"])
-    evaluator = FastEvaluator(ControllerSpec.from_dict(cfg["controller"]))
-    episode_cfg = episode_config_from_dict(cfg.get("episode", {}))
+class ConfigFileError(Exception):
+    """A scenario or controller file is invalid; the message names the file and the field."""
+
+
+def episode_config(cfg: dict[str, Any]) -> EpisodeConfig:
+    """The library's EpisodeConfig from the composed run config (plain data)."""
+    sensors = cfg.get("sensors") or {}
+    return episode_config_from_dict({
+        "dt": cfg.get("dt", 1.0), "robot": cfg.get("robot") or {}, "sonar": sensors.get("sonar") or {},
+        "laser": sensors.get("laser") or {}, "perception": cfg.get("perception") or {},
+        "planner": cfg.get("planner") or {}, "navigator": cfg.get("navigator") or {},
+        "terminate_on_collision": cfg.get("terminate_on_collision", True)})
+
+
+def _source(group: str) -> str:
+    """Best description of the file a config group option came from."""
+    try:
+        hc = HydraConfig.get()
+    except ValueError:
+        return group
+    choice = hc.runtime.choices.get(group)
+    if choice is None:
+        return group
+    for src in hc.runtime.config_sources:
+        if src.provider == "schema" or not src.path:
+            continue
+        candidate = Path(src.path.replace("file://", "")) / group / f"{choice}.yaml"
+        if candidate.exists():
+            return str(candidate)
+    return f"{group}={choice}"
+
+
+def load_scenario(cfg: dict[str, Any]) -> Scenario:
+    try:
+        return scenario_from_dict(cfg["scenario"] or {})
+    except ScenarioError as err:
+        raise ConfigFileError(f"{_source('scenario')}: {err}") from None
+
+
+def load_evaluator(cfg: dict[str, Any]) -> FastEvaluator:
+    import json
+
+    key = json.dumps(cfg["controller"], sort_keys=True, default=str)
+    if key not in _EVALUATORS:
+        try:
+            _EVALUATORS[key] = FastEvaluator(ControllerSpec.from_dict(cfg["controller"] or {}))
+        except ControllerSpecError as err:
+            raise ConfigFileError(f"{_source('controller')}: {err}") from None
+    return _EVALUATORS[key]
+
+
+def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
+    """``<scenario>__<strategy>__h<h_wait>__<controller>__<perception>__s<seed>.mcap``"""
+    planner = cfg.get("planner") or {}
+    controller = (cfg.get("controller") or {}).get("name", "controller")
+    perception = (cfg.get("perception") or {}).get("mode", "laser")
+    return (f"{scenario}__{planner.get('strategy', 'auto')}__h{planner.get('h_wait', 2)}__{controller}"
+            f"__{perception}__s{seed}.mcap")
+
+
+def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
+                log_path: Path | None, config_yaml: str) -> dict[str, Any]:
+    """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
+    with its traceback) instead of propagating. Ctrl-C finishes the log as ``interrupted`` and re-raises."""
+    episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
+    summary = {"scenario": scenario.name, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
+               "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode, "seed": seed,
+               "log": str(log_path) if log_path else ""}
+    stream = open(log_path, "wb") if log_path else None  # noqa: SIM115 - closed in finally
+    log = None
+    outcome, reason = "error", ""
+    try:
+        if stream is not None:
+            meta = run_metadata(config_yaml, seed, scenario.name, {
+                "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
+                "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode})
+            log = EpisodeLogWriter(stream, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
+        for record in episode.run():
+            if log is not None:
+                log.step(record)
+        outcome = episode.outcome or "error"
+        reason = {"goal": "within goal tolerance", "collision": "contact with an obstacle",
+                  "timeout": f"max_steps {scenario.max_steps} reached"}.get(outcome, "")
+    except KeyboardInterrupt:
+        outcome, reason = "interrupted", "interrupted by the user"
+        raise
+    except Exception as err:  # an episode that raises must not stop the sweep
+        outcome, reason = "error", f"{type(err).__name__}: {err}"
+        if log is not None:
+            log.log(log._last_time, 4, traceback.format_exc())
+    finally:
+        if log is not None:
+            log.finish(outcome, reason)
+        if stream is not None:
+            stream.close()
+    summary.update(outcome=outcome, steps=episode.step_index, time_s=episode.step_index * ep_cfg.dt,
+                   contacts=episode.contacts, reason=reason)
+    return summary
+
+
+def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
+    """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory."""
+    plain: dict[str, Any] = OmegaConf.to_container(cfg, resolve=True)  # type: ignore[assignment]
+    scenario = load_scenario(plain)
+    evaluator = load_evaluator(plain)
+    ep_cfg = episode_config(plain)
+    out_dir = Path(HydraConfig.get().runtime.output_dir)
+    config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
     results = []
-    for k in range(int(cfg.get("episodes", 1))):
-        seed = int(cfg.get("seed", 0)) + k
-        ep = Episode(scenario, evaluator, episode_cfg, seed=seed)
-        steps = sum(1 for _ in ep.run())
-        results.append({"scenario": scenario.name, "strategy": episode_cfg.planner.strategy, "seed": seed,
-                        "outcome": ep.outcome, "steps": steps, "time_s": steps * episode_cfg.dt,
-                        "contacts": ep.contacts})
+    for k in range(int(plain.get("episodes", 1))):
+        seed = int(plain.get("seed", 0)) + k
+        path = out_dir / log_name(scenario.name, plain, seed)
+        results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml))
     return results
 
 
-@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
-def main(cfg: DictConfig) -> None:
-    plain = OmegaConf.to_container(cfg, resolve=True)
+@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
+def main(cfg: DictConfig) -> list[dict[str, Any]]:
     try:
-        results = run(plain)  # type: ignore[arg-type]
-    except (ScenarioError, ControllerSpecError) as err:
+        results = run_job(cfg)
+    except ConfigFileError as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(2)
     except ValueError as err:
         print(f"error: config: {err}", file=sys.stderr)
         sys.exit(2)
-    for r in results:
-        print(f"{r['scenario']} strategy={r['strategy']} seed={r['seed']}: {r['outcome']} after {r['steps']} "
-              f"steps ({r['time_s']:.0f} s), contacts={r['contacts']}")
+    if HydraConfig.get().mode != RunMode.MULTIRUN:
+        for r in results:
+            print(f"{r['scenario']} strategy={r['strategy']} h_wait={r['h_wait']} seed={r['seed']}: {r['outcome']} "
+                  f"after {r['steps']} steps ({r['time_s']:.0f} s), contacts={r['contacts']}  log: {r['log']}")
+    return results
 
 
 if __name__ == "__main__":

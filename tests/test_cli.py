@@ -13,26 +13,27 @@ def run_cli(tmp_path, *overrides):
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
 
 
-def test_default_run_prints_outcome(tmp_path):
+def test_default_run_prints_outcome_and_log_path(tmp_path):
     out = run_cli(tmp_path)
     assert out.returncode == 0, out.stderr
-    assert "head_on strategy=auto seed=0: goal after" in out.stdout
+    assert "head_on strategy=auto h_wait=2 seed=0: goal after" in out.stdout
+    assert f"log: {tmp_path}/head_on__auto__h2__table1__laser__s0.mcap" in out.stdout
 
 
 def test_overrides_and_episodes(tmp_path):
-    out = run_cli(tmp_path, "episode.planner.strategy=none", "episodes=2", "seed=5")
+    out = run_cli(tmp_path, "planner=none", "episodes=2", "seed=5")
     assert out.returncode == 0, out.stderr
     lines = [ln for ln in out.stdout.splitlines() if "strategy=none" in ln]
     assert len(lines) == 2 and "seed=6: collision" in lines[1]
+    assert len(list(tmp_path.glob("*.mcap"))) == 2
 
 
 def test_bad_override_is_one_line_error(tmp_path):
-    out = run_cli(tmp_path, "episode.planner.strategy=fly")
+    out = run_cli(tmp_path, "planner.strategy=fly")
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == [
         "error: config: planner.strategy: unknown strategy 'fly' (known: auto, wait, detour, none)"]
-    out = run_cli(tmp_path, "episode.planner.h_wait=-1")
-    assert out.returncode == 2 and "planner.h_wait: must be >= 0" in out.stderr
+    assert not list(tmp_path.glob("*.mcap"))
 
 
 def test_bench_quick_writes_results(tmp_path):

@@ -24,7 +24,7 @@ def paper_table():
     discs (radius 20, margin 0) overlap at steps 6, 7 and 8 only; obstacle 2 far away never collides."""
     tracks = [Track(1, -140.0, 175.0, 20.0, 0.0, 20.0), Track(2, 400.0, 400.0, 0.0, -5.0, 20.0)]
     return build_tpt((0.0, 0.0), (0.0, 1000.0), 25.0, tracks, robot_radius=20.0, n_traj=9, dt=1.0,
-                     safety_margin=0.0)
+                     safety_margin=0.0, swept=False)  # the paper samples the table at the steps
 
 
 def test_table_collisions_at_steps_6_7_8():
@@ -32,6 +32,15 @@ def test_table_collisions_at_steps_6_7_8():
     assert tpt.collide.shape == (10, 2)
     assert [k for k in range(1, 10) if tpt.collide[k, 0]] == [6, 7, 8]
     assert not tpt.collide[:, 1].any()
+
+
+def test_swept_table_catches_a_pass_between_samples():
+    # robot +x at 40 cm/s, obstacle -x at 30 cm/s, 45 cm off the line: they pass between steps 1 and 2
+    tracks = [Track(1, 100.0, 45.0, -30.0, 0.0, 18.0)]
+    sampled = build_tpt((0.0, 0.0), (1000.0, 0.0), 40.0, tracks, 20.0, 9, 1.0, 10.0, swept=False)
+    swept = build_tpt((0.0, 0.0), (1000.0, 0.0), 40.0, tracks, 20.0, 9, 1.0, 10.0, swept=True)
+    assert not sampled.collide[:, 0].any()
+    assert swept.collide[1:3, 0].any()
 
 
 def test_paper_example_detours_with_h_wait_2():
@@ -112,7 +121,21 @@ def test_detour_bound_is_respected():
     tpt = paper_table()
     cfg = PlannerConfig(h_wait=0, safety_margin_cm=0.0, detour_max_steps=1, strategy="detour")
     plan = find_new_path(tpt, cfg, heading_deg=90.0)
-    assert plan.strategy == "stop" and "not reached" in plan.reason
+    # the detour fails; standing still is safe here, so the fallback waits in place
+    assert plan.strategy == "wait" and "not reached" in plan.reason
+    np.testing.assert_allclose(plan.path, np.zeros((plan.tG - 1, 2)))
+
+
+def test_evade_when_standing_still_collides():
+    # an obstacle coming straight at a robot that cannot detour (detour_max_steps=1): it side-steps
+    tracks = [Track(1, 0.0, 150.0, 0.0, -40.0, 20.0)]
+    tpt = build_tpt((0.0, 0.0), (0.0, 500.0), 25.0, tracks, 20.0, 9, 1.0, 10.0)
+    plan = find_new_path(tpt, PlannerConfig(strategy="detour", detour_max_steps=1), heading_deg=90.0)
+    assert plan.strategy == "evade" and len(plan.path) == 1
+    assert abs(plan.path[0][0]) > 20  # moved sideways, off the obstacle's line
+    no_evade = find_new_path(tpt, PlannerConfig(strategy="detour", detour_max_steps=1, evade_when_blocked=False),
+                             heading_deg=90.0)
+    assert no_evade.strategy == "stop"
 
 
 def test_astar_search_also_reaches_rg():

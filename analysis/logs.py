@@ -1,0 +1,78 @@
+"""Reading fuzzynav MCAP logs (the analysis reads logs only, never the simulator's memory)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+from mcap.reader import make_reader
+
+RUN_METADATA = "fuzzynav.run"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+class LogError(Exception):
+    """A log cannot be read as a fuzzynav episode; the message names the file and what is wrong."""
+
+
+def is_complete(path: Path) -> bool:
+    """A finished MCAP ends with the magic bytes (a killed run's file does not)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(-len(MCAP_MAGIC), 2)
+            return f.read() == MCAP_MAGIC
+    except OSError:
+        return False
+
+
+def find_logs(paths: Iterable[str | Path]) -> list[Path]:
+    """All ``.mcap`` files under the given files or directories, sorted."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        out.extend(sorted(p.rglob("*.mcap")) if p.is_dir() else [p])
+    return out
+
+
+def read_metadata(path: Path) -> dict[str, str]:
+    """The ``fuzzynav.run`` metadata record of a log."""
+    try:
+        with open(path, "rb") as f:
+            for record in make_reader(f).iter_metadata():
+                if record.name == RUN_METADATA:
+                    return dict(record.metadata)
+    except Exception as err:  # the mcap reader raises many types on corrupt input
+        raise LogError(f"{path}: not a readable MCAP file ({type(err).__name__}: {err})") from None
+    raise LogError(f"{path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
+
+
+def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """(topic, log time ns, decoded JSON message) in log-time order."""
+    try:
+        with open(path, "rb") as f:
+            for _schema, channel, message in make_reader(f).iter_messages(topics=list(topics) if topics else None):
+                yield channel.topic, message.log_time, json.loads(message.data)
+    except LogError:
+        raise
+    except Exception as err:
+        raise LogError(f"{path}: cannot read messages ({type(err).__name__}: {err})") from None
+
+
+def episode_summary(path: Path) -> dict[str, Any]:
+    """One row: run parameters from the metadata and the ``/episode`` outcome (``incomplete`` if missing)."""
+    meta = read_metadata(path)
+    row: dict[str, Any] = {"log": str(path), "scenario": meta.get("scenario"), "strategy": meta.get("strategy"),
+                           "h_wait": _int(meta.get("h_wait")), "controller": meta.get("controller"),
+                           "perception": meta.get("perception"), "seed": _int(meta.get("seed")),
+                           "outcome": "incomplete", "steps": None, "time_s": None, "contacts": None}
+    for _topic, _t, msg in iter_messages(path, ["/episode"]):
+        row.update(outcome=msg["outcome"], steps=msg["steps"], time_s=msg["time_s"], contacts=msg["contacts"])
+    return row
+
+
+def _int(value: str | None) -> int | None:
+    try:
+        return None if value is None else int(value)
+    except ValueError:
+        return None

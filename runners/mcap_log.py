@@ -1,0 +1,291 @@
+"""Write an episode's record stream to an MCAP log (zstd chunks, JSON messages with JSON schemas).
+
+One file per episode. Foxglove topics use metres and radians (true scale in the 3D panel); fuzzynav topics
+use cm, cm/s and degrees (said in their field names). See ``TOPICS`` and the schema modules.
+
+Messages are deterministic: the same config and seed give the same bytes, except the ``compute_time_us``
+field of ``/planner/decision``. Log time is simulation time (step * dt) in nanoseconds from 0.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from typing import Any, BinaryIO
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from fuzzynav.episode import Episode, StepRecord
+from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
+from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
+
+TOPICS = {
+    "/scene": "foxglove.SceneUpdate",
+    "/robot/pose": "foxglove.PoseInFrame",
+    "/laser": "foxglove.LaserScan",
+    "/log": "foxglove.Log",
+    "/sonar": "fuzzynav.Sonar",
+    "/tracks": "fuzzynav.Tracks",
+    "/obstacles/truth": "fuzzynav.ObstaclesTruth",
+    "/robot/state": "fuzzynav.RobotState",
+    "/tpt": "fuzzynav.TPT",
+    "/planner/decision": "fuzzynav.Decision",
+    "/episode": "fuzzynav.Episode",
+}
+SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
+RUN_METADATA = "fuzzynav.run"
+FRAME = "world"
+LOG_INFO, LOG_WARNING, LOG_ERROR = 2, 3, 4
+CHUNK_BYTES = 256 * 1024  # small chunks: a killed run loses at most this much
+
+_BLUE = {"r": 0.15, "g": 0.4, "b": 0.95, "a": 1.0}
+_GREEN = {"r": 0.1, "g": 0.75, "b": 0.2, "a": 0.5}
+_RED = {"r": 0.9, "g": 0.2, "b": 0.15, "a": 1.0}
+_GREY = {"r": 0.45, "g": 0.45, "b": 0.45, "a": 1.0}
+_CYAN = {"r": 0.0, "g": 0.8, "b": 0.9, "a": 0.9}
+_ORANGE = {"r": 1.0, "g": 0.6, "b": 0.0, "a": 0.9}
+_PURPLE = {"r": 0.6, "g": 0.2, "b": 0.85, "a": 1.0}
+_HIT = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 0.35}
+
+
+def _r(x: float, nd: int = 4) -> float:
+    """Round for compact, deterministic JSON."""
+    return round(float(x), nd)
+
+
+def _stamp(t: float) -> dict[str, int]:
+    ns = round(t * 1e9)
+    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+
+def _m(cm: float) -> float:
+    return _r(cm / 100.0, 6)
+
+
+def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) -> dict:
+    half = math.radians(heading_deg) / 2.0
+    return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": _r(z_m, 6)},
+            "orientation": {"x": 0.0, "y": 0.0, "z": _r(math.sin(half), 9), "w": _r(math.cos(half), 9)}}
+
+
+def _point(x_cm: float, y_cm: float, z_m: float = 0.0) -> dict:
+    return {"x": _m(x_cm), "y": _m(y_cm), "z": z_m}
+
+
+def _entity(t: float, eid: str, lifetime_zero: bool = True, **primitives: list) -> dict:
+    ent = {"timestamp": _stamp(t), "frame_id": FRAME, "id": eid, "lifetime": {"sec": 0, "nsec": 0},
+           "frame_locked": False, "metadata": []}
+    for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
+        ent[kind] = primitives.get(kind, [])
+    return ent
+
+
+def _disc(x_cm: float, y_cm: float, r_cm: float, height_m: float, color: dict) -> dict:
+    return {"pose": _pose(x_cm, y_cm, 0.0, height_m / 2), "size": {"x": _m(2 * r_cm), "y": _m(2 * r_cm),
+            "z": height_m}, "bottom_scale": 1.0, "top_scale": 1.0, "color": color}
+
+
+def _line(points_cm, color: dict, loop: bool = False, thickness_m: float = 0.02, z_m: float = 0.01) -> dict:
+    return {"type": 1 if loop else 0, "pose": _pose(0.0, 0.0), "thickness": thickness_m, "scale_invariant": False,
+            "points": [_point(x, y, z_m) for x, y in points_cm], "color": color, "colors": [], "indices": []}
+
+
+class EpisodeLogWriter:
+    """Writes one episode to an open binary stream. Use :meth:`step` per record, then :meth:`finish`."""
+
+    def __init__(self, stream: BinaryIO, episode: Episode, metadata: Mapping[str, str], strategy: str,
+                 perception_mode: str) -> None:
+        self.episode = episode
+        self.scenario = episode.scenario
+        self.dt = episode.config.dt
+        self.strategy = strategy
+        self.h_wait = episode.config.planner.h_wait
+        self.perception_mode = perception_mode
+        self.writer = Writer(stream, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
+        self.writer.start(profile="", library="fuzzynav")
+        self.channels: dict[str, int] = {}
+        for topic, schema_name in TOPICS.items():
+            schema_id = self.writer.register_schema(
+                name=schema_name, encoding="jsonschema",
+                data=json.dumps(SCHEMAS[schema_name](), separators=(",", ":")).encode())
+            self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json",
+                                                                schema_id=schema_id)
+        self.writer.add_metadata(RUN_METADATA, dict(metadata))
+        self.steps = 0
+        self.finished = False
+        self._last_time = 0.0
+        self._plan_path: list[list[float]] = []
+        self.log(0.0, LOG_INFO, f"episode started: scenario {self.scenario.name}, strategy {strategy}, "
+                                f"h_wait {self.h_wait}, seed {episode.seed}")
+        self._write_static_scene()
+
+    # -- writing helpers --------------------------------------------------------------------------------
+    def _write(self, topic: str, t: float, message: dict) -> None:
+        ns = round(t * 1e9)
+        self.writer.add_message(self.channels[topic], log_time=ns, publish_time=ns,
+                                data=json.dumps(message, separators=(",", ":")).encode())
+
+    def log(self, t: float, level: int, text: str) -> None:
+        """A human-readable event on ``/log``."""
+        self._write("/log", t, {"timestamp": _stamp(t), "level": level, "message": text, "name": "fuzzynav",
+                                "file": "", "line": 0})
+
+    def _write_static_scene(self) -> None:
+        s = self.scenario
+        xmin, ymin, xmax, ymax = s.bounds
+        entities = [_entity(0.0, "walls", lines=[_line([(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)],
+                                                       _GREY, loop=True, thickness_m=0.04)])]
+        for i, obs in enumerate(s.static_obstacles):
+            if obs.circle is not None:
+                c = obs.circle
+                entities.append(_entity(0.0, f"static/{i}", cylinders=[_disc(*c.center, c.radius, 0.3, _GREY)]))
+            else:
+                entities.append(_entity(0.0, f"static/{i}", lines=[_line(obs.polygon, _GREY, loop=True,
+                                                                         thickness_m=0.03)]))
+        gx, gy = s.robot.goal
+        entities.append(_entity(0.0, "goal", cylinders=[_disc(gx, gy, s.tolerance, 0.02, _GREEN)]))
+        self._write("/scene", 0.0, {"deletions": [], "entities": entities})
+
+    # -- per step ---------------------------------------------------------------------------------------
+    def step(self, rec: StepRecord) -> None:
+        """Write every topic for one step."""
+        t = rec.time_s
+        self._last_time = t + self.dt
+        s, n = rec.state, rec.next_state
+        d = rec.decision
+        k = rec.step
+        radius = self.scenario.robot.radius
+        self._write("/robot/pose", t, {"timestamp": _stamp(t), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading)})
+        self._write_laser(rec)
+        self._write("/sonar", t, {"timestamp": _stamp(t), "step": k, "left_cm": _r(rec.sonar[0]),
+                                  "front_cm": _r(rec.sonar[1]), "right_cm": _r(rec.sonar[2]),
+                                  "range_cm": _r(self.episode.config.sonar.range_cm)})
+        self._write("/tracks", t, {"timestamp": _stamp(t), "step": k, "mode": self.perception_mode, "tracks": [
+            {"id": tr.id, "x_cm": _r(tr.x), "y_cm": _r(tr.y), "vx_cm_s": _r(tr.vx), "vy_cm_s": _r(tr.vy),
+             "speed_cm_s": _r(tr.speed), "heading_deg": _r(tr.moving_angle_deg), "radius_cm": _r(tr.radius)}
+            for tr in rec.tracks]})
+        self._write("/obstacles/truth", t, {"timestamp": _stamp(t), "step": k, "obstacles": [
+            {"id": oid, "x_cm": _r(p[0]), "y_cm": _r(p[1]), "vx_cm_s": _r(v[0]), "vy_cm_s": _r(v[1]),
+             "radius_cm": _r(r), "next_x_cm": _r(q[0]), "next_y_cm": _r(q[1])}
+            for oid, p, v, r, q in zip(self.episode.obstacle_ids, rec.obstacle_positions, rec.obstacle_velocities,
+                                       self.episode.motion.radii, rec.obstacle_next_positions, strict=True)]})
+        self._write("/robot/state", t, {
+            "timestamp": _stamp(t), "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),
+            "v_cm_s": _r(s.v), "next_x_cm": _r(n.x), "next_y_cm": _r(n.y), "next_heading_deg": _r(n.heading),
+            "next_v_cm_s": _r(n.v), "radius_cm": _r(radius), "contact_static": rec.contact_static,
+            "contact_dynamic": list(rec.contact_dynamic), "new_contacts": rec.new_contacts,
+            "distance_to_goal_cm": _r(rec.distance_to_goal)})
+        if d.tpt is not None:
+            self._write_tpt(t, k, d.tpt)
+        self._write_decision(t, k, rec)
+        self._write_scene(t, rec)
+        self._write_events(t, rec)
+        self.steps += 1
+
+    def _write_laser(self, rec: StepRecord) -> None:
+        scan, s = rec.scan, rec.state
+        n = len(scan.ranges)
+        returned = scan.ranges < scan.range_cm
+        self._write("/laser", rec.time_s, {
+            "timestamp": _stamp(rec.time_s), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
+            "start_angle": 0.0, "end_angle": _r(2 * math.pi * (n - 1) / n, 9),
+            "ranges": [_m(r) for r in scan.ranges], "intensities": [1.0 if h else 0.0 for h in returned]})
+
+    def _write_tpt(self, t: float, k: int, tpt) -> None:
+        self._write("/tpt", t, {
+            "timestamp": _stamp(t), "step": k, "n_traj": tpt.n_traj, "dt_s": tpt.dt,
+            "robot_speed_cm_s": _r(tpt.robot_speed), "robot_radius_cm": _r(tpt.robot_radius),
+            "safety_margin_cm": _r(tpt.safety_margin), "robot_cm": [[_r(x), _r(y)] for x, y in tpt.robot],
+            "obstacle_ids": list(tpt.obstacle_ids), "obstacle_radii_cm": [_r(r) for r in tpt.obstacle_radii],
+            "obstacle_velocities_cm_s": [[_r(x), _r(y)] for x, y in tpt.obstacle_velocities],
+            "obstacles_cm": [[[_r(x), _r(y)] for x, y in row] for row in tpt.obstacles],
+            "collide": [[bool(c) for c in row] for row in tpt.collide]})
+
+    def _write_decision(self, t: float, k: int, rec: StepRecord) -> None:
+        d = rec.decision
+        planning = None
+        if d.new_plan and d.plan is not None:
+            p = d.plan
+            planning = {"strategy": p.strategy, "tc": p.tc, "tS": p.tS, "tG": p.tG, "wait_time": p.wait_time,
+                        "h_wait": self.h_wait, "obstacle_id": p.obstacle_id, "detour_start": p.detour_start,
+                        "phi_low_deg": None if p.phi_low_deg is None else _r(p.phi_low_deg), "reason": p.reason,
+                        "path_cm": [[_r(x), _r(y)] for x, y in p.path]}
+        left, front, right, angle = d.inputs
+        self._write("/planner/decision", t, {
+            "timestamp": _stamp(t), "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
+            "front_cm": _r(front), "right_cm": _r(right), "angle_deg": _r(angle), "dtheta_deg": _r(d.dtheta_deg),
+            "v_cm_s": _r(d.v_cm_s), "strategy": self.strategy, "planning": planning,
+            "compute_time_us": _r(rec.compute_time_us, 1)})
+
+    def _write_scene(self, t: float, rec: StepRecord) -> None:
+        s, d = rec.state, rec.decision
+        r = self.scenario.robot.radius
+        arrow = {"pose": _pose(s.x, s.y, s.heading, 0.2), "shaft_length": _m(r), "shaft_diameter": 0.03,
+                 "head_length": _m(r * 0.6), "head_diameter": 0.08, "color": _BLUE}
+        entities = [_entity(t, "robot", cylinders=[_disc(s.x, s.y, r, 0.2, _BLUE)], arrows=[arrow])]
+        for oid, p, rad in zip(self.episode.obstacle_ids, rec.obstacle_positions, self.episode.motion.radii,
+                               strict=True):
+            entities.append(_entity(t, f"obstacle/{oid}", cylinders=[_disc(p[0], p[1], rad, 0.3, _RED)]))
+        tpt_lines, hits = [], []
+        if d.tpt is not None:
+            tpt_lines.append(_line(d.tpt.robot, _CYAN, z_m=0.02))
+            for j in range(len(d.tpt.obstacle_ids)):
+                tpt_lines.append(_line(d.tpt.obstacles[:, j, :], _ORANGE, z_m=0.02))
+            for row in np.unique(d.tpt.collide[1:].nonzero()[0]):
+                x, y = d.tpt.robot[row + 1]
+                hits.append(_disc(x, y, d.tpt.robot_radius, 0.05, _HIT))
+        entities.append(_entity(t, "tpt", lines=tpt_lines, cylinders=hits))
+        if d.plan is None:
+            self._plan_path = []
+        elif d.new_plan:
+            self._plan_path = [[s.x, s.y], *d.plan.path.tolist()]
+        plan_lines = [_line(self._plan_path, _PURPLE, thickness_m=0.04, z_m=0.03)] if self._plan_path else []
+        entities.append(_entity(t, "plan", lines=plan_lines))
+        self._write("/scene", t, {"deletions": [], "entities": entities})
+
+    def _write_events(self, t: float, rec: StepRecord) -> None:
+        d = rec.decision
+        if d.new_plan and d.plan is not None:
+            p = d.plan
+            self.log(t, LOG_WARNING, f"collision predicted with obstacle {p.obstacle_id} at step +{p.tc} "
+                                     f"(tS={p.tS}, tG={p.tG}, waitTime={p.wait_time}, hWait={self.h_wait})")
+            if p.strategy == "wait":
+                waiting = int(sum(1 for q in p.path if math.dist(q, p.path[-1]) < 1e-9))
+                self.log(t, LOG_INFO, f"wait started: {waiting} step(s) at ({p.path[-1][0]:.0f}, "
+                                      f"{p.path[-1][1]:.0f}) cm — {p.reason}")
+            elif p.strategy == "detour":
+                self.log(t, LOG_INFO, f"detour planned: {len(p.path)} step(s) from tS'={p.detour_start} — {p.reason}")
+            else:
+                self.log(t, LOG_WARNING, f"stop: {p.reason}")
+        if rec.contact_static:
+            self.log(t + self.dt, LOG_ERROR, "contact with a static obstacle or wall")
+        for oid in rec.contact_dynamic:
+            self.log(t + self.dt, LOG_ERROR, f"contact with moving obstacle {oid}")
+
+    # -- end ----------------------------------------------------------------------------------------------
+    def finish(self, outcome: str, reason: str = "") -> None:
+        """Write ``/episode`` and the summary; the file is complete afterwards."""
+        if self.finished:
+            return
+        t = self._last_time
+        level = LOG_INFO if outcome == "goal" else LOG_ERROR if outcome == "error" else LOG_WARNING
+        text = {"goal": "goal reached", "collision": "collision", "timeout": "timeout: step limit reached",
+                "error": "error", "interrupted": "interrupted"}.get(outcome, outcome)
+        self.log(t, level, f"{text} after {self.steps} step(s)" + (f": {reason}" if reason else ""))
+        self._write("/episode", t, {"timestamp": _stamp(t), "outcome": outcome, "steps": self.steps,
+                                    "time_s": _r(self.steps * self.dt), "contacts": self.episode.contacts,
+                                    "reason": reason})
+        self.writer.finish()
+        self.finished = True
+
+
+def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:
+    """The ``fuzzynav.run`` metadata record: config, seed, scenario, versions, git commit (all strings)."""
+    from runners.provenance import provenance
+
+    meta = {"config": config_yaml, "seed": str(seed), "scenario": scenario, **provenance()}
+    for key, value in (extra or {}).items():
+        meta[key] = str(value)
+    return meta

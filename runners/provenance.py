@@ -1,0 +1,41 @@
+"""Where a run came from: fuzzynav version, git commit and library versions (strings, computed once)."""
+
+from __future__ import annotations
+
+import subprocess
+from functools import cache
+from importlib import metadata
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LIBRARIES = ("numpy", "scikit-fuzzy", "shapely", "mcap", "scipy", "hydra-core")
+
+
+def _version(dist: str) -> str:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return "not installed"
+
+
+@cache
+def git_commit() -> str:
+    """The checkout's commit (with ``-dirty`` when it has uncommitted changes), or ``unknown``."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
+        if head.returncode != 0:
+            return "unknown"
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True, timeout=10)
+        return head.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+@cache
+def provenance() -> dict[str, str]:
+    """``fuzzynav_version``, ``git_commit`` and ``<library>_version`` entries."""
+    out = {"fuzzynav_version": _version("fuzzynav"), "git_commit": git_commit()}
+    for lib in LIBRARIES:
+        out[f"{lib}_version"] = _version(lib)
+    return out

@@ -1,0 +1,89 @@
+"""Hydra structured configs: mutable mirrors of fuzzynav's frozen config dataclasses.
+
+The library's frozen dataclasses stay the single source of truth (fields, types, defaults); this module
+derives OmegaConf-compatible copies from them (tuples become lists) and stores them in Hydra's
+ConfigStore under the ``schema`` group, so a typo or a wrong type fails at composition with Hydra's own
+error naming the key, and ``glob(*)`` sweeps over the real groups never pick them up.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+
+from fuzzynav.kinematics import RobotLimits
+from fuzzynav.laser import LaserConfig
+from fuzzynav.navigator import NavigatorConfig
+from fuzzynav.perception import PerceptionConfig
+from fuzzynav.planner import PlannerConfig
+from fuzzynav.sonar import SonarConfig
+
+_MIRRORS: dict[type, type] = {}
+
+
+def mutable_mirror(cls: type) -> type:
+    """A non-frozen dataclass with the same fields and defaults as ``cls`` (recursively)."""
+    if cls in _MIRRORS:
+        return _MIRRORS[cls]
+    hints = typing.get_type_hints(cls)
+    fields = []
+    for f in dataclasses.fields(cls):
+        hint = hints[f.name]
+        default: Any = f.default
+        if dataclasses.is_dataclass(hint):
+            mirror = mutable_mirror(hint)
+            fields.append((f.name, mirror, dataclasses.field(default_factory=mirror)))
+            continue
+        if typing.get_origin(hint) is tuple:
+            args = [a for a in typing.get_args(hint) if a is not Ellipsis]
+            item = args[0] if args else Any
+            value = list(default)
+            fields.append((f.name, list[item], dataclasses.field(default_factory=lambda v=value: list(v))))
+            continue
+        fields.append((f.name, hint, dataclasses.field(default=default)))
+    mirror = dataclasses.make_dataclass(f"{cls.__name__}Schema", fields)
+    _MIRRORS[cls] = mirror
+    return mirror
+
+
+RobotLimitsSchema = mutable_mirror(RobotLimits)
+SonarSchema = mutable_mirror(SonarConfig)
+LaserSchema = mutable_mirror(LaserConfig)
+PlannerSchema = mutable_mirror(PlannerConfig)
+PerceptionSchema = mutable_mirror(PerceptionConfig)
+NavigatorSchema = mutable_mirror(NavigatorConfig)
+
+
+@dataclasses.dataclass
+class SensorsSchema:
+    """The ``sensors`` group: sonar and laser."""
+
+    sonar: SonarSchema = dataclasses.field(default_factory=SonarSchema)  # type: ignore[valid-type]
+    laser: LaserSchema = dataclasses.field(default_factory=LaserSchema)  # type: ignore[valid-type]
+
+
+@dataclasses.dataclass
+class RunSchema:
+    """The whole run configuration (``conf/config.yaml``). Scenario and controller are validated by
+    fuzzynav's own parsers (which name the field inside the file), so they are free-form here."""
+
+    scenario: Any = None
+    controller: Any = None
+    robot: RobotLimitsSchema = dataclasses.field(default_factory=RobotLimitsSchema)  # type: ignore[valid-type]
+    sensors: SensorsSchema = dataclasses.field(default_factory=SensorsSchema)
+    planner: PlannerSchema = dataclasses.field(default_factory=PlannerSchema)  # type: ignore[valid-type]
+    perception: PerceptionSchema = dataclasses.field(default_factory=PerceptionSchema)  # type: ignore[valid-type]
+    navigator: NavigatorSchema = dataclasses.field(default_factory=NavigatorSchema)  # type: ignore[valid-type]
+    seed: int = 0
+    episodes: int = 1
+    dt: float = 1.0
+    terminate_on_collision: bool = True
+
+
+def register() -> None:
+    """Store the schemas (idempotent)."""
+    cs = ConfigStore.instance()
+    cs.store(group="schema", name="run", node=RunSchema)

@@ -1,0 +1,144 @@
+"""Config sweeps: a Hydra multirun of ``runners.run``, in parallel, with a progress bar and a summary.
+
+    python -m runners.sweep                       # the default experiment (conf/sweep/default.yaml)
+    python -m runners.sweep sweep=quick           # any preset in conf/sweep/
+    python -m runners.sweep sweep=quick planner.safety_margin_cm=5,15    # plus any Hydra override
+
+Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>__h<h_wait>__...__s<seed>.mcap`` with Hydra's
+``.hydra/`` snapshots per job. At the end it reads the logs back and writes ``summary.csv`` and prints a
+table of outcomes per scenario, strategy and h_wait.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import ValueType
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+from tqdm import tqdm
+
+from analysis.logs import LogError, episode_summary, find_logs, is_complete
+
+CONF = Path(__file__).resolve().parents[1] / "conf"
+
+
+def count_episodes(config: DictConfig) -> int | None:
+    """Episodes the sweep will run: product of the sweep sizes times ``episodes`` (None if unknown)."""
+    params = dict(config.hydra.sweeper.get("params") or {})
+    overrides = [f"{k}={v}" for k, v in params.items()]
+    overrides += list(config.hydra.overrides.task)
+    total = 1
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except Exception:
+        return None
+    sizes: dict[str, int] = {}
+    for o in parsed:
+        key = o.get_key_element()
+        if not o.is_sweep_override():
+            sizes.setdefault(key, 1)
+            continue
+        if o.value_type == ValueType.GLOB_CHOICE_SWEEP:
+            group_dir = CONF / key
+            glob = o.value()
+            names = [p.stem for p in group_dir.glob("*.yaml")]
+            sizes[key] = len(glob.filter(names)) if group_dir.is_dir() else 0
+        else:
+            sizes[key] = len(list(o.sweep_string_iterator()))
+    for n in sizes.values():
+        total *= max(n, 1)
+    return total * int(config.get("episodes", 1))
+
+
+# watcher threads live here, not on the callback: the launcher pickles callbacks to send them to workers
+_WATCHERS: dict[str, tuple[threading.Thread, threading.Event]] = {}
+
+
+def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
+    """Count finished logs (they end with the MCAP magic) until ``stop`` is set."""
+    with tqdm(total=total, unit="episode", desc="sweep", file=sys.stderr, dynamic_ncols=True) as bar:
+        done: set[Path] = set()
+        while True:
+            stopping = stop.wait(0.5)
+            for path in sweep_dir.rglob("*.mcap") if sweep_dir.exists() else []:
+                if path not in done and is_complete(path):
+                    done.add(path)
+                    bar.update(1)
+            if stopping:
+                break
+
+
+class SweepProgress(Callback):
+    """Shows a progress bar over episodes (counting finished logs) and writes the summary at the end."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        sweep_dir = Path(config.hydra.sweep.dir)
+        stop = threading.Event()
+        thread = threading.Thread(target=_watch, args=(sweep_dir, count_episodes(config), stop), daemon=True)
+        _WATCHERS[str(sweep_dir)] = (thread, stop)
+        thread.start()
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        sweep_dir = Path(config.hydra.sweep.dir)
+        thread, stop = _WATCHERS.pop(str(sweep_dir), (None, None))
+        if stop is not None and thread is not None:
+            stop.set()
+            thread.join()
+        write_summary(sweep_dir)
+
+
+def summarise(sweep_dir: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Per-episode rows read back from the logs, and outcomes per scenario × strategy × h_wait."""
+    rows, bad = [], []
+    for path in find_logs([sweep_dir]):
+        try:
+            rows.append(episode_summary(path))
+        except LogError as err:
+            bad.append({"log": str(path), "outcome": "unreadable", "reason": str(err)})
+    episodes = pd.DataFrame(rows + bad)
+    if not rows:
+        return episodes, pd.DataFrame()
+    ok = pd.DataFrame(rows)
+    ok["success"] = ok["outcome"].eq("goal") & ok["contacts"].fillna(1).eq(0)
+    table = ok.groupby(["scenario", "strategy", "h_wait"], dropna=False).agg(
+        episodes=("outcome", "size"), success_rate=("success", "mean"),
+        goal=("outcome", lambda s: int((s == "goal").sum())),
+        collision=("outcome", lambda s: int((s == "collision").sum())),
+        timeout=("outcome", lambda s: int((s == "timeout").sum())),
+        other=("outcome", lambda s: int((~s.isin(["goal", "collision", "timeout"])).sum())),
+        mean_steps=("steps", "mean")).reset_index()
+    return episodes, table
+
+
+def write_summary(sweep_dir: Path) -> pd.DataFrame:
+    """Write ``summary.csv`` (one row per episode) and print the outcome table."""
+    episodes, table = summarise(sweep_dir)
+    if episodes.empty:
+        print(f"no logs found in {sweep_dir}")
+        return table
+    episodes.to_csv(sweep_dir / "summary.csv", index=False)
+    with pd.option_context("display.width", 160, "display.max_rows", 500):
+        print(table.to_string(index=False, float_format=lambda x: f"{x:.2f}" if not math.isnan(x) else "-"))
+    print(f"{len(episodes)} episode logs in {sweep_dir}; rows in {sweep_dir / 'summary.csv'}")
+    return table
+
+
+def main() -> None:
+    args = sys.argv[1:]
+    if not any(a.startswith("sweep=") for a in args):
+        args = ["sweep=default", *args]
+    sys.argv = [sys.argv[0], "--multirun", *args]
+    from runners import run
+
+    run.main()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,77 @@
+"""Hydra runs and sweeps: config groups, user scenarios via hydra.searchpath, errors, the sweep command."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pandas as pd
+import yaml
+
+from analysis.logs import episode_summary, find_logs
+from runners.sweep import count_episodes
+from tests.conftest import CONF, ROOT
+
+
+def cli(*args, timeout=600):
+    return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_user_scenario_through_searchpath(tmp_path):
+    user = tmp_path / "my_conf"
+    (user / "scenario").mkdir(parents=True)
+    data = yaml.safe_load((CONF / "scenario" / "head_on.yaml").read_text())
+    data.update(name="my_corridor", max_steps=50)
+    (user / "scenario" / "my_corridor.yaml").write_text(yaml.safe_dump(data))
+    out = cli("runners.run", f"hydra.searchpath=[file://{user}]", "scenario=my_corridor",
+              f"hydra.run.dir={tmp_path / 'run'}")
+    assert out.returncode == 0, out.stderr
+    assert "my_corridor strategy=auto" in out.stdout
+    assert episode_summary(find_logs([tmp_path / "run"])[0])["scenario"] == "my_corridor"
+
+
+def test_bad_scenario_file_names_file_and_field(tmp_path):
+    user = tmp_path / "my_conf"
+    (user / "scenario").mkdir(parents=True)
+    data = yaml.safe_load((CONF / "scenario" / "head_on.yaml").read_text())
+    data["robot"]["start"] = [5000, 300]
+    (user / "scenario" / "broken.yaml").write_text(yaml.safe_dump(data))
+    out = cli("runners.run", f"hydra.searchpath=[file://{user}]", "scenario=broken", f"hydra.run.dir={tmp_path / 'r'}")
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "broken.yaml: robot.start: [5000.0, 300.0] is outside bounds" in lines[0]
+    assert not list((tmp_path / "r").glob("*.mcap"))
+
+
+def test_typo_and_wrong_type_fail_at_composition(tmp_path):
+    out = cli("runners.run", "planner.h_wiat=3", f"hydra.run.dir={tmp_path}")
+    assert out.returncode == 1 and "h_wiat" in out.stderr and "Traceback" not in out.stderr
+    out = cli("runners.run", "planner.h_wait=two", f"hydra.run.dir={tmp_path}")
+    assert out.returncode == 1 and "planner.h_wait" in out.stderr and "Traceback" not in out.stderr
+    out = cli("runners.run", "planner.h_wait=-1", f"hydra.run.dir={tmp_path}")
+    assert out.returncode == 2 and out.stderr.strip() == "error: config: planner.h_wait: must be >= 0, got -1"
+
+
+def test_quick_sweep_end_to_end(tmp_path):
+    out = cli("runners.sweep", "sweep=quick", f"hydra.sweep.dir={tmp_path}", "hydra.launcher.n_jobs=2")
+    assert out.returncode == 0, out.stderr[-2000:]
+    logs = find_logs([tmp_path])
+    assert len(logs) == 12
+    assert all((log.parent / ".hydra" / "config.yaml").exists() for log in logs)
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert len(summary) == 12 and set(summary["strategy"]) == {"auto", "wait", "none"}
+    assert (summary.loc[summary.strategy == "none", "outcome"] == "collision").all()
+    assert (summary.loc[summary.strategy == "auto", "outcome"] == "goal").all()
+    assert "success_rate" in out.stdout and "12 episode logs" in out.stdout
+
+
+def test_count_episodes_of_the_default_sweep():
+    from hydra import compose, initialize_config_dir
+
+    from runners import schema
+
+    schema.register()
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose("config", overrides=["sweep=default"], return_hydra_config=True)
+        assert count_episodes(cfg) == 3 * 7 * 5
