@@ -191,7 +191,7 @@ class EpisodeLogWriter:
         self._write("/laser", rec.time_s, {
             "timestamp": _stamp(rec.time_s), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
             "start_angle": 0.0, "end_angle": _r(2 * math.pi * (n - 1) / n, 9),
-            "ranges": [_m(r) for r in scan.ranges], "intensities": [1.0 if h else 0.0 for h in returned]})
+            "ranges": np.round(scan.ranges / 100.0, 6).tolist(), "intensities": returned.astype(float).tolist()})
 
     def _write_tpt(self, t: float, k: int, tpt) -> None:
         self._write("/tpt", t, {
