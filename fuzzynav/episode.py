@@ -71,6 +71,7 @@ class StepRecord:
     sonar: tuple[float, float, float]
     scan: LaserScan
     tracks: tuple[Track, ...]
+    moving_beams: np.ndarray
     static_points: np.ndarray
     decision: Decision
     obstacle_positions: np.ndarray
@@ -157,7 +158,8 @@ class Episode:
         elif self.step_index >= self.scenario.max_steps:
             self.outcome = "timeout"
         return StepRecord(step=self.step_index - 1, time_s=t, state=s, next_state=nxt, sonar=sonar, scan=scan,
-                          tracks=seen.tracks, static_points=seen.static_points, decision=decision,
+                          tracks=seen.tracks, moving_beams=seen.moving_beams, static_points=seen.static_points,
+                          decision=decision,
                           obstacle_positions=pos, obstacle_velocities=vel, obstacle_next_positions=next_pos,
                           contact_static=static_hit, contact_dynamic=dynamic_hit, new_contacts=new_contacts,
                           distance_to_goal=dist, outcome=self.outcome, compute_time_us=compute_us)

@@ -38,9 +38,11 @@ class PerceptionConfig:
 
 @dataclass(frozen=True)
 class Perceived:
-    """One frame of perception: moving-obstacle tracks and static laser points (K, 2) in cm."""
+    """One frame of perception: moving-obstacle tracks, the beams attributed to them (bool mask over the
+    scan) and the remaining laser returns as static points (K, 2) in cm."""
 
     tracks: tuple[Track, ...]
+    moving_beams: np.ndarray
     static_points: np.ndarray
 
 
@@ -51,8 +53,7 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
     returned = scan.ranges < scan.range_cm
     if config.mode == "laser":
         state, tracks, moving = tracking.update(state, scan, time_s, config.tracker)
-        static = _points(scan, returned & ~moving)
-        return state, Perceived(tuple(tracks), static)
+        return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
     ox, oy = scan.origin
     tracks = []
     for k in range(len(truth_radii)):
@@ -67,11 +68,13 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
         if config.velocity_noise_std_cm_s > 0:
             v = v + rng.normal(0.0, config.velocity_noise_std_cm_s, 2)
         tracks.append(Track(k + 1, float(p[0]), float(p[1]), float(v[0]), float(v[1]), float(truth_radii[k])))
-    static = _points(scan, returned & (scan.labels == 0))
-    return state, Perceived(tuple(tracks), static)
+    moving = returned & (scan.labels > 0)
+    return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
 
 
-def _points(scan: LaserScan, mask: np.ndarray) -> np.ndarray:
+def static_points(scan: LaserScan, moving_beams: np.ndarray) -> np.ndarray:
+    """World coordinates (K, 2) cm of the returns not attributed to moving obstacles."""
+    mask = (scan.ranges < scan.range_cm) & ~moving_beams
     r = scan.ranges[mask]
     a = scan.angles_world_rad[mask]
     return np.stack([scan.origin[0] + r * np.cos(a), scan.origin[1] + r * np.sin(a)], axis=1)

@@ -25,8 +25,9 @@ class World:
         xmin, ymin, xmax, ymax = (float(b) for b in bounds)
         self.bounds = (xmin, ymin, xmax, ymax)
         self.area = box(xmin, ymin, xmax, ymax)
-        self.obstacles = shapely.union_all([o.geometry() for o in static_obstacles]) \
-            if static_obstacles else shapely.GeometryCollection()
+        with np.errstate(divide="ignore", invalid="ignore"):  # GEOS on touching degenerate shapes
+            self.obstacles = shapely.union_all([o.geometry() for o in static_obstacles]) \
+                if static_obstacles else shapely.GeometryCollection()
         frame = box(xmin - _FRAME, ymin - _FRAME, xmax + _FRAME, ymax + _FRAME).difference(self.area)
         #: everything solid: static obstacles plus the frame outside the walls (what the sonar sees)
         self.solid = shapely.union_all([self.obstacles, frame])

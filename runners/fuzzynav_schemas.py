@@ -61,6 +61,8 @@ def _track_item() -> dict:
 def tracks() -> dict:
     return _stamped("fuzzynav.Tracks", "Moving obstacles as perceived this step (laser tracking or ground truth)", {
         "mode": {"type": "string", "enum": ["laser", "ground_truth"], "description": "Perception mode"},
+        "moving_beams": _arr({"type": "integer", "minimum": 0}, "Indices of the /laser beams attributed to "
+                             "moving obstacles; the other returns are the static points"),
         "tracks": _arr(_track_item(), "Perceived moving obstacles")})
 
 

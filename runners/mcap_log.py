@@ -162,7 +162,8 @@ class EpisodeLogWriter:
         self._write("/sonar", t, {"timestamp": _stamp(t), "step": k, "left_cm": _r(rec.sonar[0]),
                                   "front_cm": _r(rec.sonar[1]), "right_cm": _r(rec.sonar[2]),
                                   "range_cm": _r(self.episode.config.sonar.range_cm)})
-        self._write("/tracks", t, {"timestamp": _stamp(t), "step": k, "mode": self.perception_mode, "tracks": [
+        self._write("/tracks", t, {"timestamp": _stamp(t), "step": k, "mode": self.perception_mode,
+                                   "moving_beams": np.nonzero(rec.moving_beams)[0].tolist(), "tracks": [
             {"id": tr.id, "x_cm": _r(tr.x), "y_cm": _r(tr.y), "vx_cm_s": _r(tr.vx), "vy_cm_s": _r(tr.vy),
              "speed_cm_s": _r(tr.speed), "heading_deg": _r(tr.moving_angle_deg), "radius_cm": _r(tr.radius)}
             for tr in rec.tracks]})
