@@ -8,6 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
+from mcap.records import Channel, Message, Metadata
+from mcap.stream_reader import StreamReader
 
 RUN_METADATA = "fuzzynav.run"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -35,24 +37,63 @@ def find_logs(paths: Iterable[str | Path]) -> list[Path]:
     return out
 
 
+def _linear_records(path: Path) -> Iterator[Any]:
+    """Records of a possibly truncated MCAP, in file order, up to the last readable chunk (a killed run's
+    log has no summary, so it cannot be read through the index)."""
+    with open(path, "rb") as f:
+        reader = StreamReader(f)
+        records = iter(reader.records)
+        try:
+            first = next(records)
+        except Exception as err:  # empty file, wrong magic, garbage
+            raise LogError(f"{path}: not an MCAP file ({type(err).__name__}: {err})") from None
+        yield first
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            except Exception:  # the truncated tail: stop at what was fully written
+                return
+            yield record
+
+
 def read_metadata(path: Path) -> dict[str, str]:
-    """The ``fuzzynav.run`` metadata record of a log."""
+    """The ``fuzzynav.run`` metadata record of a log (complete or truncated)."""
     try:
-        with open(path, "rb") as f:
-            for record in make_reader(f).iter_metadata():
-                if record.name == RUN_METADATA:
+        if is_complete(path):
+            with open(path, "rb") as f:
+                for record in make_reader(f).iter_metadata():
+                    if record.name == RUN_METADATA:
+                        return dict(record.metadata)
+        else:
+            for record in _linear_records(path):
+                if isinstance(record, Metadata) and record.name == RUN_METADATA:
                     return dict(record.metadata)
+    except LogError:
+        raise
     except Exception as err:  # the mcap reader raises many types on corrupt input
         raise LogError(f"{path}: not a readable MCAP file ({type(err).__name__}: {err})") from None
     raise LogError(f"{path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
 
 
 def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
-    """(topic, log time ns, decoded JSON message) in log-time order."""
+    """(topic, log time ns, decoded JSON message) in log-time order; a truncated log yields what it has."""
+    wanted = set(topics) if topics else None
     try:
-        with open(path, "rb") as f:
-            for _schema, channel, message in make_reader(f).iter_messages(topics=list(topics) if topics else None):
-                yield channel.topic, message.log_time, json.loads(message.data)
+        if is_complete(path):
+            with open(path, "rb") as f:
+                for _schema, channel, message in make_reader(f).iter_messages(topics=list(wanted) if wanted else None):
+                    yield channel.topic, message.log_time, json.loads(message.data)
+            return
+        channels: dict[int, str] = {}
+        for record in _linear_records(path):
+            if isinstance(record, Channel):
+                channels[record.id] = record.topic
+            elif isinstance(record, Message):
+                topic = channels.get(record.channel_id, "")
+                if wanted is None or topic in wanted:
+                    yield topic, record.log_time, json.loads(record.data)
     except LogError:
         raise
     except Exception as err:

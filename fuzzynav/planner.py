@@ -261,20 +261,31 @@ def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, headin
 
 def _greedy(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndarray,
             config: PlannerConfig) -> tuple[list | None, float, str]:
-    """Lines 23-35 literally: always move to the successor with minimal f, no backtracking."""
+    """Lines 23-35 literally: always move to the successor with minimal f, no backtracking. Moves along the
+    same heading straight at rG all have f = |rG - current| exactly; such ties (within 1e-9 cm) go to the
+    faster move, as the paper's text asks ("the robot has to move faster"), then to the listing's order."""
     current, time, path, first_low = start, t_s1, [], None
     while math.dist(current, r_goal) > config.detour_tolerance_cm:
         if time - t_s1 >= config.detour_max_steps:
             return None, first_low or 0.0, f"rG not reached within {config.detour_max_steps} steps"
         succ, heads, f, low = expand(current, heading, time)
         first_low = low if first_low is None else first_low
-        best = int(np.argmin(f))
+        best = _argmin_prefer_fast(f, np.linalg.norm(succ - current, axis=1))
         if not np.isfinite(f[best]):
             return None, first_low, f"no collision-free successor at step {time + 1}"
         current, heading = succ[best], float(heads[best])
         path.append(current)
         time += 1
     return path, first_low or 0.0, "rG reached"
+
+
+def _argmin_prefer_fast(f: np.ndarray, step_lengths: np.ndarray, tie_cm: float = 1e-9) -> int:
+    """Index of the minimal f; among near-ties the longest step (fastest), then the first in order."""
+    best = float(np.min(f))
+    if not np.isfinite(best):
+        return int(np.argmin(f))
+    tied = np.nonzero(f <= best + tie_cm)[0]
+    return int(tied[np.argmax(step_lengths[tied])])
 
 
 def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndarray,

@@ -50,9 +50,10 @@ _PURPLE = {"r": 0.6, "g": 0.2, "b": 0.85, "a": 1.0}
 _HIT = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 0.35}
 
 
-def _r(x: float, nd: int = 4) -> float:
-    """Round for compact, deterministic JSON."""
-    return round(float(x), nd)
+def _r(x: float) -> float:
+    """Full precision: replay --verify feeds these numbers back to the navigator, and a rounded input can flip
+    a decision that sits on a boundary (e.g. the crisp included angle at exactly 90°)."""
+    return float(x)
 
 
 def _stamp(t: float) -> dict[str, int]:
@@ -61,13 +62,13 @@ def _stamp(t: float) -> dict[str, int]:
 
 
 def _m(cm: float) -> float:
-    return _r(cm / 100.0, 6)
+    return float(cm) / 100.0
 
 
 def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) -> dict:
     half = math.radians(heading_deg) / 2.0
-    return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": _r(z_m, 6)},
-            "orientation": {"x": 0.0, "y": 0.0, "z": _r(math.sin(half), 9), "w": _r(math.cos(half), 9)}}
+    return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": float(z_m)},
+            "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}
 
 
 def _point(x_cm: float, y_cm: float, z_m: float = 0.0) -> dict:
@@ -191,8 +192,8 @@ class EpisodeLogWriter:
         returned = scan.ranges < scan.range_cm
         self._write("/laser", rec.time_s, {
             "timestamp": _stamp(rec.time_s), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
-            "start_angle": 0.0, "end_angle": _r(2 * math.pi * (n - 1) / n, 9),
-            "ranges": np.round(scan.ranges / 100.0, 6).tolist(), "intensities": returned.astype(float).tolist()})
+            "start_angle": 0.0, "end_angle": 2 * math.pi * (n - 1) / n,
+            "ranges": (scan.ranges / 100.0).tolist(), "intensities": returned.astype(float).tolist()})
 
     def _write_tpt(self, t: float, k: int, tpt) -> None:
         self._write("/tpt", t, {
@@ -218,7 +219,7 @@ class EpisodeLogWriter:
             "timestamp": _stamp(t), "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
             "front_cm": _r(front), "right_cm": _r(right), "angle_deg": _r(angle), "dtheta_deg": _r(d.dtheta_deg),
             "v_cm_s": _r(d.v_cm_s), "strategy": self.strategy, "planning": planning,
-            "compute_time_us": _r(rec.compute_time_us, 1)})
+            "compute_time_us": round(rec.compute_time_us, 1)})
 
     def _write_scene(self, t: float, rec: StepRecord) -> None:
         s, d = rec.state, rec.decision

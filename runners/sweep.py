@@ -5,8 +5,8 @@
     python -m runners.sweep sweep=quick planner.safety_margin_cm=5,15    # plus any Hydra override
 
 Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>__h<h_wait>__...__s<seed>.mcap`` with Hydra's
-``.hydra/`` snapshots per job. At the end it reads the logs back and writes ``summary.csv`` and prints a
-table of outcomes per scenario, strategy and h_wait.
+``.hydra/`` snapshots per job. At the end it reads the logs back, writes ``summary.csv``, prints a table of
+outcomes per scenario, strategy and h_wait, and writes the analysis report into ``<sweep dir>/report/``.
 """
 
 from __future__ import annotations
@@ -92,6 +92,10 @@ class SweepProgress(Callback):
             stop.set()
             thread.join()
         write_summary(sweep_dir)
+        from analysis.report import build_report
+
+        build_report([sweep_dir], sweep_dir / "report")
+        print(f"report: {sweep_dir / 'report' / 'report.html'} (and report.md)")
 
 
 def summarise(sweep_dir: Path) -> tuple[pd.DataFrame, pd.DataFrame]:

@@ -1,0 +1,147 @@
+"""One episode loaded from its MCAP log into plain arrays (cm, s, degrees), for metrics, plots and replay.
+
+Only the log is read: the static world comes from the first ``/scene`` message (walls, static obstacles,
+goal and its tolerance), the robot from ``/robot/state``, the moving obstacles from ``/obstacles/truth``,
+decisions from ``/planner/decision``, tables from ``/tpt``, the outcome from ``/episode`` and the run
+parameters from the ``fuzzynav.run`` metadata.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+import yaml
+from shapely.geometry import Point, Polygon, box
+
+from analysis.logs import LogError, is_complete, iter_messages, read_metadata
+
+METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
+
+
+@dataclass
+class EpisodeLog:
+    """An episode as logged. ``positions`` has one row per step plus the final position (cm)."""
+
+    path: Path
+    meta: dict[str, str]
+    config: dict[str, Any]
+    complete: bool
+    dt: float
+    bounds: tuple[float, float, float, float] | None = None
+    static_polygons: list[Polygon] = field(default_factory=list)
+    goal: tuple[float, float] | None = None
+    goal_tolerance: float | None = None
+    robot_radius: float = 20.0
+    states: list[dict[str, Any]] = field(default_factory=list)
+    truth: list[dict[str, Any]] = field(default_factory=list)
+    decisions: list[dict[str, Any]] = field(default_factory=list)
+    tpts: dict[int, dict[str, Any]] = field(default_factory=dict)
+    tracks: list[dict[str, Any]] = field(default_factory=list)
+    sonar: list[dict[str, Any]] = field(default_factory=list)
+    laser: list[dict[str, Any]] = field(default_factory=list)
+    logs: list[dict[str, Any]] = field(default_factory=list)
+    episode: dict[str, Any] | None = None
+
+    # -- derived arrays ---------------------------------------------------------------------------------
+    @property
+    def steps(self) -> int:
+        return len(self.states)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(steps + 1, 2) robot positions in cm: at each step, then after the last move."""
+        if not self.states:
+            return np.zeros((0, 2))
+        pts = [(s["x_cm"], s["y_cm"]) for s in self.states]
+        pts.append((self.states[-1]["next_x_cm"], self.states[-1]["next_y_cm"]))
+        return np.array(pts, dtype=float)
+
+    @property
+    def headings(self) -> np.ndarray:
+        """(steps + 1,) headings in degrees."""
+        if not self.states:
+            return np.zeros(0)
+        return np.array([s["heading_deg"] for s in self.states] + [self.states[-1]["next_heading_deg"]])
+
+    @property
+    def outcome(self) -> str:
+        """The logged outcome; ``incomplete`` when the log has no ``/episode`` message."""
+        return self.episode["outcome"] if self.episode else "incomplete"
+
+    def static_geometry(self) -> shapely.Geometry:
+        """Static obstacles plus the solid frame outside the walls (cm), as the simulator sees them."""
+        parts = list(self.static_polygons)
+        if self.bounds is not None:
+            xmin, ymin, xmax, ymax = self.bounds
+            frame = box(xmin - 1e4, ymin - 1e4, xmax + 1e4, ymax + 1e4).difference(box(xmin, ymin, xmax, ymax))
+            parts.append(frame)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return shapely.union_all(parts) if parts else shapely.GeometryCollection()
+
+
+def _cm(points: Iterable[dict[str, float]]) -> list[tuple[float, float]]:
+    return [(p["x"] * 100.0, p["y"] * 100.0) for p in points]
+
+
+def _read_scene(log: EpisodeLog, scene: dict[str, Any]) -> None:
+    for ent in scene["entities"]:
+        eid = ent["id"]
+        if eid == "walls" and ent["lines"]:
+            xs, ys = zip(*_cm(ent["lines"][0]["points"]), strict=True)
+            log.bounds = (min(xs), min(ys), max(xs), max(ys))
+        elif eid.startswith("static/"):
+            for line in ent["lines"]:
+                log.static_polygons.append(Polygon(_cm(line["points"])))
+            for cyl in ent["cylinders"]:
+                c = cyl["pose"]["position"]
+                # the simulator's circles are 64-gons (quad_segs=16): rebuild the same geometry
+                log.static_polygons.append(Point(c["x"] * 100, c["y"] * 100).buffer(cyl["size"]["x"] * 50,
+                                                                                     quad_segs=16))
+        elif eid == "goal" and ent["cylinders"]:
+            c = ent["cylinders"][0]
+            log.goal = (c["pose"]["position"]["x"] * 100, c["pose"]["position"]["y"] * 100)
+            log.goal_tolerance = c["size"]["x"] * 50
+
+
+_TOPIC_LISTS = {"/robot/state": "states", "/obstacles/truth": "truth", "/planner/decision": "decisions",
+                "/tracks": "tracks", "/sonar": "sonar", "/laser": "laser", "/log": "logs"}
+
+
+def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> EpisodeLog:
+    """Read the given topics of one log. Raises :class:`LogError` (naming the file) if it is not a
+    fuzzynav log; a truncated log loads what it has, with ``complete`` False and outcome ``incomplete``."""
+    path = Path(path)
+    meta = read_metadata(path)
+    try:
+        config = yaml.safe_load(meta.get("config", "")) or {}
+    except yaml.YAMLError:
+        config = {}
+    if not isinstance(config, dict):
+        config = {}
+    log = EpisodeLog(path=path, meta=meta, config=config, complete=is_complete(path),
+                     dt=float(config.get("dt", 1.0)))
+    scene_seen = False
+    try:
+        for topic, _t, msg in iter_messages(path, topics):
+            if topic == "/scene":
+                if not scene_seen:
+                    _read_scene(log, msg)
+                    scene_seen = True
+            elif topic == "/tpt":
+                log.tpts[msg["step"]] = msg
+            elif topic == "/episode":
+                log.episode = msg
+            else:
+                getattr(log, _TOPIC_LISTS[topic]).append(msg)
+    except LogError:
+        if log.complete:
+            raise
+        # a truncated log: keep what was read before the damage
+    if log.states:
+        log.robot_radius = float(log.states[0]["radius_cm"])
+    return log

@@ -1,0 +1,205 @@
+"""Per-episode metrics computed from a log alone (definitions in the README, units in the column names).
+
+``metrics_table(paths)`` gives one row per readable, finished episode plus a list of the logs left out
+(unreadable, truncated, or outcome ``error``/``interrupted``) with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import shapely
+from shapely.geometry import LineString, Point
+
+from analysis.episode_log import EpisodeLog, load_episode
+from analysis.logs import LogError, find_logs
+
+PARAMETERS = ("scenario", "strategy", "h_wait", "seed", "controller", "perception")
+EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
+
+
+@dataclass(frozen=True)
+class MetricOptions:
+    """``turn_threshold_deg``: smallest heading change (degrees per step) that counts towards a turn."""
+
+    turn_threshold_deg: float = 5.0
+
+
+def _wrap(deg: np.ndarray) -> np.ndarray:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+def turn_count(heading_changes_deg: np.ndarray, threshold_deg: float = 5.0) -> int:
+    """Maximal runs of consecutive steps whose heading change has the same sign and |change| >= threshold."""
+    sign = np.where(np.abs(heading_changes_deg) >= threshold_deg, np.sign(heading_changes_deg), 0)
+    starts = (sign != 0) & (np.concatenate([[0], sign[:-1]]) != sign)
+    return int(starts.sum())
+
+
+def _swept_gap(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray) -> np.ndarray:
+    """Closest centre distance while two points move straight from (p0, o0) to (p1, o1), per obstacle."""
+    rel0 = p0[None, :] - o0
+    d = (p1 - p0)[None, :] - (o1 - o0)
+    dd = (d**2).sum(1)
+    s = np.clip(-(rel0 * d).sum(1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    return np.linalg.norm(rel0 + s[:, None] * d, axis=1)
+
+
+def _contacts(touching: list[set[str]]) -> int:
+    """Contact events: each id counts when it enters contact (was not touching on the previous step)."""
+    count, before = 0, set()
+    for now in touching:
+        count += len(now - before)
+        before = now
+    return count
+
+
+def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> dict[str, Any]:
+    """All metrics of one episode (see the README for the definitions)."""
+    opt = options or MetricOptions()
+    pos = log.positions
+    r = log.robot_radius
+    row: dict[str, Any] = {p: log.meta.get(p) for p in PARAMETERS}
+    row["h_wait"] = int(row["h_wait"]) if row["h_wait"] not in (None, "") else None
+    row["seed"] = int(row["seed"]) if row["seed"] not in (None, "") else None
+    row.update(log=str(log.path), outcome=log.outcome, steps=log.steps)
+    seg = np.linalg.norm(np.diff(pos, axis=0), axis=1) if len(pos) > 1 else np.zeros(0)
+    row["path_length_cm"] = float(seg.sum())
+    dh = _wrap(np.diff(log.headings)) if len(pos) > 1 else np.zeros(0)
+    row["turn_count"] = turn_count(dh, opt.turn_threshold_deg)
+    row["heading_change_deg_total"] = float(np.abs(dh).sum())
+
+    # contacts recomputed from the logged geometry (swept over each step, as the simulator does)
+    solid = log.static_geometry()
+    shapely.prepare(solid)
+    touching_static, touching_dynamic, flags_static, flags_dynamic = [], [], [], []
+    min_static, min_dynamic = math.inf, math.inf
+    for k, st in enumerate(log.states):
+        p0, p1 = pos[k], pos[k + 1]
+        path = Point(p1) if np.allclose(p0, p1) else LineString([p0, p1])
+        gap_static = float(solid.distance(path)) - r if not solid.is_empty else math.inf
+        min_static = min(min_static, gap_static)
+        touching_static.append({"static"} if gap_static < -1e-9 else set())
+        flags_static.append({"static"} if st["contact_static"] else set())
+        flags_dynamic.append(set(st["contact_dynamic"]))
+        now = set()
+        if k < len(log.truth) and log.truth[k]["obstacles"]:
+            obs = log.truth[k]["obstacles"]
+            o0 = np.array([[o["x_cm"], o["y_cm"]] for o in obs])
+            o1 = np.array([[o["next_x_cm"], o["next_y_cm"]] for o in obs])
+            radii = np.array([o["radius_cm"] for o in obs])
+            gaps = _swept_gap(p0, p1, o0, o1) - r - radii
+            min_dynamic = min(min_dynamic, float(gaps.min()))
+            now = {obs[i]["id"] for i in np.nonzero(gaps < -1e-9)[0]}
+        touching_dynamic.append(now)
+    row["collisions_static"] = _contacts(touching_static)
+    row["collisions_dynamic"] = _contacts(touching_dynamic)
+    logged = (_contacts(flags_static), _contacts(flags_dynamic))
+    row["collision_check_agrees"] = logged == (row["collisions_static"], row["collisions_dynamic"])
+    row["collisions_logged_static"], row["collisions_logged_dynamic"] = logged
+    row["min_clearance_static_cm"] = min_static if math.isfinite(min_static) else math.nan
+    row["min_clearance_dynamic_cm"] = min_dynamic if math.isfinite(min_dynamic) else math.nan
+
+    # goal
+    t_goal = math.nan
+    if log.goal is not None and log.goal_tolerance is not None and len(pos) > 1:
+        reached = np.nonzero(np.linalg.norm(pos[1:] - np.array(log.goal), axis=1) <= log.goal_tolerance + 1e-6)[0]
+        if len(reached):
+            t_goal = float((reached[0] + 1) * log.dt)
+    row["time_to_goal_s"] = t_goal
+    collided = row["collisions_static"] + row["collisions_dynamic"] > 0
+    row["success"] = bool(log.outcome == "goal" and not collided and not math.isnan(t_goal))
+    straight = float(np.linalg.norm(np.array(log.goal) - pos[0])) if log.goal is not None and len(pos) else math.nan
+    row["path_efficiency"] = straight / row["path_length_cm"] if row["success"] and row["path_length_cm"] > 0 \
+        else math.nan
+
+    # planner
+    modes = [d["mode"] for d in log.decisions]
+    speeds = np.array([d["v_cm_s"] for d in log.decisions]) if log.decisions else np.zeros(0)
+    row["wait_steps"] = int(sum(1 for m, v in zip(modes, speeds, strict=True) if m in ("wait", "stop") and v == 0))
+    plans = [d["planning"] for d in log.decisions if d.get("planning")]
+    row["detour_count"] = sum(1 for p in plans if p["strategy"] == "detour")
+    row["plans_made"] = len(plans)
+    row["detour_extra_length_cm"] = _detour_extra(pos, modes)
+    row["tpt_collisions_predicted"] = sum(1 for t in log.tpts.values() if any(any(r_) for r_ in t["collide"][1:]))
+    ade, fde = _tpt_errors(log)
+    row["tpt_ade_cm"], row["tpt_fde_cm"] = ade, fde
+    times = np.array([d["compute_time_us"] for d in log.decisions]) if log.decisions else np.zeros(0)
+    row["compute_time_us_median"] = float(np.median(times)) if len(times) else math.nan
+    row["compute_time_us_p99"] = float(np.percentile(times, 99)) if len(times) else math.nan
+    return row
+
+
+def _detour_extra(pos: np.ndarray, modes: list[str]) -> float:
+    """For each maximal run of detour steps: executed length minus the straight line between its ends."""
+    extra, k = 0.0, 0
+    while k < len(modes):
+        if modes[k] != "detour":
+            k += 1
+            continue
+        j = k
+        while j < len(modes) and modes[j] == "detour":
+            j += 1
+        run = pos[k:j + 1]
+        extra += float(np.linalg.norm(np.diff(run, axis=0), axis=1).sum() - np.linalg.norm(run[-1] - run[0]))
+        k = j
+    return extra
+
+
+def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
+    """Average and final displacement error (cm) of the table's obstacle predictions against the logged
+    truth: each predicted obstacle is matched to the nearest true obstacle at the table's time (within
+    its radius + 50 cm); rows past the end of the episode are not scored."""
+    if not log.tpts or not log.truth:
+        return math.nan, math.nan
+    truth_at = {m["step"]: {o["id"]: (o["x_cm"], o["y_cm"]) for o in m["obstacles"]} for m in log.truth}
+    errors, finals = [], []
+    for step, t in log.tpts.items():
+        now = truth_at.get(step)
+        if not now:
+            continue
+        ids = list(now)
+        true_now = np.array([now[i] for i in ids])
+        for j, radius in enumerate(t["obstacle_radii_cm"]):
+            pred = np.array([row[j] for row in t["obstacles_cm"]])  # (n_traj + 1, 2)
+            d0 = np.linalg.norm(true_now - pred[0], axis=1)
+            match = int(np.argmin(d0))
+            if d0[match] > radius + 50.0:
+                continue
+            oid = ids[match]
+            errs = [float(np.linalg.norm(pred[k] - np.array(truth_at[step + k][oid])))
+                    for k in range(1, len(pred)) if step + k in truth_at and oid in truth_at[step + k]]
+            if errs:
+                errors.extend(errs)
+                finals.append(errs[-1])
+    return (float(np.mean(errors)), float(np.mean(finals))) if errors else (math.nan, math.nan)
+
+
+def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None
+                  ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(one row per usable episode, logs left out with the reason)."""
+    rows, excluded = [], []
+    for path in find_logs(paths):
+        try:
+            log = load_episode(path)
+        except LogError as err:
+            excluded.append({"log": str(path), "reason": str(err)})
+            continue
+        if not log.complete:
+            excluded.append({"log": str(path), "reason": "truncated: the file ends before the MCAP summary "
+                             f"(killed run or damaged copy; {log.steps} steps readable, outcome {log.outcome})"})
+            continue
+        if log.outcome in EXCLUDED_OUTCOMES:
+            why = {"incomplete": "truncated: no /episode outcome (killed run?)",
+                   "error": f"episode raised: {(log.episode or {}).get('reason', '')}",
+                   "interrupted": "episode interrupted"}[log.outcome]
+            excluded.append({"log": str(path), "reason": why})
+            continue
+        rows.append(episode_metrics(log, options))
+    return pd.DataFrame(rows), pd.DataFrame(excluded, columns=["log", "reason"])

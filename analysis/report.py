@@ -1,0 +1,251 @@
+"""Reports from logs: ``python -m analysis.report <sweep dir or .mcap files...> [--out DIR]``.
+
+Writes ``report.md`` and ``report.html`` with PNG plots beside them, ``episodes.csv`` (one row per
+episode, every metric), ``groups.csv`` (mean and 95 % bootstrap interval of every metric per scenario ×
+strategy × h_wait) and ``paired.csv`` (paired differences between strategies on the same scenario and
+seed). Logs that cannot be used (unreadable, truncated, outcome ``error``) are listed with the reason and
+left out of the statistics. Everything is computed from the logs alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import itertools
+import math
+import sys
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from analysis import plots
+from analysis.metrics import MetricOptions, metrics_table
+from analysis.stats import bootstrap_mean, excludes_zero, wilson
+
+METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
+           "collisions_static", "collisions_dynamic", "min_clearance_static_cm", "min_clearance_dynamic_cm",
+           "wait_steps", "detour_count", "detour_extra_length_cm", "tpt_collisions_predicted", "tpt_ade_cm",
+           "tpt_fde_cm", "compute_time_us_median", "compute_time_us_p99", "steps"]
+MAIN_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps"]
+PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "turn_count"]
+PLOT_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps",
+                "success"]
+GROUP = ["scenario", "strategy", "h_wait"]
+
+
+def variant(strategy: str, h_wait) -> str:
+    """``auto(h=2)`` for the strategy that reads h_wait, else the strategy name."""
+    return f"auto(h={int(h_wait)})" if strategy == "auto" and not pd.isna(h_wait) else str(strategy)
+
+
+def _fmt(mean: float, lo: float, hi: float, digits: int = 1) -> str:
+    if math.isnan(mean):
+        return "–"
+    if math.isnan(lo):
+        return f"{mean:.{digits}f}"
+    return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def group_table(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(main table for the report, long table of every metric per group with interval bounds)."""
+    main_rows, long_rows = [], []
+    for (scenario, strategy, h_wait), g in df.groupby(GROUP, dropna=False, sort=True):
+        k, n = int(g["success"].sum()), len(g)
+        p, lo, hi = wilson(k, n)
+        row = {"scenario": scenario, "strategy": variant(strategy, h_wait), "episodes": n,
+               "success rate [95% Wilson]": f"{p:.2f} [{lo:.2f}, {hi:.2f}]"}
+        long_rows.append({"scenario": scenario, "strategy": strategy, "h_wait": h_wait, "metric": "success",
+                          "n": n, "mean": p, "ci_low": lo, "ci_high": hi, "interval": "wilson"})
+        for metric in METRICS:
+            mean, mlo, mhi = bootstrap_mean(g[metric])
+            long_rows.append({"scenario": scenario, "strategy": strategy, "h_wait": h_wait, "metric": metric,
+                              "n": int(g[metric].notna().sum()), "mean": mean, "ci_low": mlo, "ci_high": mhi,
+                              "interval": "bootstrap"})
+            if metric in MAIN_METRICS:
+                row[metric] = _fmt(mean, mlo, mhi)
+        main_rows.append(row)
+    return pd.DataFrame(main_rows), pd.DataFrame(long_rows)
+
+
+def paired_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Mean paired difference (A − B) with a 95 % bootstrap interval between strategies — wait vs detour,
+    and each of them vs every auto(h) — run on the same scenario and seed (and controller and perception)."""
+    keys = ["scenario", "seed", "controller", "perception"]
+    rows = []
+    for scenario, sub in df.groupby("scenario"):
+        variants = sorted(v for v in sub["variant"].unique() if v != "none")
+        for a, b in itertools.combinations(variants, 2):
+            if a.startswith("auto") and b.startswith("auto"):
+                continue  # h_wait is compared in the plots against h_wait
+            left = sub[sub["variant"] == a].set_index(keys)
+            right = sub[sub["variant"] == b].set_index(keys)
+            common = left.index.intersection(right.index)
+            if len(common) == 0:
+                continue
+            for metric in PAIRED_METRICS:
+                diff = left.loc[common, metric].astype(float) - right.loc[common, metric].astype(float)
+                mean, lo, hi = bootstrap_mean(diff)
+                rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": int(diff.notna().sum()),
+                             "mean A−B": mean, "ci_low": lo, "ci_high": hi, "excludes_zero": excludes_zero(lo, hi)})
+    return pd.DataFrame(rows, columns=["scenario", "A", "B", "metric", "pairs", "mean A−B", "ci_low", "ci_high",
+                                       "excludes_zero"])
+
+
+def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
+    """Statements computed from the numbers (no hand-written prose)."""
+    out = []
+    for scenario, sub in df.groupby("scenario"):
+        rates = sub.groupby("variant")["success"].mean()
+        best_rate = rates.max()
+        best = sorted(rates[rates == best_rate].index)
+        out.append(f"{scenario}: highest success rate {best_rate:.2f} with {', '.join(best)} "
+                   f"(lowest {rates.min():.2f} with {', '.join(sorted(rates[rates == rates.min()].index))}).")
+        ttg = sub[sub["variant"].isin(best)].groupby("variant")["time_to_goal_s"].mean().dropna()
+        if not ttg.empty:
+            fastest = ttg.idxmin()
+            line = (f"{scenario}: among those, the shortest mean time-to-goal is {ttg.min():.1f} s with {fastest}")
+            others = paired[(paired["scenario"] == scenario) & (paired["metric"] == "time_to_goal_s")
+                            & ((paired["A"] == fastest) | (paired["B"] == fastest))]
+            significant = []
+            for _, r in others.iterrows():
+                other = r["B"] if r["A"] == fastest else r["A"]
+                if other not in best:
+                    continue
+                sign = 1 if r["A"] == fastest else -1
+                diff, lo, hi = sign * r["mean A−B"], sign * r["ci_low"], sign * r["ci_high"]
+                lo, hi = min(lo, hi), max(lo, hi)
+                verdict = "the interval excludes zero" if r["excludes_zero"] else "the interval includes zero"
+                significant.append(f"vs {other}: {diff:+.1f} s [{lo:+.1f}, {hi:+.1f}], {verdict}")
+            out.append(line + ("; paired on seeds " + "; ".join(significant) if significant else "") + ".")
+    return out
+
+
+@dataclass
+class Report:
+    """The report's content as blocks, rendered to Markdown and HTML alike."""
+
+    title: str
+    blocks: list[tuple[str, object]] = field(default_factory=list)
+
+    def add(self, kind: str, value: object) -> None:
+        self.blocks.append((kind, value))
+
+    def markdown(self) -> str:
+        lines = [f"# {self.title}", ""]
+        for kind, value in self.blocks:
+            if kind == "h2":
+                lines += [f"## {value}", ""]
+            elif kind == "p":
+                lines += [str(value), ""]
+            elif kind == "list":
+                lines += [f"- {item}" for item in value] + [""]  # type: ignore[attr-defined]
+            elif kind == "table":
+                lines += [value.to_markdown(index=False) if not value.empty else "_none_", ""]  # type: ignore
+            elif kind == "img":
+                lines += [f"![{Path(value).stem}]({Path(value).name})", ""]  # type: ignore[arg-type]
+        return "\n".join(lines)
+
+    def html(self) -> str:
+        body = [f"<h1>{html.escape(self.title)}</h1>"]
+        for kind, value in self.blocks:
+            if kind == "h2":
+                body.append(f"<h2>{html.escape(str(value))}</h2>")
+            elif kind == "p":
+                body.append(f"<p>{html.escape(str(value))}</p>")
+            elif kind == "list":
+                body.append("<ul>" + "".join(f"<li>{html.escape(str(i))}</li>" for i in value) + "</ul>")  # type: ignore
+            elif kind == "table":
+                body.append(value.to_html(index=False, border=0, classes="t", na_rep="–")  # type: ignore
+                            if not value.empty else "<p><em>none</em></p>")  # type: ignore[attr-defined]
+            elif kind == "img":
+                name = html.escape(Path(value).name)  # type: ignore[arg-type]
+                body.append(f'<p><img src="{name}" alt="{name}"></p>')
+        style = ("body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
+                 "table.t{border-collapse:collapse;font-size:13px}table.t td,table.t th{border:1px solid #ccc;"
+                 "padding:3px 6px;text-align:right}img{max-width:100%}")
+        check = ("<script>window.addEventListener('load',function(){var bad=[].slice.call("
+                 "document.images).filter(function(i){return !(i.complete&&i.naturalWidth>0)});"
+                 "document.title=bad.length?'report: '+bad.length+' broken image(s)':'report: ok';});</script>")
+        return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
+                f"<style>{style}</style>{check}</head><body>{''.join(body)}</body></html>")
+
+
+def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions | None = None) -> Report:
+    """Compute everything and write the report files into ``out``; returns the report content."""
+    out.mkdir(parents=True, exist_ok=True)
+    sources = [str(p) for p in paths]
+    df, excluded = metrics_table(sources, options)
+    report = Report("fuzzynav report")
+    report.add("p", f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out.")
+    if df.empty:
+        report.add("h2", "Logs left out")
+        report.add("table", excluded)
+        _write(report, out, df, pd.DataFrame(), pd.DataFrame())
+        return report
+    df["variant"] = [variant(s, h) for s, h in zip(df["strategy"], df["h_wait"], strict=True)]
+    main, long = group_table(df)
+    paired = paired_table(df)
+    report.add("h2", "What the data says")
+    report.add("list", findings(df, paired))
+    report.add("h2", "Outcomes per scenario × strategy × h_wait")
+    report.add("p", "Success = goal reached with no contact before the step limit; 95 % Wilson interval. Other "
+                    "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
+    report.add("table", main)
+    if not paired.empty:
+        report.add("h2", "Paired comparisons (same scenario and seed)")
+        shown = paired.copy()
+        shown["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in
+                                      zip(shown["mean A−B"], shown["ci_low"], shown["ci_high"], strict=True)]
+        report.add("table", shown[["scenario", "A", "B", "metric", "pairs", "mean A−B [95% CI]", "excludes_zero"]])
+    disagree = df[~df["collision_check_agrees"]]
+    report.add("h2", "Collision cross-check")
+    report.add("p", "Contacts recomputed from the logged geometry agree with the simulator's flags in "
+                    f"{len(df) - len(disagree)} of {len(df)} episodes.")
+    if not disagree.empty:
+        report.add("table", disagree[["log", "collisions_static", "collisions_logged_static", "collisions_dynamic",
+                                      "collisions_logged_dynamic"]])
+    report.add("h2", "Metrics against h_wait")
+    for metric in PLOT_METRICS:
+        report.add("img", plots.metric_vs_h_wait(df, metric, out))
+    report.add("h2", "Distributions per strategy")
+    for metric in PLOT_METRICS[:-1]:
+        report.add("img", plots.box_by_strategy(df, metric, out))
+    report.add("h2", "Trajectories")
+    for scenario in sorted(df["scenario"].unique()):
+        report.add("img", plots.trajectories(df, scenario, out))
+    report.add("h2", "Logs left out")
+    report.add("table", excluded)
+    _write(report, out, df, long, paired)
+    return report
+
+
+def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame) -> None:
+    df.to_csv(out / "episodes.csv", index=False)
+    long.to_csv(out / "groups.csv", index=False)
+    paired.to_csv(out / "paired.csv", index=False)
+    (out / "report.md").write_text(report.markdown())
+    (out / "report.html").write_text(report.html())
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("paths", nargs="+", help="sweep directories and/or .mcap files")
+    parser.add_argument("--out", help="output directory (default: the first path if it is a directory, "
+                                      "else ./report)")
+    parser.add_argument("--turn-threshold-deg", type=float, default=5.0, help="heading change counted as a turn")
+    args = parser.parse_args(argv)
+    missing = [p for p in args.paths if not Path(p).exists()]
+    if missing:
+        print(f"error: {missing[0]}: no such file or directory", file=sys.stderr)
+        return 2
+    first = Path(args.paths[0])
+    out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
+    build_report(args.paths, out, MetricOptions(turn_threshold_deg=args.turn_threshold_deg))
+    print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,148 @@
+"""Replay (timeline, PNG/GIF, --verify, counterfactual) and the report built from a real small sweep."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+from analysis.report import build_report
+from fuzzynav.fuzzy_fast import FastEvaluator
+from runners import replay
+from runners.run import run_episode
+from tests.conftest import ROOT, load_controller, load_scenario
+
+
+@pytest.fixture(scope="module")
+def fresh_log(tmp_path_factory):
+    """A real log with a recorded config (as runners.run writes it), from a Hydra composition."""
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from runners import schema
+    from tests.conftest import CONF
+
+    schema.register()
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose("config", overrides=["scenario=head_on", "seed=2"])
+    plain = OmegaConf.to_container(cfg, resolve=True)
+    from runners.run import episode_config
+
+    path = tmp_path_factory.mktemp("replay") / "head_on.mcap"
+    run_episode(load_scenario("head_on"), FastEvaluator(load_controller("table1")), episode_config(plain), 2, path,
+                OmegaConf.to_yaml(cfg, resolve=True))
+    return path
+
+
+def test_verify_passes_on_a_fresh_log(fresh_log, capsys):
+    assert replay.main([str(fresh_log), "--verify"]) == 0
+    assert "decisions reproduced" in capsys.readouterr().out
+
+
+def _alter(src, dst, step: int):
+    """Copy a log, changing the recorded mode of one decision."""
+    with open(src, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        meta = list(reader.iter_metadata())
+        msgs = list(reader.iter_messages())
+    with open(dst, "wb") as out:
+        w = Writer(out, compression=CompressionType.ZSTD)
+        w.start()
+        schema_ids = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        chan_ids = {cid: w.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id])
+                    for cid, c in summary.channels.items()}
+        for m in meta:
+            w.add_metadata(m.name, m.metadata)
+        for _s, channel, message in msgs:
+            data = message.data
+            if channel.topic == "/planner/decision":
+                d = json.loads(data)
+                if d["step"] == step:
+                    d["mode"] = "fuzzy" if d["mode"] != "fuzzy" else "direct"
+                    data = json.dumps(d).encode()
+            w.add_message(chan_ids[channel.id], message.log_time, data, message.publish_time)
+        w.finish()
+
+
+def test_verify_fails_on_an_altered_decision(fresh_log, tmp_path, capsys):
+    altered = tmp_path / "altered.mcap"
+    _alter(fresh_log, altered, step=7)
+    assert replay.main([str(altered), "--verify"]) == 1
+    assert "differs at step 7: mode" in capsys.readouterr().out
+
+
+def test_timeline_png_and_gif(fresh_log, tmp_path, capsys):
+    stem = tmp_path / "ep"
+    assert replay.main([str(fresh_log), "--animate", "--out", str(stem), "--steps", "3,10"]) == 0
+    out = capsys.readouterr().out
+    assert "plan detour" in out or "plan wait" in out or "plan evade" in out
+    assert "outcome: goal" in out
+    assert stem.with_suffix(".png").stat().st_size > 10_000
+    assert stem.with_suffix(".gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+
+
+def test_counterfactual_replay_lists_divergences(fresh_log, capsys):
+    assert replay.main([str(fresh_log), "--controller", "listing", "planner.strategy=none"]) == 0
+    out = capsys.readouterr().out
+    assert "counterfactual replay" in out and "decisions differ" in out and "step" in out
+    assert replay.main([str(fresh_log), "planner.h_wiat=3"]) == 2
+
+
+def test_replay_rejects_non_logs(tmp_path, capsys):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"garbage")
+    assert replay.main([str(junk)]) == 2
+    assert "junk.mcap: not an MCAP file" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def small_sweep(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sweep")
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", f"hydra.sweep.dir={out}",
+                          "hydra.launcher.n_jobs=2"], cwd=ROOT, capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-3000:]
+    return out, res.stdout
+
+
+def test_sweep_writes_the_report(small_sweep):
+    out, stdout = small_sweep
+    rep = out / "report"
+    md = (rep / "report.md").read_text()
+    for section in ("What the data says", "Outcomes per scenario", "Paired comparisons", "Collision cross-check",
+                    "Metrics against h_wait", "Trajectories", "Logs left out"):
+        assert f"## {section}" in md, section
+    assert "success rate [95% Wilson]" in md and "auto(h=2)" in md
+    assert (rep / "trajectories_head_on.png").exists() and (rep / "h_wait_time_to_goal_s.png").exists()
+    assert "report:" in stdout
+
+
+def test_report_lists_bad_logs_and_still_renders(small_sweep, tmp_path):
+    out, _ = small_sweep
+    logs = sorted(out.rglob("*.mcap"))
+    (tmp_path / "broken.mcap").write_bytes(b"\x89MCAP0\r\nnonsense")
+    shutil.copy(logs[0], tmp_path / "good.mcap")
+    data = logs[1].read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    report = build_report([tmp_path], tmp_path / "rep")
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "broken.mcap" in md and "cut.mcap" in md and "1 episodes analysed, 2 left out" in md
+    assert report.blocks
+
+
+def test_report_html_renders_in_headless_chromium(small_sweep):
+    browser = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+    if browser is None:
+        pytest.skip("no Chromium on this machine (.ci/run installs Debian's chromium)")
+    page = small_sweep[0] / "report" / "report.html"
+    res = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                          "--disable-component-update", "--disable-sync", "--no-first-run",
+                          "--allow-file-access-from-files", "--virtual-time-budget=5000", "--dump-dom",
+                          page.as_uri()], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "<title>report: ok</title>" in res.stdout, res.stdout[:500]
