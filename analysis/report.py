@@ -30,8 +30,8 @@ METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", 
            "tpt_fde_cm", "compute_time_us_median", "compute_time_us_p99", "steps"]
 MAIN_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps"]
 PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "turn_count"]
-PLOT_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps",
-                "success"]
+BOX_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps",
+               "detour_extra_length_cm", "tpt_ade_cm"]
 GROUP = ["scenario", "strategy", "h_wait"]
 
 
@@ -207,10 +207,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         report.add("table", disagree[["log", "collisions_static", "collisions_logged_static", "collisions_dynamic",
                                       "collisions_logged_dynamic"]])
     report.add("h2", "Metrics against h_wait")
-    for metric in PLOT_METRICS:
+    report.add("p", "Mean and 95 % bootstrap interval per h_wait for auto; strategies that do not read h_wait "
+                    "as dashed lines with their interval as a band.")
+    for metric in ["success", *METRICS]:
         report.add("img", plots.metric_vs_h_wait(df, metric, out))
     report.add("h2", "Distributions per strategy")
-    for metric in PLOT_METRICS[:-1]:
+    for metric in BOX_METRICS:
         report.add("img", plots.box_by_strategy(df, metric, out))
     report.add("h2", "Trajectories")
     for scenario in sorted(df["scenario"].unique()):
