@@ -13,7 +13,9 @@ Our choices where the paper is silent (README, "Navigation loop"):
   target, would otherwise drive the robot along a wall past its goal. With ``goal_overrides_static`` the robot
   still heads straight for the goal when the goal lies in the front sector and is nearer than the front
   reading (otherwise the fuzzy rules, which ignore the target, can circle a goal placed near a wall).
-- Going straight to the target: turn towards it and drive at ``v_max``, slowing to land on the goal.
+- Going straight to the target: turn towards it and drive at ``direct_speed_cm_s`` (default 25 cm/s, the
+  Medium speed: the paper's nTraj = 9 steps "within the 250 cm laser range" implies about 250 / 9 ≈ 28 cm
+  per step), slowing to land on the goal.
 - A plan, once made, is followed step by step and re-checked against each new table; the robot re-plans
   when the plan would now come closer than ``plan_check_margin_cm`` (5 cm, half the planning margin, so
   that noisy re-estimates do not discard a good plan) or the robot is more than ``plan_tolerance_cm`` off
@@ -46,6 +48,7 @@ class NavigatorConfig:
     """When static navigation uses the fuzzy controller (see the module docstring)."""
 
     static_near_cm: float = 100.0
+    direct_speed_cm_s: float = 25.0
     near_sectors: str = "target_side"
     goal_overrides_static: bool = True
     direct_needs_clear_path: bool = True
@@ -56,6 +59,8 @@ class NavigatorConfig:
             raise ValueError(f"navigator.near_sectors: unknown value {self.near_sectors!r} (known: all, target_side)")
         if self.static_near_cm < 0:
             raise ValueError(f"navigator.static_near_cm: must be >= 0, got {self.static_near_cm}")
+        if self.direct_speed_cm_s <= 0:
+            raise ValueError(f"navigator.direct_speed_cm_s: must be > 0, got {self.direct_speed_cm_s}")
         if self.clear_path_margin_cm < 0:
             raise ValueError(f"navigator.clear_path_margin_cm: must be >= 0, got {self.clear_path_margin_cm}")
 
@@ -160,7 +165,7 @@ class Navigator:
             return Decision(mode, plan_heading_change(s.heading, here, target), step / self.dt, inputs, tpt,
                             active.plan, new_plan), carry
         dist = math.dist((s.x, s.y), obs.goal)
-        v = max(self.limits.v_min, min(self.limits.v_max, dist / self.dt))
+        v = max(self.limits.v_min, min(self.config.direct_speed_cm_s, self.limits.v_max, dist / self.dt))
         dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
         near = self._static_near(obs.sonar, angle) and not self._goal_in_reach(obs, angle)
         if near or not self._direct_is_clear(obs, dtheta, v):

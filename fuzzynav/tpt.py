@@ -3,10 +3,12 @@
 Row ``k`` (k = 1 .. n_traj) is the prediction for time ``now + k·dt``; row 0 holds the present. The
 robot is predicted to move straight towards the target at its current speed (stopping on it); every
 tracked obstacle at constant velocity. ``collide[k, j]`` is True when robot and obstacle j are closer than
-the sum of their radii plus ``safety_margin_cm`` at step k — or, with ``swept`` (default, ours), at any
-moment between steps k-1 and k: both move straight within a step, so the closest approach is exact. The
-paper samples the table at the steps only, which misses a fast obstacle passing the robot between two
-samples (at 1 s steps, a 30 cm/s obstacle meeting a 40 cm/s robot closes 70 cm per step). Units: cm, s, cm/s.
+the sum of their radii plus ``safety_margin_cm`` at step k, as in the paper's table. With ``swept``
+(default, ours) a collision that happens only *between* two samples — neither step k-1 nor step k is
+marked, but the discs come too close in between (both move straight within a step, so the closest
+approach is exact) — marks step k too: sampling alone misses an obstacle passing the robot between two
+steps (at 1 s steps, a 30 cm/s obstacle meeting a 40 cm/s robot closes 70 cm per step). Collisions the
+samples see keep exactly the paper's rows. Units: cm, s, cm/s.
 """
 
 from __future__ import annotations
@@ -99,13 +101,14 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     k = np.arange(n_traj + 1)[:, None, None] * dt
     obstacles = pos0[None, :, :] + vel[None, :, :] * k
     rel = obstacles - robot[:, None, :]  # (n+1, J, 2)
-    gap = np.linalg.norm(rel, axis=2)
+    limit = robot_radius + radii[None, :] + safety_margin
+    collide = np.linalg.norm(rel, axis=2) < limit
     if swept and n_traj >= 1 and j:
         d = rel[1:] - rel[:-1]  # relative motion over each step
         dd = (d**2).sum(-1)
         s = np.clip(-(rel[:-1] * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        gap[1:] = np.minimum(gap[1:], np.linalg.norm(rel[:-1] + s[..., None] * d, axis=2))
-    collide = gap < (robot_radius + radii[None, :] + safety_margin)
+        between = np.linalg.norm(rel[:-1] + s[..., None] * d, axis=2) < limit
+        collide[1:] |= between & ~collide[:-1] & ~collide[1:]
     return TrajectoryPredictionTable(
         robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
         obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),

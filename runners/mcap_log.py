@@ -62,7 +62,18 @@ def _stamp(t: float) -> dict[str, int]:
 
 
 def _m(cm: float) -> float:
-    return float(cm) / 100.0
+    """cm -> m, rounded to 0.1 mm: display geometry only (the analysis reads positions from cm topics)."""
+    return round(float(cm) / 100.0, 4)
+
+
+def _compact(schema: Any) -> Any:
+    """A schema without its descriptions, for embedding: every log carries each schema twice (data section
+    and summary), and the full Foxglove texts would triple the size of a short episode's log."""
+    if isinstance(schema, dict):
+        return {k: _compact(v) for k, v in schema.items() if not (k == "description" and isinstance(v, str))}
+    if isinstance(schema, list):
+        return [_compact(v) for v in schema]
+    return schema
 
 
 def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) -> dict:
@@ -108,9 +119,11 @@ class EpisodeLogWriter:
         self.writer.start(profile="", library="fuzzynav")
         self.channels: dict[str, int] = {}
         for topic, schema_name in TOPICS.items():
-            schema_id = self.writer.register_schema(
-                name=schema_name, encoding="jsonschema",
-                data=json.dumps(SCHEMAS[schema_name](), separators=(",", ":")).encode())
+            schema = SCHEMAS[schema_name]()
+            if schema_name.startswith("foxglove."):
+                schema = _compact(schema)  # ours keep their descriptions: they carry the units
+            schema_id = self.writer.register_schema(name=schema_name, encoding="jsonschema",
+                                                    data=json.dumps(schema, separators=(",", ":")).encode())
             self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json",
                                                                 schema_id=schema_id)
         self.writer.add_metadata(RUN_METADATA, dict(metadata))
@@ -193,7 +206,7 @@ class EpisodeLogWriter:
         self._write("/laser", rec.time_s, {
             "timestamp": _stamp(rec.time_s), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
             "start_angle": 0.0, "end_angle": 2 * math.pi * (n - 1) / n,
-            "ranges": (scan.ranges / 100.0).tolist(), "intensities": returned.astype(float).tolist()})
+            "ranges": np.round(scan.ranges / 100.0, 6).tolist(), "intensities": returned.astype(int).tolist()})
 
     def _write_tpt(self, t: float, k: int, tpt) -> None:
         self._write("/tpt", t, {

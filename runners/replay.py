@@ -85,12 +85,11 @@ def _set(config: dict[str, Any], dotted: str, value: Any) -> None:
     node[keys[-1]] = value
 
 
-def navigator_for(config: dict[str, Any]) -> Navigator:
+def navigator_for(config: dict[str, Any], robot_radius: float) -> Navigator:
     """The navigator a run with this (recorded) configuration used."""
     ep = episode_config(config)
     evaluator = FastEvaluator(ControllerSpec.from_dict(config["controller"]))
-    radius = float(((config.get("scenario") or {}).get("robot") or {}).get("radius", 20.0))
-    return Navigator(evaluator, ep.planner, ep.navigator, ep.robot, radius, ep.dt, ep.sonar.front)
+    return Navigator(evaluator, ep.planner, ep.navigator, ep.robot, robot_radius, ep.dt, ep.sonar.front)
 
 
 def _observation(log: EpisodeLog, k: int, goal: tuple[float, float]) -> Observation:
@@ -131,9 +130,8 @@ def _compare(k: int, recorded: dict[str, Any], d: Decision) -> Divergence | None
 
 def replay(log: EpisodeLog, config: dict[str, Any], stop_at_first: bool) -> list[Divergence]:
     """Feed the recorded inputs of every step to a navigator built from ``config``."""
-    navigator = navigator_for(config)
-    robot = (config.get("scenario") or {}).get("robot") or {}
-    goal = tuple(robot.get("goal", log.goal))
+    navigator = navigator_for(config, log.robot_radius)
+    goal = log.goal
     active: ActivePlan | None = None
     out = []
     for k, recorded in enumerate(log.decisions):

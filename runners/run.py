@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import hydra
+import yaml
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
@@ -24,6 +25,7 @@ from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
+from fuzzynav.generators import generate
 from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
 from runners import schema
 from runners.mcap_log import EpisodeLogWriter, run_metadata
@@ -66,9 +68,13 @@ def _source(group: str) -> str:
     return f"{group}={choice}"
 
 
-def load_scenario(cfg: dict[str, Any]) -> Scenario:
+def load_scenario(cfg: dict[str, Any], seed: int = 0) -> Scenario:
+    """The scenario of the config; a generated one (``generator:`` key) is expanded with ``seed``."""
+    data = cfg["scenario"] or {}
     try:
-        return scenario_from_dict(cfg["scenario"] or {})
+        if isinstance(data, dict) and "generator" in data:
+            return generate(data, seed)[0]
+        return scenario_from_dict(data)
     except ScenarioError as err:
         raise ConfigFileError(f"{_source('scenario')}: {err}") from None
 
@@ -94,6 +100,22 @@ def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
             f"__{perception}__s{seed}.mcap")
 
 
+def scenario_yaml(scenario: Scenario) -> str:
+    """The scenario as YAML (the exact world of the episode, generated ones included)."""
+    import dataclasses
+
+    def clean(value):
+        if dataclasses.is_dataclass(value):
+            return {k: clean(v) for k, v in dataclasses.asdict(value).items() if v is not None}
+        if isinstance(value, dict):
+            return {k: clean(v) for k, v in value.items() if v is not None}
+        if isinstance(value, list | tuple):
+            return [clean(v) for v in value]
+        return value
+
+    return yaml.safe_dump(clean(scenario), sort_keys=False)
+
+
 def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
                 log_path: Path | None, config_yaml: str) -> dict[str, Any]:
     """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
@@ -109,7 +131,8 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         if stream is not None:
             meta = run_metadata(config_yaml, seed, scenario.name, {
                 "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
-                "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode})
+                "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
+                "scenario_yaml": scenario_yaml(scenario)})
             log = EpisodeLogWriter(stream, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
         for record in episode.run():
             if log is not None:
@@ -137,14 +160,15 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory."""
     plain: dict[str, Any] = OmegaConf.to_container(cfg, resolve=True)  # type: ignore[assignment]
-    scenario = load_scenario(plain)
     evaluator = load_evaluator(plain)
     ep_cfg = episode_config(plain)
+    seeds = [int(plain.get("seed", 0)) + k for k in range(int(plain.get("episodes", 1)))]
+    scenarios = {seed: load_scenario(plain, seed) for seed in seeds}  # all validated before any log is written
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
     results = []
-    for k in range(int(plain.get("episodes", 1))):
-        seed = int(plain.get("seed", 0)) + k
+    for seed in seeds:
+        scenario = scenarios[seed]
         path = out_dir / log_name(scenario.name, plain, seed)
         results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml))
     return results

@@ -67,11 +67,13 @@ def test_wait_strategy_waits(table1):
     from fuzzynav.scenario import scenario_from_dict
     s = scenario_from_dict({
         "bounds": [0, 0, 1200, 800], "robot": {"start": [100, 400], "goal": [1100, 400]},
-        "dynamic_obstacles": [{"id": "x", "radius": 20, "start": [500, 100], "velocity": [0, 25]}],
+        "dynamic_obstacles": [{"id": "x", "radius": 20, "start": [500, 20], "velocity": [0, 25]}],
         "max_steps": 100})
     ep, recs = run(s, table1, planner={"strategy": "wait"}, perception={"mode": "ground_truth"})
     assert ep.outcome == "goal"
     assert any(r.decision.mode == "wait" and r.decision.v_cm_s == 0 for r in recs)
+    ep, _ = run(s, table1, planner={"strategy": "none"}, perception={"mode": "ground_truth"})
+    assert ep.outcome == "collision"  # the wait was needed
 
 
 def test_config_from_dict_rejects_unknown_and_wrong_types():

@@ -1,0 +1,112 @@
+"""Seeded scenario generators: plain parameters + seed -> a valid :class:`Scenario` (cm, s, degrees).
+
+Each generator is valid by construction (start and goal free, obstacles clear of the robot's start and of
+each other's start positions) and deterministic: the same parameters and seed give the same scenario.
+The generator's random stream is ``numpy.random.default_rng((seed, 7))``, independent of the episode's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from fuzzynav.scenario import ScenarioError, scenario_from_dict
+
+ROBOT_RADIUS = 20.0
+CLEAR_CM = 60.0  # free space kept around start and goal, beyond the robot radius
+
+
+def _param(params: Mapping[str, Any], key: str, default: Any, kind: type) -> Any:
+    value = params.get(key, default)
+    if kind is tuple:
+        if not (isinstance(value, list | tuple) and len(value) == 2 and all(isinstance(v, int | float) for v in value)
+                and 0 <= value[0] <= value[1]):
+            raise ScenarioError(f"params.{key}: expected [min, max] with 0 <= min <= max, got {value!r}")
+        return float(value[0]), float(value[1])
+    if isinstance(value, bool) or not isinstance(value, int | float) or value < 0:
+        raise ScenarioError(f"params.{key}: expected a non-negative number, got {value!r}")
+    return kind(value)
+
+
+def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed") -> dict[str, Any]:
+    """Static discs and boxes scattered between start and goal, plus moving obstacles crossing the
+    start-goal line at random places and times. Returns the scenario as plain data (YAML form)."""
+    known = {"width", "height", "n_static", "static_size", "n_dynamic", "speed", "dynamic_radius", "max_steps"}
+    for key in params:
+        if key not in known:
+            raise ScenarioError(f"params.{key}: unknown parameter (known: {', '.join(sorted(known))})")
+    w = _param(params, "width", 1200, float)
+    h = _param(params, "height", 800, float)
+    n_static = _param(params, "n_static", 5, int)
+    size_lo, size_hi = _param(params, "static_size", (20, 60), tuple)
+    n_dynamic = _param(params, "n_dynamic", 3, int)
+    v_lo, v_hi = _param(params, "speed", (10, 30), tuple)
+    r_lo, r_hi = _param(params, "dynamic_radius", (15, 25), tuple)
+    max_steps = _param(params, "max_steps", 250, int)
+    if w < 400 or h < 300:
+        raise ScenarioError(f"params.width/height: at least 400 x 300 cm, got {w} x {h}")
+    if v_lo <= 0 or r_lo <= 0 or size_lo <= 0:
+        raise ScenarioError("params.speed/dynamic_radius/static_size: minimum must be > 0")
+    rng = np.random.default_rng((int(seed), 7))
+    start = np.array([100.0, h / 2])
+    goal = np.array([w - 100.0, h / 2])
+    keep_out = ROBOT_RADIUS + CLEAR_CM
+    statics: list[dict[str, Any]] = []
+    placed: list[tuple[np.ndarray, float]] = []
+    for _ in range(n_static):
+        for _attempt in range(200):
+            size = rng.uniform(size_lo, size_hi)
+            centre = np.array([rng.uniform(250, w - 250), rng.uniform(size + 10, h - size - 10)])
+            if min(np.linalg.norm(centre - start), np.linalg.norm(centre - goal)) < keep_out + size * math.sqrt(2):
+                continue
+            if any(np.linalg.norm(centre - c) < size * math.sqrt(2) + s * math.sqrt(2) + 2 * ROBOT_RADIUS
+                   for c, s in placed):
+                continue
+            placed.append((centre, size))
+            if rng.random() < 0.5:
+                statics.append({"circle": {"center": [round(float(centre[0]), 3), round(float(centre[1]), 3)],
+                                           "radius": round(float(size), 3)}})
+            else:
+                x0, y0, x1, y1 = (round(float(v), 3) for v in (*centre - size, *centre + size))
+                statics.append({"polygon": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]})
+            break
+    dynamics = []
+    for i in range(n_dynamic):
+        radius = round(float(rng.uniform(r_lo, r_hi)), 3)
+        speed = float(rng.uniform(v_lo, v_hi))
+        cross_x = rng.uniform(300, w - 300)
+        from_below = rng.random() < 0.5
+        angle = math.radians(rng.uniform(-30, 30)) + (math.pi / 2 if from_below else -math.pi / 2)
+        vel = np.array([math.cos(angle), math.sin(angle)]) * speed
+        # time at which it should cross the line: when the robot (about 25 cm/s) could be there, +- jitter
+        t_cross = max(2.0, (cross_x - start[0]) / 25.0 + rng.uniform(-6, 6))
+        p0 = np.array([cross_x, h / 2]) - vel * t_cross
+        p0 = np.clip(p0, [radius, radius], [w - radius, h - radius])
+        if np.linalg.norm(p0 - start) < ROBOT_RADIUS + radius + CLEAR_CM:
+            p0 = p0 + np.array([0.0, (1 if p0[1] >= start[1] else -1) * (ROBOT_RADIUS + radius + CLEAR_CM)])
+        dynamics.append({"id": f"m{i}", "radius": radius, "start": [round(float(p0[0]), 3), round(float(p0[1]), 3)],
+                         "velocity": [round(float(vel[0]), 3), round(float(vel[1]), 3)]})
+    return {"name": name, "description": f"random_mixed generated with seed {seed}", "bounds": [0, 0, w, h],
+            "robot": {"start": start.tolist(), "heading": 0.0, "goal": goal.tolist(), "radius": ROBOT_RADIUS},
+            "static_obstacles": statics, "dynamic_obstacles": dynamics, "max_steps": max_steps}
+
+
+GENERATORS: dict[str, Callable[[Mapping[str, Any], int, str], dict[str, Any]]] = {"random_mixed": random_mixed}
+
+
+def generate(data: Mapping[str, Any], seed: int):
+    """Expand a scenario entry ``{generator: NAME, params: {...}, name: ...}`` into a validated Scenario."""
+    kind = data.get("generator")
+    if kind not in GENERATORS:
+        raise ScenarioError(f"generator: unknown generator {kind!r} (known: {', '.join(GENERATORS)})")
+    for key in data:
+        if key not in ("generator", "params", "name", "description"):
+            raise ScenarioError(f"{key}: unknown key for a generated scenario (allowed: generator, params, name)")
+    params = data.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ScenarioError("params: expected a mapping")
+    plain = GENERATORS[kind](params, seed, str(data.get("name", kind)))
+    return scenario_from_dict(plain), plain

@@ -1,0 +1,312 @@
+"""Recorded datasets: named, versioned collections of episode logs that anyone can regenerate and verify.
+
+    python -m runners.dataset list
+    python -m runners.dataset build paper_fig5          # record every episode, write the hashes
+    python -m runners.dataset verify paper_fig5         # regenerate and compare; exit 1 on any difference
+    python -m runners.dataset verify paper_fig5 planner.safety_margin_cm=12   # what a behaviour change breaks
+
+A dataset is ``datasets/<name>/manifest.yaml``: the sweep that produces it (scenarios × variants × seeds,
+plus overrides for all runs, as Hydra overrides of ``conf/config.yaml``) and, once built, for each
+episode the SHA-256 of its message content (every topic and field except the timing field
+``compute_time_us``; metadata excluded: it holds versions and the git commit), a short digest per
+topic and per step (so that a difference can be located without the original logs), and the SHA-256
+of the metrics table (compute-time columns excluded). ``keep_logs`` lists the seeds whose logs are
+committed in ``datasets/<name>/logs/``; ``verify`` compares with them message by message and names the
+first differing topic and step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from analysis.logs import LogError, iter_messages
+from analysis.metrics import metrics_table
+
+ROOT = Path(__file__).resolve().parents[1]
+DATASETS = ROOT / "datasets"
+CONF = ROOT / "conf"
+TIMING_FIELDS = ("compute_time_us",)
+
+
+class DatasetError(Exception):
+    """A manifest is missing or malformed; the message names the file and the field."""
+
+
+# -- the manifest -------------------------------------------------------------------------------------------
+def manifest_path(name: str) -> Path:
+    return DATASETS / name / "manifest.yaml"
+
+
+def load_manifest(name: str) -> dict[str, Any]:
+    path = manifest_path(name)
+    if not path.exists():
+        known = ", ".join(sorted(p.parent.name for p in DATASETS.glob("*/manifest.yaml"))) or "none"
+        raise DatasetError(f"{path}: no such dataset (known: {known})")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as err:
+        raise DatasetError(f"{path}: not valid YAML ({err})") from None
+    if not isinstance(data, dict):
+        raise DatasetError(f"{path}: expected a mapping")
+    sweep = data.get("sweep")
+    if not isinstance(sweep, dict):
+        raise DatasetError(f"{path}: sweep: missing")
+    for key in ("scenarios", "variants", "seeds"):
+        if key not in sweep:
+            raise DatasetError(f"{path}: sweep.{key}: missing")
+    seeds = sweep["seeds"]
+    if not (isinstance(seeds, list) and len(seeds) == 2 and all(isinstance(s, int) for s in seeds) and
+            seeds[0] < seeds[1]):
+        raise DatasetError(f"{path}: sweep.seeds: expected [first, end) as two integers, got {seeds!r}")
+    for key in ("scenarios", "variants"):
+        if not isinstance(sweep[key], list) or not sweep[key]:
+            raise DatasetError(f"{path}: sweep.{key}: expected a non-empty list")
+    return data
+
+
+def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
+    """One job per episode: its Hydra overrides and its log file name."""
+    sweep = manifest["sweep"]
+    common = [str(o) for o in sweep.get("overrides") or []]
+    out = []
+    for scenario in sweep["scenarios"]:
+        for variant in sweep["variants"]:
+            extra = [variant] if isinstance(variant, str) else list(variant)
+            for seed in range(*sweep["seeds"]):
+                overrides = [f"scenario={scenario}", *extra, *common, f"seed={seed}"]
+                tag = "__".join(o.replace("=", "-").replace("/", "-") for o in [*extra])
+                out.append({"overrides": overrides, "file": f"{scenario}__{tag}__s{seed}.mcap", "seed": seed})
+    return out
+
+
+# -- content hashes ---------------------------------------------------------------------------------------
+def _canonical(message: dict[str, Any]) -> bytes:
+    clean = {k: v for k, v in message.items() if k not in TIMING_FIELDS}
+    return json.dumps(clean, sort_keys=True, separators=(",", ":")).encode()
+
+
+def content_digests(path: Path) -> dict[str, Any]:
+    """SHA-256 of the message content, plus 8-hex digests per topic and per log time (step)."""
+    whole = hashlib.sha256()
+    topics: dict[str, Any] = {}
+    steps: dict[int, Any] = {}
+    for topic, t, msg in iter_messages(path):
+        data = _canonical(msg)
+        line = topic.encode() + b"|" + str(t).encode() + b"|" + data + b"\n"
+        whole.update(line)
+        topics.setdefault(topic, hashlib.sha256()).update(line)
+        steps.setdefault(t, hashlib.sha256()).update(line)
+    return {"sha256": whole.hexdigest(), "topics": {k: v.hexdigest()[:8] for k, v in sorted(topics.items())},
+            "step_digests": [steps[t].hexdigest()[:8] for t in sorted(steps)]}
+
+
+def metrics_digest(paths: Iterable[Path]) -> str:
+    """SHA-256 of the metrics table of these logs (compute times and file locations excluded)."""
+    df, bad = metrics_table(list(paths))
+    if not bad.empty:
+        raise DatasetError("metrics: logs could not be analysed: " + "; ".join(bad["reason"]))
+    drop = [c for c in df.columns if c.startswith("compute_time") or c == "log"]
+    df = df.drop(columns=drop).sort_values(["scenario", "strategy", "h_wait", "controller", "perception", "seed"])
+    return hashlib.sha256(df.round(9).to_csv(index=False).encode()).hexdigest()
+
+
+# -- recording --------------------------------------------------------------------------------------------
+def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
+    """Run one episode (in a worker) and return its digests."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from omegaconf import OmegaConf
+
+    from runners import schema
+    from runners.run import episode_config, load_evaluator, load_scenario, run_episode
+
+    schema.register()
+    if not GlobalHydra.instance().is_initialized():
+        initialize_config_dir(config_dir=str(CONF), version_base="1.3")
+    cfg = compose("config", overrides=job["overrides"])
+    plain = OmegaConf.to_container(cfg, resolve=True)
+    path = Path(out_dir) / job["file"]
+    summary = run_episode(load_scenario(plain, job["seed"]), load_evaluator(plain), episode_config(plain),
+                          job["seed"], path, OmegaConf.to_yaml(cfg, resolve=True))
+    return {"file": job["file"], "outcome": summary["outcome"], "steps": summary["steps"], **content_digests(path)}
+
+
+def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: str = "episodes") -> list[dict]:
+    """Record every episode of the dataset into ``out_dir`` in parallel, with a progress bar."""
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    todo = jobs(manifest)
+    results = []
+    with tqdm(total=len(todo), unit="episode", desc=desc, file=sys.stderr) as bar:
+        for res in Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_record)(j, str(out_dir)) for j in todo):
+            results.append(res)
+            bar.update(1)
+    return sorted(results, key=lambda r: r["file"])
+
+
+def build(name: str, n_jobs: int = -1) -> dict[str, Any]:
+    """Record the dataset and write the hashes into its manifest; keep the logs of the ``keep_logs`` seeds."""
+    manifest = load_manifest(name)
+    keep = set(manifest.get("keep_logs") or [])
+    log_dir = DATASETS / name / "logs"
+    with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
+        results = record_all(manifest, Path(tmp), n_jobs, desc=f"build {name}")
+        manifest["metrics_sha256"] = metrics_digest(sorted(Path(tmp).glob("*.mcap")))
+        if log_dir.exists():
+            shutil.rmtree(log_dir)
+        kept = [j["file"] for j in jobs(manifest) if j["seed"] in keep]
+        if kept:
+            log_dir.mkdir(parents=True)
+            for file in kept:
+                shutil.copy(Path(tmp) / file, log_dir / file)
+    manifest["episodes"] = {r["file"]: {"outcome": r["outcome"], "steps": r["steps"], "sha256": r["sha256"],
+                                        "topics": r["topics"], "step_digests": " ".join(r["step_digests"])}
+                            for r in results}
+    manifest_path(name).write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
+    return manifest
+
+
+def _first_difference(recorded: Path, fresh: Path) -> str:
+    """The first (topic, step) whose message differs between two logs of the same episode."""
+    old = [(t, topic, _canonical(m)) for topic, t, m in iter_messages(recorded)]
+    new = [(t, topic, _canonical(m)) for topic, t, m in iter_messages(fresh)]
+    for a, b in zip(old, new, strict=False):
+        if a != b:
+            return f"first difference: topic {a[1]} at step {a[0] // 1_000_000_000} ({_field_diff(a[2], b[2])})"
+    return f"first difference: the logs have {len(old)} and {len(new)} messages"
+
+
+def _field_diff(a: bytes, b: bytes) -> str:
+    x, y = json.loads(a), json.loads(b)
+    for key in sorted(set(x) | set(y)):
+        if x.get(key) != y.get(key):
+            return f"field {key}: recorded {str(x.get(key))[:60]}, now {str(y.get(key))[:60]}"
+    return "same fields"
+
+
+def _locate(expected: dict[str, Any], got: dict[str, Any]) -> str:
+    """Without the original log: first differing step from the step digests, differing topics."""
+    old = expected.get("step_digests", "").split()
+    new = got["step_digests"]
+    step = next((k for k, (a, b) in enumerate(zip(old, new, strict=False)) if a != b), min(len(old), len(new)))
+    topics = [t for t in sorted(set(expected.get("topics", {})) | set(got["topics"]))
+              if expected.get("topics", {}).get(t) != got["topics"].get(t)]
+    return f"first differing step {step}; differing topics: {', '.join(topics) or '-'}"
+
+
+def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1,
+           seeds: tuple[int, int] | None = None) -> list[str]:
+    """Regenerate the dataset (optionally with extra overrides, or only the seeds in ``[first, end)``) and
+    list every difference (empty = ok). The metrics-table hash is checked on full verifications only."""
+    manifest = load_manifest(name)
+    if not manifest.get("episodes"):
+        raise DatasetError(f"{manifest_path(name)}: episodes: missing (run: python -m runners.dataset build {name})")
+    if overrides:
+        manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
+    if seeds is not None:
+        wanted = {j["file"] for j in jobs(manifest) if seeds[0] <= j["seed"] < seeds[1]}
+        manifest["sweep"]["seeds"] = [max(seeds[0], manifest["sweep"]["seeds"][0]),
+                                      min(seeds[1], manifest["sweep"]["seeds"][1])]
+        manifest["episodes"] = {f: e for f, e in manifest["episodes"].items() if f in wanted}
+    problems = []
+    log_dir = DATASETS / name / "logs"
+    with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
+        results = {r["file"]: r for r in record_all(manifest, Path(tmp), n_jobs, desc=f"verify {name}")}
+        for file, expected in sorted(manifest["episodes"].items()):
+            got = results.get(file)
+            if got is None:
+                problems.append(f"{file}: not produced by the sweep")
+                continue
+            if got["sha256"] == expected["sha256"]:
+                continue
+            where = (_first_difference(log_dir / file, Path(tmp) / file) if (log_dir / file).exists()
+                     else _locate(expected, got))
+            problems.append(f"{file}: content differs (outcome {expected['outcome']} -> {got['outcome']}, "
+                            f"steps {expected['steps']} -> {got['steps']}); {where}")
+        for file in sorted(set(results) - set(manifest["episodes"])):
+            problems.append(f"{file}: produced but not in the manifest")
+        if not problems and seeds is None:
+            digest = metrics_digest(sorted(Path(tmp).glob("*.mcap")))
+            if digest != manifest.get("metrics_sha256"):
+                problems.append(f"metrics table differs: {manifest.get('metrics_sha256')} -> {digest}")
+    return problems
+
+
+def list_datasets() -> list[dict[str, Any]]:
+    rows = []
+    for path in sorted(DATASETS.glob("*/manifest.yaml")):
+        name = path.parent.name
+        try:
+            m = load_manifest(name)
+        except DatasetError as err:
+            rows.append({"name": name, "error": str(err)})
+            continue
+        logs = list((path.parent / "logs").glob("*.mcap"))
+        rows.append({"name": name, "episodes": len(jobs(m)), "built": bool(m.get("episodes")),
+                     "committed_logs": len(logs), "logs_MB": round(sum(p.stat().st_size for p in logs) / 1e6, 2),
+                     "description": m.get("description", "")})
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("list", help="datasets with episode counts and sizes")
+    b = sub.add_parser("build", help="record a dataset and write its hashes")
+    b.add_argument("name")
+    v = sub.add_parser("verify", help="regenerate and compare with the recorded hashes")
+    v.add_argument("name")
+    v.add_argument("overrides", nargs="*", help="extra Hydra overrides (to see what a behaviour change breaks)")
+    v.add_argument("--seeds", help="only seeds FIRST:END (a quick partial check; skips the metrics hash)")
+    for p in (b, v):
+        p.add_argument("--jobs", type=int, default=-1, help="parallel workers (default: all cores)")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "list":
+            for row in list_datasets():
+                if "error" in row:
+                    print(f"{row['name']:<12} error: {row['error']}")
+                    continue
+                print(f"{row['name']:<12} {row['episodes']:>5} episodes  built={row['built']!s:<5} "
+                      f"committed logs: {row['committed_logs']} ({row['logs_MB']} MB)  {row['description']}")
+            return 0
+        if args.command == "build":
+            m = build(args.name, args.jobs)
+            print(f"built {args.name}: {len(m['episodes'])} episodes; hashes in {manifest_path(args.name)}")
+            return 0
+        seeds = None
+        if args.seeds:
+            try:
+                first, end = (int(x) for x in args.seeds.split(":"))
+            except ValueError:
+                print(f"error: --seeds: expected FIRST:END, got {args.seeds!r}", file=sys.stderr)
+                return 2
+            seeds = (first, end)
+        problems = verify(args.name, args.overrides, args.jobs, seeds)
+    except (DatasetError, LogError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if problems:
+        print(f"{args.name}: {len(problems)} difference(s):")
+        for p in problems:
+            print(f"  {p}")
+        return 1
+    what = f"seeds {args.seeds} of" if args.seeds else "all episodes and the metrics table of"
+    print(f"{args.name}: {what} the dataset match")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

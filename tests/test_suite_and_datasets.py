@@ -1,0 +1,118 @@
+"""The scenario suite, the random generator, and the recorded datasets."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fuzzynav.episode import Episode
+from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.generators import generate
+from fuzzynav.scenario import ScenarioError
+from runners import dataset
+from runners.run import episode_config, load_scenario
+from tests.conftest import CONF, ROOT, load_controller
+
+SCENARIOS = sorted(p.stem for p in (CONF / "scenario").glob("*.yaml"))
+EVALUATOR = FastEvaluator(load_controller("table1"))
+
+
+def composed(scenario: str, **extra) -> dict:
+    base = {"sensors": yaml.safe_load((CONF / "sensors" / "default.yaml").read_text()),
+            "navigator": yaml.safe_load((CONF / "navigator" / "default.yaml").read_text()),
+            "planner": yaml.safe_load((CONF / "planner" / "auto.yaml").read_text()),
+            "scenario": yaml.safe_load((CONF / "scenario" / f"{scenario}.yaml").read_text())}
+    for key, value in extra.items():
+        base[key] = {**base.get(key, {}), **value}
+    return base
+
+
+def test_suite_has_the_named_scenarios():
+    for name in ("paper_fig5", "head_on", "crossing_left", "crossing_right", "overtaking", "multi_crossing",
+                 "corridor", "static_clutter", "mixed", "u_trap", "random_mixed"):
+        assert name in SCENARIOS, name
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_every_scenario_runs_under_every_strategy(scenario):
+    for strategy in ("auto", "wait", "detour", "none"):
+        cfg = composed(scenario, planner={"strategy": strategy})
+        ep = Episode(load_scenario(cfg, 0), EVALUATOR, episode_config(cfg), seed=0)
+        records = list(ep.run())
+        assert ep.outcome in ("goal", "collision", "timeout") and records
+
+
+@pytest.mark.parametrize("h_wait, strategy", [(2, "detour"), (4, "wait")])
+def test_paper_fig5_reproduces_table2(h_wait, strategy):
+    cfg = composed("paper_fig5", planner={"h_wait": h_wait})
+    ep = Episode(load_scenario(cfg), EVALUATOR, episode_config(cfg), seed=0)
+    first = next(r for r in ep.run() if r.decision.tpt is not None)
+    tpt = first.decision.tpt
+    assert tpt.n_traj == 9
+    assert [k for k in range(1, 10) if tpt.collide[k].any()] == [6, 7, 8]
+    plan = first.decision.plan
+    assert (plan.tc, plan.tS, plan.tG, plan.wait_time) == (6, 5, 9, 3)
+    assert plan.strategy == strategy
+    assert abs(tpt.obstacle_angles_deg[0]) < 10 or abs(tpt.obstacle_angles_deg[0] - 360) < 10  # moving at ~0°
+
+
+def test_random_mixed_is_seeded_and_valid_by_construction():
+    data = yaml.safe_load((CONF / "scenario" / "random_mixed.yaml").read_text())
+    plain_a, plain_b, plain_c = generate(data, 3)[1], generate(data, 3)[1], generate(data, 4)[1]
+    assert plain_a == plain_b and plain_a != plain_c
+    for seed in range(60):  # every seed gives a scenario that passes validation (start and goal free)
+        s = generate({**data, "params": {**data["params"], "n_static": 8, "n_dynamic": 5}}, seed)[0]
+        assert len(s.dynamic_obstacles) == 5 and s.name == "random_mixed"
+    with pytest.raises(ScenarioError, match=r"params\.n_dynamic"):
+        generate({**data, "params": {"n_dynamic": "many"}}, 0)
+    with pytest.raises(ScenarioError, match=r"params\.colour: unknown parameter"):
+        generate({**data, "params": {"colour": 1}}, 0)
+
+
+def test_dataset_list_and_manifests():
+    names = {row["name"]: row for row in dataset.list_datasets()}
+    assert names["paper_fig5"]["episodes"] == 7 * 20 and names["paper_fig5"]["built"]
+    assert names["paper_fig5"]["committed_logs"] == 21 and names["paper_fig5"]["logs_MB"] < 5
+    assert names["suite_v1"]["episodes"] == 11 * 4 * 10 and names["suite_v1"]["built"]
+    for name in ("paper_fig5", "suite_v1"):
+        m = dataset.load_manifest(name)
+        assert len(m["episodes"]) == len(dataset.jobs(m)) and len(m["metrics_sha256"]) == 64
+
+
+def run_dataset(*args):
+    return subprocess.run([sys.executable, "-m", "runners.dataset", *args, "--jobs", "2"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=1200)
+
+
+def test_paper_fig5_dataset_verifies():
+    out = run_dataset("verify", "paper_fig5")
+    assert out.returncode == 0, out.stdout + out.stderr[-2000:]
+    assert "all episodes and the metrics table of the dataset match" in out.stdout
+
+
+def test_verify_fails_readably_when_a_behaviour_parameter_changes():
+    out = run_dataset("verify", "paper_fig5", "planner.safety_margin_cm=12", "--seeds", "0:1")
+    assert out.returncode == 1
+    lines = out.stdout.splitlines()
+    assert lines[0].startswith("paper_fig5: ") and "difference(s)" in lines[0]
+    assert any("paper_fig5__planner-auto_h2__s0.mcap: content differs" in ln and "first difference: topic" in ln
+               for ln in lines)
+
+
+def test_unknown_dataset_is_a_one_line_error():
+    out = run_dataset("verify", "nope")
+    assert out.returncode == 2 and out.stderr.strip().startswith("error: ") and "no such dataset" in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_committed_logs_are_analysable(tmp_path):
+    from analysis.metrics import metrics_table
+
+    logs = sorted(Path(ROOT / "datasets" / "paper_fig5" / "logs").glob("*.mcap"))
+    rows, bad = metrics_table(logs)
+    assert bad.empty and len(rows) == 21
+    assert set(rows["strategy"]) == {"auto", "wait", "detour", "none"}
