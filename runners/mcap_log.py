@@ -38,7 +38,7 @@ SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
 RUN_METADATA = "fuzzynav.run"
 FRAME = "world"
 LOG_INFO, LOG_WARNING, LOG_ERROR = 2, 3, 4
-CHUNK_BYTES = 256 * 1024  # small chunks: a killed run loses at most this much
+CHUNK_BYTES = 32 * 1024  # small chunks: a killed run loses at most the last ~32 KB of messages
 
 _BLUE = {"r": 0.15, "g": 0.4, "b": 0.95, "a": 1.0}
 _GREEN = {"r": 0.1, "g": 0.75, "b": 0.2, "a": 0.5}

@@ -10,6 +10,8 @@ directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per 
 
 from __future__ import annotations
 
+import hashlib
+import signal
 import sys
 import traceback
 from pathlib import Path
@@ -117,7 +119,7 @@ def scenario_yaml(scenario: Scenario) -> str:
 
 
 def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
-                log_path: Path | None, config_yaml: str) -> dict[str, Any]:
+                log_path: Path | None, config_yaml: str, digest: str = "") -> dict[str, Any]:
     """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
     with its traceback) instead of propagating. Ctrl-C finishes the log as ``interrupted`` and re-raises."""
     episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
@@ -132,7 +134,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
             meta = run_metadata(config_yaml, seed, scenario.name, {
                 "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
                 "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
-                "scenario_yaml": scenario_yaml(scenario)})
+                "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
             log = EpisodeLogWriter(stream, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
         for record in episode.run():
             if log is not None:
@@ -140,8 +142,9 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         outcome = episode.outcome or "error"
         reason = {"goal": "within goal tolerance", "collision": "contact with an obstacle",
                   "timeout": f"max_steps {scenario.max_steps} reached"}.get(outcome, "")
-    except KeyboardInterrupt:
-        outcome, reason = "interrupted", "interrupted by the user"
+    except KeyboardInterrupt as err:
+        outcome = "interrupted"
+        reason = "terminated (SIGTERM)" if isinstance(err, Interrupted) else "interrupted (Ctrl-C)"
         raise
     except Exception as err:  # an episode that raises must not stop the sweep
         outcome, reason = "error", f"{type(err).__name__}: {err}"
@@ -157,8 +160,41 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
     return summary
 
 
+def config_hash(config_yaml: str, seed: int) -> str:
+    """What makes an episode the same episode: resolved config (minus ``resume``), seed, fuzzynav version."""
+    from runners.provenance import provenance
+
+    body = "\n".join(line for line in config_yaml.splitlines() if not line.startswith("resume:"))
+    text = f"{body}\nseed={seed}\nfuzzynav={provenance()['fuzzynav_version']}"
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def completed_summary(path: Path, expected_hash: str) -> dict[str, Any] | None:
+    """The summary of an existing complete log of the same episode (same config hash), else None."""
+    from analysis.logs import LogError, episode_summary, is_complete, read_metadata
+
+    if not path.exists() or not is_complete(path):
+        return None
+    try:
+        if read_metadata(path).get("config_hash") != expected_hash:
+            return None
+        row = episode_summary(path)
+    except LogError:
+        return None
+    return row if row["outcome"] not in ("incomplete", "interrupted") else None
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM, turned into the same clean stop as Ctrl-C (the log in flight is finished as interrupted)."""
+
+
+def _on_sigterm(signum, frame) -> None:
+    raise Interrupted("terminated")
+
+
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
-    """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory."""
+    """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory. With
+    ``resume=true`` an episode whose complete log with the same config hash is already there is kept."""
     plain: dict[str, Any] = OmegaConf.to_container(cfg, resolve=True)  # type: ignore[assignment]
     evaluator = load_evaluator(plain)
     ep_cfg = episode_config(plain)
@@ -167,10 +203,20 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
     results = []
-    for seed in seeds:
-        scenario = scenarios[seed]
-        path = out_dir / log_name(scenario.name, plain, seed)
-        results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml))
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        for seed in seeds:
+            scenario = scenarios[seed]
+            path = out_dir / log_name(scenario.name, plain, seed)
+            digest = config_hash(config_yaml, seed)
+            kept = completed_summary(path, digest) if plain.get("resume") else None
+            if kept is not None:
+                kept.update(kept=True, reason="resumed: complete log kept")
+                results.append(kept)
+                continue
+            results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml, digest))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return results
 
 
@@ -178,6 +224,10 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
 def main(cfg: DictConfig) -> list[dict[str, Any]]:
     try:
         results = run_job(cfg)
+    except KeyboardInterrupt as err:
+        print(f"interrupted: the episode in flight was logged with outcome 'interrupted' ({err or 'Ctrl-C'})",
+              file=sys.stderr)
+        sys.exit(143 if isinstance(err, Interrupted) else 130)
     except ConfigFileError as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(2)

@@ -81,6 +81,7 @@ class RunSchema:
     episodes: int = 1
     dt: float = 1.0
     terminate_on_collision: bool = True
+    resume: bool = False
 
 
 def register() -> None:

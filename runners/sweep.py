@@ -59,6 +59,7 @@ def count_episodes(config: DictConfig) -> int | None:
 
 # watcher threads live here, not on the callback: the launcher pickles callbacks to send them to workers
 _WATCHERS: dict[str, tuple[threading.Thread, threading.Event]] = {}
+_BEFORE: dict[str, dict[Path, float]] = {}  # complete logs (and their mtimes) present when the sweep started
 
 
 def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
@@ -80,6 +81,12 @@ class SweepProgress(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
+        before = {p: p.stat().st_mtime for p in sweep_dir.rglob("*.mcap") if is_complete(p)} \
+            if sweep_dir.exists() else {}
+        _BEFORE[str(sweep_dir)] = before
+        if before and not config.get("resume", False):
+            print(f"warning: {sweep_dir} already holds {len(before)} complete logs; without resume=true they are "
+                  "re-run and overwritten", file=sys.stderr)
         stop = threading.Event()
         thread = threading.Thread(target=_watch, args=(sweep_dir, count_episodes(config), stop), daemon=True)
         _WATCHERS[str(sweep_dir)] = (thread, stop)
@@ -91,6 +98,11 @@ class SweepProgress(Callback):
         if stop is not None and thread is not None:
             stop.set()
             thread.join()
+        before = _BEFORE.pop(str(sweep_dir), {})
+        if config.get("resume", False):
+            kept = sum(1 for p, t in before.items() if p.exists() and p.stat().st_mtime == t)
+            total = len(find_logs([sweep_dir]))
+            print(f"resume: {kept} complete episode(s) kept, {total - kept} run (incomplete, missing or changed)")
         write_summary(sweep_dir)
         from analysis.report import build_report
 

@@ -1,0 +1,102 @@
+"""Faults: SIGINT/SIGTERM finish the log as interrupted; SIGKILL leaves a log readable up to its last chunk;
+a killed sweep resumes without losing or recomputing anything."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.episode_log import load_episode
+from analysis.logs import episode_summary, find_logs, is_complete
+from analysis.metrics import metrics_table
+from tests.conftest import ROOT
+
+LONG = ["scenario=u_trap", "scenario.max_steps=100000"]  # the robot never escapes: an endless episode
+
+
+def start(args, **kw):
+    return subprocess.Popen([sys.executable, "-m", *args], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True, **kw)
+
+
+def wait_for(predicate, timeout=120.0):
+    end = time.time() + timeout
+    while time.time() < end:
+        if predicate():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def log_size(run_dir: Path) -> int:
+    logs = list(run_dir.glob("*.mcap"))
+    return logs[0].stat().st_size if logs else 0
+
+
+@pytest.mark.parametrize("sig, code, reason", [(signal.SIGINT, 130, "Ctrl-C"), (signal.SIGTERM, 143, "SIGTERM")])
+def test_signal_finishes_the_log_as_interrupted(tmp_path, sig, code, reason):
+    proc = start(["runners.run", *LONG, f"hydra.run.dir={tmp_path}"])
+    assert wait_for(lambda: log_size(tmp_path) > 40_000), "the episode did not start"
+    proc.send_signal(sig)
+    _out, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    assert "interrupted" in err and "Traceback" not in err
+    log = next(tmp_path.glob("*.mcap"))
+    assert is_complete(log)
+    row = episode_summary(log)
+    assert row["outcome"] == "interrupted" and row["steps"] > 10
+    rows, bad = metrics_table([tmp_path])
+    assert rows.empty and "interrupted" in bad.iloc[0]["reason"]  # never counted as success or failure
+
+
+def test_sigkill_leaves_a_log_readable_up_to_its_last_chunk(tmp_path):
+    proc = start(["runners.run", *LONG, f"hydra.run.dir={tmp_path}"])
+    assert wait_for(lambda: log_size(tmp_path) > 150_000)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
+    log = next(tmp_path.glob("*.mcap"))
+    assert not is_complete(log)
+    episode = load_episode(log)
+    assert episode.outcome == "incomplete" and episode.steps > 20 and not episode.complete
+    rows, bad = metrics_table([tmp_path])
+    assert rows.empty and "truncated" in bad.iloc[0]["reason"]
+    res = subprocess.run([sys.executable, "-m", "runners.replay", str(log), "--out", str(tmp_path / "r")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and "outcome: incomplete" in res.stdout
+
+
+def _comparable(sweep_dir: Path) -> pd.DataFrame:
+    rows, bad = metrics_table([sweep_dir])
+    assert bad.empty
+    drop = [c for c in rows.columns if c.startswith("compute_time") or c == "log"]
+    return rows.drop(columns=drop).sort_values(["scenario", "strategy", "h_wait", "seed"]).reset_index(drop=True)
+
+
+def test_killed_sweep_resumes_without_loss_or_recomputation(tmp_path):
+    args = ["runners.sweep", "sweep=quick", "hydra.launcher.n_jobs=2"]
+    killed = tmp_path / "killed"
+    proc = start([*args, f"hydra.sweep.dir={killed}"])
+    assert wait_for(lambda: sum(is_complete(p) for p in killed.rglob("*.mcap")) >= 3)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
+    before = {p: p.stat().st_mtime_ns for p in killed.rglob("*.mcap") if is_complete(p)}
+    assert 3 <= len(before) < 12
+    res = subprocess.run([sys.executable, "-m", *args, f"hydra.sweep.dir={killed}", "resume=true"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert f"resume: {len(before)} complete episode(s) kept, {12 - len(before)} run" in res.stdout
+    logs = find_logs([killed])
+    assert len(logs) == 12 and len({p.name for p in logs}) == 12 and all(is_complete(p) for p in logs)
+    assert all(p.stat().st_mtime_ns == t for p, t in before.items())  # completed ones were not re-run
+    fresh = tmp_path / "fresh"
+    res = subprocess.run([sys.executable, "-m", *args, f"hydra.sweep.dir={fresh}"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=900)
+    assert res.returncode == 0
+    pd.testing.assert_frame_equal(_comparable(killed), _comparable(fresh))
