@@ -18,7 +18,7 @@ import shapely
 import yaml
 from shapely.geometry import Point, Polygon, box
 
-from analysis.logs import LogError, is_complete, iter_messages, read_metadata
+from analysis.logs import LogError, is_complete, iter_messages, read_metadata, required_fields
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
 
@@ -126,8 +126,14 @@ def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> Epi
     log = EpisodeLog(path=path, meta=meta, config=config, complete=is_complete(path),
                      dt=float(config.get("dt", 1.0)))
     scene_seen = False
+    required = required_fields(path)
     try:
         for topic, _t, msg in iter_messages(path, topics):
+            missing = [f for f in required.get(topic, []) if f not in msg] if isinstance(msg, dict) else ["(object)"]
+            if missing:
+                step = msg.get("step", "?") if isinstance(msg, dict) else "?"
+                raise LogError(f"{path}: {topic} message at step {step} does not match its schema: "
+                               f"missing field '{missing[0]}'")
             if topic == "/scene":
                 if not scene_seen:
                     _read_scene(log, msg)
@@ -138,8 +144,8 @@ def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> Epi
                 log.episode = msg
             else:
                 getattr(log, _TOPIC_LISTS[topic]).append(msg)
-    except LogError:
-        if log.complete:
+    except LogError as err:
+        if log.complete or "does not match its schema" in str(err):
             raise
         # a truncated log: keep what was read before the damage
     if log.states:

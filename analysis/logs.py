@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
-from mcap.records import Channel, Message, Metadata
+from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 RUN_METADATA = "fuzzynav.run"
@@ -56,6 +56,39 @@ def _linear_records(path: Path) -> Iterator[Any]:
             except Exception:  # the truncated tail: stop at what was fully written
                 return
             yield record
+
+
+def required_fields(path: Path) -> dict[str, list[str]]:
+    """Per topic, the top-level fields its embedded JSON schema requires (topics without a schema: none)."""
+    schemas: dict[int, Any] = {}
+    channels: dict[int, tuple[str, int]] = {}
+    try:
+        if is_complete(path):
+            with open(path, "rb") as f:
+                summary = make_reader(f).get_summary()
+            if summary is not None:
+                schemas = dict(summary.schemas)
+                channels = {cid: (c.topic, c.schema_id) for cid, c in summary.channels.items()}
+        else:
+            for record in _linear_records(path):
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = (record.topic, record.schema_id)
+    except LogError:
+        raise
+    except Exception as err:
+        raise LogError(f"{path}: not a readable MCAP file ({type(err).__name__}: {err})") from None
+    out: dict[str, list[str]] = {}
+    for topic, schema_id in channels.values():
+        schema = schemas.get(schema_id)
+        if schema is None or schema.encoding != "jsonschema":
+            continue
+        try:
+            out[topic] = list(json.loads(schema.data).get("required", []))
+        except (ValueError, AttributeError):
+            raise LogError(f"{path}: the schema of {topic} is not valid JSON") from None
+    return out
 
 
 def read_metadata(path: Path) -> dict[str, str]:

@@ -176,6 +176,10 @@ def main(argv: list[str] | None = None) -> int:
     if not log.decisions:
         print(f"error: {path}: no /planner/decision messages to replay", file=sys.stderr)
         return 2
+    if args.verify and not log.complete:
+        print(f"error: {path}: truncated log (no MCAP summary; {log.steps} steps readable): an unfinished episode "
+              "cannot be verified", file=sys.stderr)
+        return 2
     counterfactual = bool(args.controller or args.overrides)
     config = copy.deepcopy(log.config)
     try:

@@ -11,6 +11,7 @@ directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per 
 from __future__ import annotations
 
 import hashlib
+import os
 import signal
 import sys
 import traceback
@@ -241,5 +242,22 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
     return results
 
 
-if __name__ == "__main__":
+def cli() -> None:
+    """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra."""
+    from runners.precheck import debug_requested, precheck
+
+    args = sys.argv[1:]
+    if "--debug" in args:
+        args.remove("--debug")
+        sys.argv = [sys.argv[0], *args]
+        os.environ["HYDRA_FULL_ERROR"] = "1"
+    if not debug_requested(args) and "--help" not in args and "-h" not in args:
+        problem = precheck(args)
+        if problem:
+            print(f"error: {problem}", file=sys.stderr)
+            sys.exit(2)
     main()
+
+
+if __name__ == "__main__":
+    cli()

@@ -153,7 +153,7 @@ def main() -> None:
     sys.argv = [sys.argv[0], "--multirun", *args]
     from runners import run
 
-    run.main()
+    run.cli()
 
 
 if __name__ == "__main__":

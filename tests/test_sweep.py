@@ -46,11 +46,14 @@ def test_bad_scenario_file_names_file_and_field(tmp_path):
 
 def test_typo_and_wrong_type_fail_at_composition(tmp_path):
     out = cli("runners.run", "planner.h_wiat=3", f"hydra.run.dir={tmp_path}")
-    assert out.returncode == 1 and "h_wiat" in out.stderr and "Traceback" not in out.stderr
+    assert out.returncode == 2 and out.stderr.strip() == (
+        "error: config: planner.h_wiat: Key 'h_wiat' not in 'PlannerConfigSchema'")
     out = cli("runners.run", "planner.h_wait=two", f"hydra.run.dir={tmp_path}")
-    assert out.returncode == 1 and "planner.h_wait" in out.stderr and "Traceback" not in out.stderr
+    assert out.returncode == 2 and "planner.h_wait" in out.stderr and "Traceback" not in out.stderr
     out = cli("runners.run", "planner.h_wait=-1", f"hydra.run.dir={tmp_path}")
     assert out.returncode == 2 and out.stderr.strip() == "error: config: planner.h_wait: must be >= 0, got -1"
+    out = cli("runners.sweep", "sweep=quick", "planner=auto,nope", f"hydra.sweep.dir={tmp_path / 's'}")
+    assert out.returncode == 2 and "no config 'planner/nope'" in out.stderr and not (tmp_path / "s").exists()
 
 
 def test_quick_sweep_end_to_end(tmp_path):
