@@ -59,7 +59,10 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
     for _ in range(n_static):
         for _attempt in range(200):
             size = rng.uniform(size_lo, size_hi)
-            centre = np.array([rng.uniform(250, w - 250), rng.uniform(size + 10, h - size - 10)])
+            if h - size - 10 <= size + 10:
+                continue  # too big for this height
+            centre = np.array([rng.uniform(min(250.0, w / 2), max(w - 250.0, w / 2)),
+                               rng.uniform(size + 10, h - size - 10)])
             if min(np.linalg.norm(centre - start), np.linalg.norm(centre - goal)) < keep_out + size * math.sqrt(2):
                 continue
             if any(np.linalg.norm(centre - c) < size * math.sqrt(2) + s * math.sqrt(2) + 2 * ROBOT_RADIUS
@@ -77,7 +80,7 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
     for i in range(n_dynamic):
         radius = round(float(rng.uniform(r_lo, r_hi)), 3)
         speed = float(rng.uniform(v_lo, v_hi))
-        cross_x = rng.uniform(300, w - 300)
+        cross_x = rng.uniform(min(300.0, w / 2), max(w - 300.0, w / 2))
         from_below = rng.random() < 0.5
         angle = math.radians(rng.uniform(-30, 30)) + (math.pi / 2 if from_below else -math.pi / 2)
         vel = np.array([math.cos(angle), math.sin(angle)]) * speed

@@ -27,7 +27,7 @@ def cast_rays(origin: np.ndarray, angles_rad: np.ndarray, segments: np.ndarray, 
         ex = segments[:, 2] - segments[:, 0]
         ey = segments[:, 3] - segments[:, 1]
         denom = d[:, :1] * ey[None, :] - d[:, 1:] * ex[None, :]  # cross(d, e)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # masked below (|denom| <= 1e-12)
             t = (ax[None, :] * ey[None, :] - ay[None, :] * ex[None, :]) / denom
             u = (ax[None, :] * d[:, 1:] - ay[None, :] * d[:, :1]) / denom
         ok = (np.abs(denom) > 1e-12) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)

@@ -69,8 +69,9 @@ class Sonar:
         target = solid
         if self.config.sees_dynamic and discs is not None and len(discs):
             target = shapely.union_all([solid, *shapely.buffer(shapely.points(discs[:, :2]), discs[:, 2])])
-        hits = shapely.intersection(wedges, target)
-        dist = shapely.distance(hits, shapely.Point(x, y))  # NaN for an empty intersection
+        with np.errstate(divide="ignore", invalid="ignore"):  # GEOS on degenerate slivers; NaN is handled below
+            hits = shapely.intersection(wedges, target)
+            dist = shapely.distance(hits, shapely.Point(x, y))  # NaN for an empty intersection
         out = np.where(np.isnan(dist), self.config.range_cm, np.clip(dist - self.robot_radius, 0.0,
                                                                         self.config.range_cm))
         return float(out[0]), float(out[1]), float(out[2])

@@ -48,4 +48,5 @@ class World:
     def static_contact(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
         """True if a disc of ``radius`` cm moving straight from ``p0`` to ``p1`` touches an obstacle or wall."""
         path = Point(p1) if np.allclose(p0, p1) else LineString([p0, p1])
-        return bool(shapely.dwithin(self.solid, path, radius - 1e-9))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return bool(shapely.dwithin(self.solid, path, radius - 1e-9))

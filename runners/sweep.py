@@ -43,7 +43,7 @@ def count_episodes(config: DictConfig) -> int | None:
     for o in parsed:
         key = o.get_key_element()
         if not o.is_sweep_override():
-            sizes.setdefault(key, 1)
+            sizes[key] = 1  # a plain command-line value replaces the preset's sweep over that key
             continue
         if o.value_type == ValueType.GLOB_CHOICE_SWEEP:
             group_dir = CONF / key
