@@ -1,12 +1,20 @@
 """Benchmarks (speed is measured here, never asserted in unit tests).
 
-    python -m runners.bench            # full run
-    python -m runners.bench --quick    # reduced repetitions (CI)
+    python -m runners.bench            # full run (a few minutes)
+    python -m runners.bench --quick    # reduced sizes (under a minute; CI runs it, no thresholds)
 
-Section 1 (fuzzy decision): the fast numpy evaluator vs scikit-fuzzy's ControlSystemSimulation.compute()
-on the same definition and the same seeded inputs — time per single decision for both, their ratio,
-batch throughput and the largest disagreement. Each time is the median of several repetitions after a
-warm-up. Writes ``bench.json`` (path with ``--out``).
+1. Fuzzy decision: the fast numpy evaluator vs scikit-fuzzy's ControlSystemSimulation.compute() on the
+   same definition and the same seeded inputs — time per single decision for both, their ratio, batch
+   throughput and the largest disagreement.
+2. Simulation on ``mixed`` with laser perception: steps/s without and with MCAP logging, and the time per
+   step by stage (sensors, tracking, TPT, planner, controller, logging, rest).
+3. Sweep overhead: a real ``runners.sweep`` of short episodes on all cores vs the same episodes' own compute
+   time (measured in-process, one core) divided by the cores.
+4. Analysis: episodes/s and messages/s of the metrics table on that sweep's logs.
+5. Memory: resident set size of one process running many episodes (with logs), early vs late.
+
+Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
+Writes ``bench.json`` (path with ``--out``).
 """
 
 from __future__ import annotations
@@ -15,6 +23,7 @@ import argparse
 import json
 import platform
 import statistics
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -64,6 +73,153 @@ def bench_fuzzy(name: str, n_single: int, n_ref: int, batch: int, reps: int) -> 
             "max_disagreement_v_cm_s": float(np.max(np.abs(a[1] - b[1]))), "inputs_compared": n_single}
 
 
+class _Timers:
+    """Wrap functions with accumulating timers (bench only: the library is not instrumented)."""
+
+    def __init__(self) -> None:
+        self.total: dict[str, float] = {}
+        self._undo: list = []
+
+    def wrap(self, owner, attr: str, stage: str) -> None:
+        original = getattr(owner, attr)
+
+        def timed(*args, **kwargs):
+            t = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                self.total[stage] = self.total.get(stage, 0.0) + time.perf_counter() - t
+
+        setattr(owner, attr, timed)
+        self._undo.append((owner, attr, original))
+
+    def restore(self) -> None:
+        for owner, attr, original in reversed(self._undo):
+            setattr(owner, attr, original)
+        self._undo.clear()
+
+
+def _scenario_and_config(name: str):
+    from runners.run import episode_config, load_evaluator, load_scenario
+
+    base = {"sensors": yaml.safe_load((CONF / "sensors" / "default.yaml").read_text()),
+            "navigator": yaml.safe_load((CONF / "navigator" / "default.yaml").read_text()),
+            "planner": yaml.safe_load((CONF / "planner" / "auto.yaml").read_text()),
+            "scenario": yaml.safe_load((CONF / "scenario" / f"{name}.yaml").read_text()),
+            "controller": yaml.safe_load((CONF / "controller" / "table1.yaml").read_text())}
+    return load_scenario(base), load_evaluator(base), episode_config(base)
+
+
+def bench_simulation(episodes: int) -> dict:
+    """Steps/s on ``mixed`` (laser perception) with and without logging, and the per-stage breakdown."""
+    import tempfile
+
+    from fuzzynav import episode as episode_mod
+    from fuzzynav import laser as laser_mod
+    from fuzzynav import navigator as nav_mod
+    from fuzzynav.episode import Episode
+    from fuzzynav.sonar import Sonar
+    from runners.mcap_log import EpisodeLogWriter
+    from runners.run import run_episode
+
+    scenario, evaluator, cfg = _scenario_and_config("mixed")
+
+    def run(log: bool) -> tuple[float, int]:
+        t, steps = time.perf_counter(), 0
+        with tempfile.TemporaryDirectory() as tmp:
+            for seed in range(episodes):
+                path = Path(tmp) / f"{seed}.mcap" if log else None
+                steps += run_episode(scenario, evaluator, cfg, seed, path, "")["steps"]
+        return time.perf_counter() - t, steps
+
+    run(False)  # warm-up
+    t_plain, steps = run(False)
+    t_log, _ = run(True)
+    timers = _Timers()
+    timers.wrap(Sonar, "read", "sensors")
+    timers.wrap(laser_mod, "scan", "sensors")
+    timers.wrap(episode_mod, "perceive", "tracking")
+    timers.wrap(nav_mod, "build_tpt", "tpt")
+    timers.wrap(nav_mod, "find_new_path", "planner")
+    timers.wrap(nav_mod.Navigator, "_still_valid", "planner")
+    timers.wrap(nav_mod.Navigator, "fuzzy", "controller")
+    timers.wrap(EpisodeLogWriter, "step", "logging")
+    timers.wrap(Episode, "step", "_episode_step")
+    try:
+        t_prof, _ = run(True)
+    finally:
+        timers.restore()
+    stages = {k: v for k, v in timers.total.items() if not k.startswith("_")}
+    stages["rest"] = max(t_prof - sum(stages.values()), 0.0)
+    return {"scenario": "mixed", "episodes": episodes, "steps": steps,
+            "steps_per_s_without_logging": steps / t_plain, "steps_per_s_with_logging": steps / t_log,
+            "logging_share_of_step": (t_log - t_plain) / t_log,
+            "us_per_step_by_stage": {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}}
+
+
+def bench_sweep_and_analysis(seeds: int) -> tuple[dict, dict]:
+    """A real sweep of short episodes on all cores vs their in-process compute time; then the analysis."""
+    import os
+    import subprocess
+    import tempfile
+
+    from analysis.episode_log import METRIC_TOPICS
+    from analysis.logs import find_logs, iter_messages
+    from analysis.metrics import metrics_table
+    from runners.run import run_episode
+
+    cores = os.cpu_count() or 1
+    scenario, evaluator, cfg = _scenario_and_config("head_on")
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        for seed in range(seeds):
+            run_episode(scenario, evaluator, cfg, seed, Path(tmp) / f"{seed}.mcap", "")
+        own = time.perf_counter() - t
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", "scenario=head_on", "planner=auto",
+                              f"seed=range(0,{seeds})", f"hydra.sweep.dir={tmp}/s"], cwd=CONF.parent,
+                             capture_output=True, text=True)
+        wall = time.perf_counter() - t
+        if res.returncode != 0:
+            raise RuntimeError(f"sweep failed: {res.stderr[-500:]}")
+        logs = find_logs([f"{tmp}/s"])
+        t = time.perf_counter()
+        df, _ = metrics_table(logs)
+        t_metrics = time.perf_counter() - t
+        messages = sum(1 for p in logs for _ in iter_messages(p, METRIC_TOPICS))
+    ideal = own / cores
+    sweep = {"episodes": seeds, "cores": cores, "wall_s_including_report": wall, "own_compute_s": own,
+             "ideal_s": ideal, "wall_over_ideal": wall / ideal}
+    analysis = {"episodes": len(df), "seconds": t_metrics, "episodes_per_s": len(df) / t_metrics,
+                "messages_per_s": messages / t_metrics, "mean_steps": float(df["steps"].mean())}
+    return sweep, analysis
+
+
+def bench_memory(episodes: int) -> dict:
+    """RSS of this process while running ``episodes`` logged episodes: after 10 %, and at the end."""
+    import os
+    import tempfile
+
+    from runners.run import run_episode
+
+    def rss_mb() -> float:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * (os.sysconf("SC_PAGE_SIZE") / 1e6)
+
+    scenario, evaluator, cfg = _scenario_and_config("head_on")
+    early = None
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(episodes):
+            path = Path(tmp) / "ep.mcap"
+            run_episode(scenario, evaluator, cfg, k, path, "")
+            if k + 1 == episodes // 10:
+                early = rss_mb()
+    late = rss_mb()
+    return {"episodes": episodes, "rss_mb_at_10pct": early, "rss_mb_at_end": late,
+            "growth": (late - early) / early if early else float("nan")}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (about 20 s)")
@@ -75,6 +231,9 @@ def main(argv: list[str] | None = None) -> int:
                            "system": platform.platform()},
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
+    results["simulation"] = bench_simulation(3 if args.quick else 20)
+    results["sweep"], results["analysis"] = bench_sweep_and_analysis(24 if args.quick else 120)
+    results["memory"] = bench_memory(60 if args.quick else 1000)
     print("fuzzy decision (median of repetitions, after warm-up)")
     print(f"{'controller':<10} {'fast µs':>9} {'skfuzzy µs':>11} {'ratio':>7} {'batch/s':>10} "
           f"{'max |Δθ|':>10} {'max |Δv|':>10}")
@@ -82,6 +241,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r['controller']:<10} {r['fast_us_per_decision']:9.1f} {r['skfuzzy_us_per_decision']:11.0f} "
               f"{r['ratio']:7.0f} {r['batch_decisions_per_s']:10.0f} {r['max_disagreement_dtheta_deg']:10.2e} "
               f"{r['max_disagreement_v_cm_s']:10.2e}")
+    sim = results["simulation"]
+    print(f"\nsimulation ({sim['scenario']}, laser perception, {sim['steps']} steps): "
+          f"{sim['steps_per_s_without_logging']:.0f} steps/s without logging, "
+          f"{sim['steps_per_s_with_logging']:.0f} with; logging is {sim['logging_share_of_step']:.0%} of a step")
+    print("  µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in sim["us_per_step_by_stage"].items()))
+    sw = results["sweep"]
+    print(f"sweep: {sw['episodes']} episodes on {sw['cores']} cores in {sw['wall_s_including_report']:.1f} s "
+          f"(incl. summary and report); own compute {sw['own_compute_s']:.1f} s -> ideal {sw['ideal_s']:.1f} s; "
+          f"wall/ideal = {sw['wall_over_ideal']:.2f}")
+    an = results["analysis"]
+    print(f"analysis: {an['episodes_per_s']:.1f} episodes/s, {an['messages_per_s']:.0f} messages/s "
+          f"({an['episodes']} episodes of {an['mean_steps']:.0f} steps)")
+    mem = results["memory"]
+    print(f"memory: RSS {mem['rss_mb_at_10pct']:.1f} MB after {mem['episodes'] // 10} episodes, "
+          f"{mem['rss_mb_at_end']:.1f} MB after {mem['episodes']} ({mem['growth']:+.1%})")
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(f"wrote {args.out}")
     return 0

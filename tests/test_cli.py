@@ -47,3 +47,7 @@ def test_bench_quick_writes_results(tmp_path):
         assert row["ratio"] > 1 and row["max_disagreement_dtheta_deg"] <= 0.01
         assert row["max_disagreement_v_cm_s"] <= 0.01
     assert "fuzzy decision" in res.stdout
+    for section in ("simulation", "sweep", "analysis", "memory"):
+        assert section in data, section
+    assert data["simulation"]["steps_per_s_with_logging"] > 0 and data["sweep"]["wall_over_ideal"] > 0
+    assert set(data["simulation"]["us_per_step_by_stage"]) >= {"sensors", "tracking", "logging", "controller"}
