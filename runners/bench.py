@@ -178,8 +178,8 @@ def bench_sweep_and_analysis(seeds: int) -> tuple[dict, dict]:
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", "scenario=head_on", "planner=auto",
-                              f"seed=range(0,{seeds})", f"hydra.sweep.dir={tmp}/s"], cwd=CONF.parent,
-                             capture_output=True, text=True)
+                              f"seed=range(0,{seeds},5)", "episodes=5", f"hydra.sweep.dir={tmp}/s"],
+                             cwd=CONF.parent, capture_output=True, text=True)
         wall = time.perf_counter() - t
         if res.returncode != 0:
             raise RuntimeError(f"sweep failed: {res.stderr[-500:]}")
@@ -232,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3 if args.quick else 20)
-    results["sweep"], results["analysis"] = bench_sweep_and_analysis(24 if args.quick else 120)
+    results["sweep"], results["analysis"] = bench_sweep_and_analysis(25 if args.quick else 120)
     results["memory"] = bench_memory(60 if args.quick else 1000)
     print("fuzzy decision (median of repetitions, after warm-up)")
     print(f"{'controller':<10} {'fast µs':>9} {'skfuzzy µs':>11} {'ratio':>7} {'batch/s':>10} "
