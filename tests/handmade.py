@@ -71,3 +71,27 @@ def write_log(path: Path, poses, *, radius: float = 20.0, statics=(), obstacles=
     put("/episode", n, {"outcome": outcome, "steps": n, "time_s": float(n), "contacts": 0, "reason": ""})
     w.finish()
     return path
+
+
+def rewrite_log(src: Path, dst: Path, edit) -> None:
+    """Copy a complete log message by message; ``edit(topic, message_dict)`` may change a message in place."""
+    from mcap.reader import make_reader
+
+    with open(src, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        meta = list(reader.iter_metadata())
+        msgs = list(reader.iter_messages())
+    with open(dst, "wb") as out:
+        w = Writer(out, compression=CompressionType.ZSTD)
+        w.start()
+        schema_ids = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        chan_ids = {cid: w.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id])
+                    for cid, c in summary.channels.items()}
+        for m in meta:
+            w.add_metadata(m.name, m.metadata)
+        for _s, channel, message in msgs:
+            payload = json.loads(message.data)
+            edit(channel.topic, payload)
+            w.add_message(chan_ids[channel.id], message.log_time, json.dumps(payload).encode(), message.publish_time)
+        w.finish()

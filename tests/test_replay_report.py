@@ -2,20 +2,18 @@
 
 from __future__ import annotations
 
-import json
 import shutil
 import subprocess
 import sys
 
 import pytest
-from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
 
 from analysis.report import build_report
 from fuzzynav.fuzzy_fast import FastEvaluator
 from runners import replay
 from runners.run import run_episode
 from tests.conftest import ROOT, load_controller, load_scenario
+from tests.handmade import rewrite_log
 
 
 @pytest.fixture(scope="module")
@@ -46,28 +44,12 @@ def test_verify_passes_on_a_fresh_log(fresh_log, capsys):
 
 def _alter(src, dst, step: int):
     """Copy a log, changing the recorded mode of one decision."""
-    with open(src, "rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        meta = list(reader.iter_metadata())
-        msgs = list(reader.iter_messages())
-    with open(dst, "wb") as out:
-        w = Writer(out, compression=CompressionType.ZSTD)
-        w.start()
-        schema_ids = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
-        chan_ids = {cid: w.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id])
-                    for cid, c in summary.channels.items()}
-        for m in meta:
-            w.add_metadata(m.name, m.metadata)
-        for _s, channel, message in msgs:
-            data = message.data
-            if channel.topic == "/planner/decision":
-                d = json.loads(data)
-                if d["step"] == step:
-                    d["mode"] = "fuzzy" if d["mode"] != "fuzzy" else "direct"
-                    data = json.dumps(d).encode()
-            w.add_message(chan_ids[channel.id], message.log_time, data, message.publish_time)
-        w.finish()
+
+    def change(topic, msg):
+        if topic == "/planner/decision" and msg["step"] == step:
+            msg["mode"] = "fuzzy" if msg["mode"] != "fuzzy" else "direct"
+
+    rewrite_log(src, dst, change)
 
 
 def test_verify_fails_on_an_altered_decision(fresh_log, tmp_path, capsys):

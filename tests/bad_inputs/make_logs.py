@@ -10,7 +10,6 @@ import random
 import sys
 from pathlib import Path
 
-from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -19,6 +18,7 @@ from fuzzynav.config import episode_config_from_dict
 from fuzzynav.fuzzy_fast import FastEvaluator
 from runners.run import run_episode
 from tests.conftest import load_controller, load_scenario
+from tests.handmade import rewrite_log
 
 OUT = Path(__file__).resolve().parent / "logs"
 
@@ -38,25 +38,11 @@ def main() -> None:
         ch = w.register_channel("/robot/state", "json", 0)
         w.add_message(ch, 0, json.dumps({"step": 0}).encode(), 0)
         w.finish()
-    with open(good, "rb") as f:  # a fuzzynav log whose /robot/state message at step 3 lacks x_cm
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        meta = list(reader.iter_metadata())
-        msgs = list(reader.iter_messages())
-    with open(OUT / "message_off_schema.mcap", "wb") as f:
-        w = Writer(f, compression=CompressionType.ZSTD)
-        w.start()
-        sid = {i: w.register_schema(s.name, s.encoding, s.data) for i, s in summary.schemas.items()}
-        cid = {i: w.register_channel(c.topic, c.message_encoding, sid[c.schema_id])
-               for i, c in summary.channels.items()}
-        for m in meta:
-            w.add_metadata(m.name, m.metadata)
-        for _s, channel, message in msgs:
-            payload = json.loads(message.data)
-            if channel.topic == "/robot/state" and payload["step"] == 3:
-                payload.pop("x_cm")
-            w.add_message(cid[channel.id], message.log_time, json.dumps(payload).encode(), message.publish_time)
-        w.finish()
+    def drop_x(topic, msg):  # a fuzzynav log whose /robot/state message at step 3 lacks x_cm
+        if topic == "/robot/state" and msg["step"] == 3:
+            msg.pop("x_cm")
+
+    rewrite_log(good, OUT / "message_off_schema.mcap", drop_x)
     good.unlink()
 
 
