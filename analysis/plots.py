@@ -27,15 +27,27 @@ def _color(variant: str):
     return STRATEGY_COLORS.get(variant.split("(")[0], "tab:gray")
 
 
+def _per_scenario(df: pd.DataFrame, out: Path, filename: str, draw) -> Path:
+    """One panel per scenario, ``draw(ax, rows_of_that_scenario)``, saved as ``out/filename``."""
+    scenarios = sorted(df["scenario"].unique())
+    fig, axes = plt.subplots(1, len(scenarios), figsize=(4.2 * len(scenarios), 3.4), squeeze=False)
+    for ax, scenario in zip(axes[0], scenarios, strict=True):
+        draw(ax, df[df["scenario"] == scenario])
+        ax.set_title(scenario)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path = out / filename
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
 def metric_vs_h_wait(df: pd.DataFrame, metric: str, out: Path) -> Path:
     """One panel per scenario: the metric's mean (±95 % bootstrap interval) against h_wait for ``auto``, and
     the strategies that ignore h_wait as horizontal bands."""
     from analysis.stats import bootstrap_mean
 
-    scenarios = sorted(df["scenario"].unique())
-    fig, axes = plt.subplots(1, len(scenarios), figsize=(4.2 * len(scenarios), 3.4), squeeze=False)
-    for ax, scenario in zip(axes[0], scenarios, strict=True):
-        sub = df[df["scenario"] == scenario]
+    def draw(ax, sub: pd.DataFrame) -> None:
         auto = sub[sub["strategy"] == "auto"]
         if not auto.empty:
             hs = sorted(auto["h_wait"].dropna().unique())
@@ -54,39 +66,27 @@ def metric_vs_h_wait(df: pd.DataFrame, metric: str, out: Path) -> Path:
             ax.axhline(mean, color=_color(strategy), linestyle="--", label=strategy)
             if not math.isnan(low):
                 ax.axhspan(low, high, color=_color(strategy), alpha=0.12)
-        ax.set_title(scenario)
         ax.set_xlabel("h_wait (steps)")
         ax.set_ylabel(metric)
-        ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.tight_layout()
-    path = out / f"h_wait_{metric}.png"
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+        ax.legend(fontsize=7)
+
+    return _per_scenario(df, out, f"h_wait_{metric}.png", draw)
 
 
 def box_by_strategy(df: pd.DataFrame, metric: str, out: Path) -> Path:
-    """Box plot of a metric per strategy variant (all scenarios pooled and per scenario)."""
+    """Box plot of a metric per strategy variant, one panel per scenario."""
     variants = sorted(df["variant"].unique())
-    scenarios = sorted(df["scenario"].unique())
-    fig, axes = plt.subplots(1, len(scenarios), figsize=(4.2 * len(scenarios), 3.4), squeeze=False)
-    for ax, scenario in zip(axes[0], scenarios, strict=True):
-        sub = df[df["scenario"] == scenario]
+
+    def draw(ax, sub: pd.DataFrame) -> None:
         data = [sub.loc[sub["variant"] == v, metric].dropna().to_numpy() for v in variants]
         box = ax.boxplot(data, tick_labels=variants, patch_artist=True)
         for patch, v in zip(box["boxes"], variants, strict=True):
             patch.set_facecolor(_color(v))
             patch.set_alpha(0.5)
-        ax.set_title(scenario)
         ax.set_ylabel(metric)
         ax.tick_params(axis="x", rotation=45, labelsize=7)
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    path = out / f"box_{metric}.png"
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+
+    return _per_scenario(df, out, f"box_{metric}.png", draw)
 
 
 def trajectories(df: pd.DataFrame, scenario: str, out: Path) -> Path:

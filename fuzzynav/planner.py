@@ -53,7 +53,6 @@ from fuzzynav.kinematics import wrap_deg
 from fuzzynav.tpt import TrajectoryPredictionTable
 
 STRATEGIES = ("auto", "wait", "detour", "none")
-PLAN_KINDS = ("wait", "detour", "evade", "stop")
 PHI_LOW_RULES = ("paper", "target_side", "toward_goal")
 DETOUR_SEARCHES = ("greedy", "astar")
 

@@ -11,6 +11,7 @@ directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import signal
 import sys
@@ -83,8 +84,7 @@ def load_scenario(cfg: dict[str, Any], seed: int = 0) -> Scenario:
 
 
 def load_evaluator(cfg: dict[str, Any]) -> FastEvaluator:
-    import json
-
+    """One evaluator per controller definition and worker process (built once, reused by every episode)."""
     key = json.dumps(cfg["controller"], sort_keys=True, default=str)
     if key not in _EVALUATORS:
         try:
