@@ -7,6 +7,7 @@ Ranges are in cm, measured from the robot centre; a beam with no return reads ex
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -47,12 +48,20 @@ class LaserScan:
     origin: tuple[float, float]
     range_cm: float
 
+    @cached_property
+    def returned(self) -> np.ndarray:
+        """Mask (N,) of the beams with a return (range below ``range_cm``)."""
+        return self.ranges < self.range_cm
+
+    @cached_property
+    def xy(self) -> np.ndarray:
+        """World coordinates (N, 2) in cm of every beam's end point (computed once per frame)."""
+        a = self.angles_world_rad
+        return np.stack([self.origin[0] + self.ranges * np.cos(a), self.origin[1] + self.ranges * np.sin(a)], axis=1)
+
     def points(self) -> np.ndarray:
         """World coordinates (K, 2) in cm of the beams that returned."""
-        ok = self.ranges < self.range_cm
-        r = self.ranges[ok]
-        a = self.angles_world_rad[ok]
-        return np.stack([self.origin[0] + r * np.cos(a), self.origin[1] + r * np.sin(a)], axis=1)
+        return self.xy[self.returned]
 
 
 def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: np.ndarray,

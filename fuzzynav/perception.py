@@ -50,7 +50,6 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
              truth_positions: np.ndarray, truth_velocities: np.ndarray, truth_radii: np.ndarray,
              rng: np.random.Generator) -> tuple[TrackerState, Perceived]:
     """Perceive the moving obstacles in this frame (see the module docstring)."""
-    returned = scan.ranges < scan.range_cm
     if config.mode == "laser":
         state, tracks, moving = tracking.update(state, scan, time_s, config.tracker)
         return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
@@ -68,13 +67,10 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
         if config.velocity_noise_std_cm_s > 0:
             v = v + rng.normal(0.0, config.velocity_noise_std_cm_s, 2)
         tracks.append(Track(k + 1, float(p[0]), float(p[1]), float(v[0]), float(v[1]), float(truth_radii[k])))
-    moving = returned & (scan.labels > 0)
+    moving = scan.returned & (scan.labels > 0)
     return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
 
 
 def static_points(scan: LaserScan, moving_beams: np.ndarray) -> np.ndarray:
     """World coordinates (K, 2) cm of the returns not attributed to moving obstacles."""
-    mask = (scan.ranges < scan.range_cm) & ~moving_beams
-    r = scan.ranges[mask]
-    a = scan.angles_world_rad[mask]
-    return np.stack([scan.origin[0] + r * np.cos(a), scan.origin[1] + r * np.sin(a)], axis=1)
+    return scan.xy[scan.returned & ~moving_beams]

@@ -3,7 +3,8 @@
 Sector angles are degrees relative to the heading (positive = to the left); distances in cm. Each sector
 is a wedge with its apex at the robot centre and radius ``robot radius + range``; the reading is the
 distance from the robot's surface to the nearest point of an obstacle or wall inside the wedge, clipped
-to [0, range], and ``range`` when the wedge is empty. The wedges are intersected with the world in one
+to [0, range], and ``range`` when the wedge is empty. The world is first clipped to the square around
+the robot that holds the three wedges (a cheap rectangle clip), then intersected with the wedges in one
 vectorised shapely call.
 """
 
@@ -48,6 +49,7 @@ class Sonar:
         self.config = config
         self.robot_radius = robot_radius
         reach = robot_radius + config.range_cm
+        self._reach = reach
         # wedge templates in the robot frame (apex at the origin, heading along +x), one per sector
         self._templates = []
         for name in SECTOR_NAMES:
@@ -66,10 +68,11 @@ class Sonar:
         c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
         rot = np.array([[c, s], [-s, c]])
         wedges = shapely.polygons([t @ rot + (x, y) for t in self._templates])
-        target = solid
-        if self.config.sees_dynamic and discs is not None and len(discs):
-            target = shapely.union_all([solid, *shapely.buffer(shapely.points(discs[:, :2]), discs[:, 2])])
+        reach = self._reach
         with np.errstate(divide="ignore", invalid="ignore"):  # GEOS on degenerate slivers; NaN is handled below
+            target = shapely.clip_by_rect(solid, x - reach, y - reach, x + reach, y + reach)
+            if self.config.sees_dynamic and discs is not None and len(discs):
+                target = shapely.union_all([target, *shapely.buffer(shapely.points(discs[:, :2]), discs[:, 2])])
             hits = shapely.intersection(wedges, target)
             dist = shapely.distance(hits, shapely.Point(x, y))  # NaN for an empty intersection
         out = np.where(np.isnan(dist), self.config.range_cm, np.clip(dist - self.robot_radius, 0.0,

@@ -110,33 +110,42 @@ class Detection:
 def segment(scan: LaserScan, gap_cm: float) -> list[np.ndarray]:
     """Split the returned beams into clusters of neighbouring returns; each cluster is an index array."""
     n = len(scan.ranges)
-    ret = scan.ranges < scan.range_cm
+    ret = scan.returned
     if not ret.any():
         return []
-    pts = np.stack([scan.ranges * np.cos(scan.angles_world_rad), scan.ranges * np.sin(scan.angles_world_rad)], 1)
-    nxt = np.roll(np.arange(n), -1)
-    linked = ret & ret[nxt] & (np.hypot(*(pts[nxt] - pts).T) <= gap_cm)
+    pts = scan.xy
+    to_next = np.concatenate([pts[1:], pts[:1]]) - pts  # to the next beam, wrapping around
+    linked = ret & np.concatenate([ret[1:], ret[:1]]) & (np.hypot(to_next[:, 0], to_next[:, 1]) <= gap_cm)
     if linked.all():
         return [np.arange(n)]
     # start a cluster at each returned beam not linked from its predecessor; rotate so index 0 starts one
-    starts = ret & ~np.roll(linked, 1)
+    starts = ret & ~np.concatenate([linked[-1:], linked[:-1]])
     first = int(np.argmax(starts))
-    order = np.roll(np.arange(n), -first)
+    order = np.concatenate([np.arange(first, n), np.arange(first)])
     label = np.cumsum(starts[order])
     keep = ret[order]
-    return [order[keep & (label == k)] for k in np.unique(label[keep])]
+    return np.split(order[keep], np.nonzero(np.diff(label[keep]))[0] + 1)
 
 
 def fit_disc(points: np.ndarray) -> tuple[float, float, float, float]:
-    """Kasa least-squares circle fit: centre x, y, radius and RMS radial residual (cm)."""
-    x, y = points[:, 0], points[:, 1]
-    a = np.stack([x, y, np.ones_like(x)], axis=1)
-    b = x * x + y * y
-    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
-    cx, cy = sol[0] / 2.0, sol[1] / 2.0
-    r = math.sqrt(max(sol[2] + cx * cx + cy * cy, 0.0))
-    rms = float(np.sqrt(np.mean((np.hypot(x - cx, y - cy) - r) ** 2)))
-    return float(cx), float(cy), r, rms
+    """Kasa least-squares circle fit: centre x, y, radius and RMS radial residual (cm).
+
+    Solved in coordinates centred on the points' mean, where Kasa's normal equations reduce to a 2 x 2
+    system for the centre offset (a, b): [Suu Suv; Suv Svv] (a, b) = ½ (Suz, Svz) with z = u² + v²; then
+    r² = a² + b² + mean(z). Collinear points (no circle) give an infinite radius."""
+    mx, my = points.mean(axis=0)
+    u, v = points[:, 0] - mx, points[:, 1] - my
+    z = u * u + v * v
+    suu, svv, suv = float(u @ u), float(v @ v), float(u @ v)
+    suz, svz = float(u @ z), float(v @ z)
+    det = suu * svv - suv * suv
+    if not det > 1e-12 * (suu + svv) ** 2:
+        return float(mx), float(my), math.inf, math.inf
+    a = (suz * svv - svz * suv) / (2.0 * det)
+    b = (svz * suu - suz * suv) / (2.0 * det)
+    r = math.sqrt(a * a + b * b + float(z.mean()))
+    rms = float(np.sqrt(np.mean((np.hypot(u - a, v - b) - r) ** 2)))
+    return float(mx + a), float(my + b), r, rms
 
 
 def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
@@ -146,16 +155,14 @@ def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
     for beams in segment(scan, config.cluster_gap_cm):
         if len(beams) < config.min_points:
             continue
-        r = scan.ranges[beams]
-        a = scan.angles_world_rad[beams]
-        pts = np.stack([ox + r * np.cos(a), oy + r * np.sin(a)], axis=1)
+        pts = scan.xy[beams]
         extent = np.hypot(*(pts.max(0) - pts.min(0)))
         if extent > 2.0 * config.max_radius_cm:
             continue
         cx, cy, radius, rms = fit_disc(pts)
         if radius > config.max_radius_cm or rms > config.max_fit_rms_cm:
             continue
-        if math.hypot(cx - ox, cy - oy) <= float(r.min()):  # concave side towards us: not a disc
+        if math.hypot(cx - ox, cy - oy) <= float(scan.ranges[beams].min()):  # concave side towards us: not a disc
             continue
         out.append(Detection(cx, cy, radius, beams))
     return out

@@ -4,17 +4,20 @@ One file per episode. Foxglove topics use metres and radians (true scale in the 
 use cm, cm/s and degrees (said in their field names). See ``TOPICS`` and the schema modules.
 
 Messages are deterministic: the same config and seed give the same bytes, except the ``compute_time_us``
-field of ``/planner/decision``. Log time is simulation time (step * dt) in nanoseconds from 0.
+field of ``/planner/decision``. Log time is simulation time (step * dt) in nanoseconds from 0. Messages are
+encoded with orjson (compact JSON; numpy arrays are written directly, floats in shortest round-trip form).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Mapping
 from typing import Any, BinaryIO
 
 import numpy as np
+import orjson
 from mcap.writer import CompressionType, Writer
 
 from fuzzynav.episode import Episode, StepRecord
@@ -76,6 +79,15 @@ def _compact(schema: Any) -> Any:
     return schema
 
 
+@functools.cache
+def _schema_bytes(schema_name: str) -> bytes:
+    """The JSON schema embedded in every log for ``schema_name`` (encoded once per process)."""
+    schema = SCHEMAS[schema_name]()
+    if schema_name.startswith("foxglove."):
+        schema = _compact(schema)  # ours keep their descriptions: they carry the units
+    return json.dumps(schema, separators=(",", ":")).encode()
+
+
 def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) -> dict:
     half = math.radians(heading_deg) / 2.0
     return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": float(z_m)},
@@ -119,11 +131,8 @@ class EpisodeLogWriter:
         self.writer.start(profile="", library="fuzzynav")
         self.channels: dict[str, int] = {}
         for topic, schema_name in TOPICS.items():
-            schema = SCHEMAS[schema_name]()
-            if schema_name.startswith("foxglove."):
-                schema = _compact(schema)  # ours keep their descriptions: they carry the units
             schema_id = self.writer.register_schema(name=schema_name, encoding="jsonschema",
-                                                    data=json.dumps(schema, separators=(",", ":")).encode())
+                                                    data=_schema_bytes(schema_name))
             self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json",
                                                                 schema_id=schema_id)
         self.writer.add_metadata(RUN_METADATA, dict(metadata))
@@ -139,7 +148,7 @@ class EpisodeLogWriter:
     def _write(self, topic: str, t: float, message: dict) -> None:
         ns = round(t * 1e9)
         self.writer.add_message(self.channels[topic], log_time=ns, publish_time=ns,
-                                data=json.dumps(message, separators=(",", ":")).encode())
+                                data=orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY))
 
     def log(self, t: float, level: int, text: str) -> None:
         """A human-readable event on ``/log``."""
@@ -206,7 +215,7 @@ class EpisodeLogWriter:
         self._write("/laser", rec.time_s, {
             "timestamp": _stamp(rec.time_s), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
             "start_angle": 0.0, "end_angle": 2 * math.pi * (n - 1) / n,
-            "ranges": np.round(scan.ranges / 100.0, 6).tolist(), "intensities": returned.astype(int).tolist()})
+            "ranges": np.round(scan.ranges / 100.0, 6), "intensities": returned.astype(np.int64)})
 
     def _write_tpt(self, t: float, k: int, tpt) -> None:
         self._write("/tpt", t, {

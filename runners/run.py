@@ -10,6 +10,7 @@ directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -103,8 +104,10 @@ def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
             f"__{perception}__s{seed}.mcap")
 
 
+@functools.lru_cache(maxsize=64)
 def scenario_yaml(scenario: Scenario) -> str:
-    """The scenario as YAML (the exact world of the episode, generated ones included)."""
+    """The scenario as YAML (the exact world of the episode, generated ones included); cached, as every
+    episode of a job logs the same scenario."""
     import dataclasses
 
     def clean(value):

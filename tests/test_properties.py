@@ -5,12 +5,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzzynav.episode import Episode
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
+from fuzzynav.raycast import cast_rays
 from fuzzynav.scenario import Circle, StaticObstacle, scenario_from_dict
 from fuzzynav.sonar import Sonar, SonarConfig
 from fuzzynav.world import World
@@ -51,6 +53,44 @@ def test_sonar_readings_in_range(world, fx, fy, heading):
     x, y = xmin + fx * (xmax - xmin), ymin + fy * (ymax - ymin)
     readings = Sonar(SonarConfig(), 20.0).read(x, y, heading, world.solid)
     assert all(0.0 <= r <= 130.0 for r in readings)
+
+
+def _sonar_unclipped(sonar: Sonar, x: float, y: float, heading: float, solid) -> np.ndarray:
+    """The sonar without its rectangle pre-clip: each wedge intersected with the whole world."""
+    c, s = math.cos(math.radians(heading)), math.sin(math.radians(heading))
+    wedges = shapely.polygons([t @ np.array([[c, s], [-s, c]]) + (x, y) for t in sonar._templates])
+    dist = shapely.distance(shapely.intersection(wedges, solid), shapely.Point(x, y))
+    return np.where(np.isnan(dist), 130.0, np.clip(dist - 20.0, 0.0, 130.0))
+
+
+@given(worlds(), st.floats(-0.1, 1.1), st.floats(-0.1, 1.1), st.floats(-720, 720))
+@settings(max_examples=60, suppress_health_check=[HealthCheck.too_slow])
+def test_sonar_preclip_changes_nothing(world, fx, fy, heading):
+    xmin, ymin, xmax, ymax = world.bounds
+    x, y = xmin + fx * (xmax - xmin), ymin + fy * (ymax - ymin)
+    sonar = Sonar(SonarConfig(), 20.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        expected = _sonar_unclipped(sonar, x, y, heading, world.solid)
+    np.testing.assert_allclose(sonar.read(x, y, heading, world.solid), expected, rtol=0, atol=1e-9)
+
+
+@given(worlds(), st.floats(-0.1, 1.1), st.floats(-0.1, 1.1), st.floats(20, 400))
+@settings(max_examples=80, suppress_health_check=[HealthCheck.too_slow])
+def test_ray_cast_culling_changes_nothing(world, fx, fy, max_range):
+    xmin, ymin, xmax, ymax = world.bounds
+    origin = np.array([xmin + fx * (xmax - xmin), ymin + fy * (ymax - ymin)])
+    angles = np.arange(360) * (2 * np.pi / 360)
+    ranges, hit = cast_rays(origin, angles, world.segments, world.circles, max_range)
+    # brute force: every segment and circle on its own, the nearest wins (ties to the lowest index)
+    best, best_hit = np.full(360, float(max_range)), np.full(360, -1)
+    items = [(world.segments[i:i + 1], np.zeros((0, 3))) for i in range(len(world.segments))]
+    items += [(np.zeros((0, 4)), world.circles[i:i + 1]) for i in range(len(world.circles))]
+    for k, (seg, circ) in enumerate(items):
+        r, h = cast_rays(origin, angles, seg, circ, 1e12)
+        closer = (h >= 0) & (r < best)
+        best, best_hit = np.where(closer, r, best), np.where(closer, k, best_hit)
+    np.testing.assert_array_equal(ranges, best)
+    np.testing.assert_array_equal(hit, best_hit)
 
 
 @given(st.floats(-200, 200), st.floats(-100, 100), st.floats(0, 360), st.floats(0, 360))
