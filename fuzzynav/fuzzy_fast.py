@@ -18,7 +18,9 @@ When no rule fires (zero output area) the definition's ``fallback`` output is re
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
+import operator
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -26,7 +28,7 @@ import numpy as np
 
 from fuzzynav.fuzzy_spec import ControllerSpec, Variable, sample_membership
 
-_CHUNK = 2048  # batch rows per block (bounds memory at ~ chunk x grid x terms floats)
+_CHUNK = 1024  # batch rows per block (bounds memory at ~ chunk x grid floats per array)
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,8 @@ class _Output:
     moment_w: np.ndarray  # (G,) first moment of the grid polyline = moment_w @ y
     rising: tuple[list[float], ...]  # per term: samples up to the first maximum (non-decreasing)
     falling_neg: tuple[list[float], ...]  # per term: negated samples from the last maximum (non-decreasing)
+    mf_rows: tuple[list[float], ...]  # per term: the sampled membership as a plain list (scalar path)
+    support: tuple[tuple[int, int], ...]  # per term: grid slice [lo, hi) outside which the membership is 0
 
 
 class FastEvaluator:
@@ -91,12 +95,23 @@ class FastEvaluator:
                 term_rules=tuple(tuple(int(r) for r in np.nonzero(row)[0]) for row in mask),
                 area_w=area_w, moment_w=moment_w,
                 rising=tuple(mfs[t, : rising_end[t] + 1].tolist() for t in range(len(var.terms))),
-                falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))))
+                falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))),
+                mf_rows=tuple(mfs.tolist()),
+                support=tuple(_support(row) for row in mfs))
         # plain-Python copies for the scalar path
         self._scalar_inputs = [(var.name, var.universe[0], var.universe[1], var.resolution, var.is_crisp,
                                 [t.params for t in var.terms], mfs.T.tolist())
                                for var, mfs, _ in self._inputs]
-        self._scalar_rules = [tuple(int(i) for i in row) for row in self._antecedents]
+        # one getter per rule returning its antecedent memberships as a tuple (the table has >= 2 columns:
+        # a one-clause rule is padded with the constant-1 row, so itemgetter always returns a tuple)
+        table = self._antecedents if self._antecedents.shape[1] >= 2 else \
+            np.hstack([self._antecedents, np.full_like(self._antecedents, one_row)])
+        self._scalar_rules = [operator.itemgetter(*(int(i) for i in row)) for row in table]
+        # batch work buffers, allocated once: a fresh (grid x chunk) array per block would be a fresh mmap
+        # whose page faults cost about as much as the arithmetic (not shared between threads: one evaluator
+        # per thread for concurrent batches)
+        self._grid_work = {role: np.empty((len(o.grid), _CHUNK)) for role, o in self._outputs.items()}
+        self._term_work = np.empty((max(hi - lo for o in self._outputs.values() for lo, hi in o.support), _CHUNK))
 
     # -- public API -------------------------------------------------------------------------------------
     def evaluate(self, inputs: Mapping[str, float | np.ndarray]) -> tuple:
@@ -145,20 +160,27 @@ class FastEvaluator:
 
     def _evaluate_block(self, cols: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         act = self._activations(cols)
-        return self._defuzz(self._outputs["dtheta"], act), self._defuzz(self._outputs["v"], act)
+        return self._defuzz("dtheta", act), self._defuzz("v", act)
 
-    @staticmethod
-    def _defuzz(out: _Output, act: np.ndarray) -> np.ndarray:
+    def _defuzz(self, role: str, act: np.ndarray) -> np.ndarray:
+        out = self._outputs[role]
         n = act.shape[1]
         # cut level of each output term: max over the rules naming it (0 when none fires)
-        cuts = np.where(out.rule_mask[:, :, None], act[None, :, :], 0.0).max(axis=1)  # (T, N)
+        cuts = np.stack([act[list(rules)].max(axis=0) if rules else np.zeros(n) for rules in out.term_rules])
         grid, mfs = out.grid, out.mfs
         g = len(grid)
-        # output membership on the grid and the polyline integral over the plain grid
-        y = np.minimum(cuts[:, :, None], mfs[:, None, :]).max(axis=0)  # (N, G)
-        area, moment = _trapezoids(grid[:-1], grid[1:], y[:, :-1], y[:, 1:])
-        total_area = area.sum(axis=1)
-        total_moment = moment.sum(axis=1)
+        # output membership on the grid, max_t min(cut_t, mf_t) (N, G): one term at a time, on its support
+        # only (outside it min(cut, 0) = 0 and cuts are >= 0)
+        y_t = self._grid_work[role][:, :n]  # grid-major, so that a term's support is one contiguous block
+        y_t.fill(0.0)
+        for t, (lo, hi) in enumerate(out.support):
+            block, term = y_t[lo:hi], self._term_work[: hi - lo, :n]
+            np.minimum(mfs[t, lo:hi, None], cuts[t], out=term)
+            np.maximum(block, term, out=block)
+        y = y_t.T
+        # the polyline integral over the plain grid (trapezoid rule as precomputed weights)
+        total_area = y @ out.area_w
+        total_moment = y @ out.moment_w
         # scikit-fuzzy adds the points where each term crosses its cut level; split those grid segments
         xs, segs = _cut_points(out, cuts)  # (N, K) positions, segment index (-1 = none)
         order = np.argsort(np.where(segs >= 0, xs, np.inf), axis=1, kind="stable")
@@ -200,17 +222,17 @@ class FastEvaluator:
             lo_row, hi_row = mf_rows[i], mf_rows[i + 1]
             mu.extend(a * (1.0 - f) + b * f for a, b in zip(lo_row, hi_row, strict=True))
         mu.append(1.0)
-        act = [min(mu[i] for i in row) for row in self._scalar_rules]
+        act = [min(antecedents(mu)) for antecedents in self._scalar_rules]
         return (self._defuzz_scalar(self._outputs["dtheta"], act), self._defuzz_scalar(self._outputs["v"], act))
 
     @staticmethod
     def _defuzz_scalar(out: _Output, act: list[float]) -> float:
-        cuts = [max((act[r] for r in rules), default=0.0) for rules in out.term_rules]
+        cuts = [max([act[r] for r in rules]) if rules else 0.0 for rules in out.term_rules]
         cut_arr = np.array(cuts)
         y = np.minimum(cut_arr[:, None], out.mfs).max(axis=0)
         area = float(out.area_w @ y)
         moment = float(out.moment_w @ y)
-        grid, h, mfs = out.grid, out.step, out.mfs
+        grid, h, mf_rows = out.grid, out.step, out.mf_rows
         points = []  # (x, segment) where a term crosses its cut level, as scikit-fuzzy adds them
         for t, level in enumerate(cuts):
             if level <= 0.0:
@@ -226,26 +248,32 @@ class FastEvaluator:
                 start = int(out.falling_start[t])
                 points.append((float(grid[start + k]) + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k))
         if points:
+            # split each grid segment that holds crossing points: drop its plain trapezoid, add the pieces
             points.sort()
-            by_seg: dict[int, list[float]] = {}
-            for x, seg in points:
-                by_seg.setdefault(seg, []).append(x)
-            for seg, xs in by_seg.items():
-                x0, x1 = float(grid[seg]), float(grid[seg + 1])
-                ys = []
-                for x in xs:
+            for seg, group in itertools.groupby(points, key=lambda p: p[1]):
+                x0, x1, y0, y1 = float(grid[seg]), float(grid[seg + 1]), float(y[seg]), float(y[seg + 1])
+                a, m = _trapezoids(x0, x1, y0, y1)
+                area -= a
+                moment -= m
+                px, py = x0, y0
+                for x, _ in group:
                     f = (x - x0) / h
-                    ys.append(max(min(c, mfs[t, seg] * (1.0 - f) + mfs[t, seg + 1] * f) for t, c in enumerate(cuts)))
-                xs_all = [x0, *xs, x1]
-                ys_all = [float(y[seg]), *ys, float(y[seg + 1])]
-                a0, m0 = _trapezoids(x0, x1, ys_all[0], ys_all[-1])
-                area -= a0
-                moment -= m0
-                for i in range(len(xs_all) - 1):
-                    a1, m1 = _trapezoids(xs_all[i], xs_all[i + 1], ys_all[i], ys_all[i + 1])
-                    area += a1
-                    moment += m1
+                    yx = max([min(c, row[seg] * (1.0 - f) + row[seg + 1] * f)
+                              for row, c in zip(mf_rows, cuts, strict=True)])
+                    a, m = _trapezoids(px, x, py, yx)
+                    area += a
+                    moment += m
+                    px, py = x, yx
+                a, m = _trapezoids(px, x1, py, y1)
+                area += a
+                moment += m
         return moment / area if area > 0 else out.fallback
+
+
+def _support(mf: np.ndarray) -> tuple[int, int]:
+    """Grid slice [lo, hi) holding every non-zero sample of a sampled membership function."""
+    nonzero = np.nonzero(mf > 0)[0]
+    return (int(nonzero[0]), int(nonzero[-1]) + 1) if len(nonzero) else (0, 0)
 
 
 def _grid_weights(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
