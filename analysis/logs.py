@@ -7,6 +7,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+import orjson
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
@@ -117,7 +118,7 @@ def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[t
         if is_complete(path):
             with open(path, "rb") as f:
                 for _schema, channel, message in make_reader(f).iter_messages(topics=list(wanted) if wanted else None):
-                    yield channel.topic, message.log_time, json.loads(message.data)
+                    yield channel.topic, message.log_time, orjson.loads(message.data)
             return
         channels: dict[int, str] = {}
         for record in _linear_records(path):
@@ -126,7 +127,7 @@ def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[t
             elif isinstance(record, Message):
                 topic = channels.get(record.channel_id, "")
                 if wanted is None or topic in wanted:
-                    yield topic, record.log_time, json.loads(record.data)
+                    yield topic, record.log_time, orjson.loads(record.data)
     except LogError:
         raise
     except Exception as err:

@@ -207,10 +207,14 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         report.add("table", disagree[["log", "collisions_static", "collisions_logged_static", "collisions_dynamic",
                                       "collisions_logged_dynamic"]])
     report.add("h2", "Metrics against h_wait")
-    report.add("p", "Mean and 95 % bootstrap interval per h_wait for auto; strategies that do not read h_wait "
-                    "as dashed lines with their interval as a band.")
-    for metric in ["success", *METRICS]:
-        report.add("img", plots.metric_vs_h_wait(df, metric, out))
+    if (df.groupby("scenario")["variant"].nunique() >= 2).any():
+        report.add("p", "Mean and 95 % bootstrap interval per h_wait for auto; strategies that do not read h_wait "
+                        "as dashed lines with their interval as a band.")
+        for metric in ["success", *METRICS]:
+            report.add("img", plots.metric_vs_h_wait(df, metric, out))
+    else:
+        report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
+                        "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
     report.add("h2", "Distributions per strategy")
     for metric in BOX_METRICS:
         report.add("img", plots.box_by_strategy(df, metric, out))

@@ -15,9 +15,8 @@ import math
 import sys
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ValueType
 from hydra.experimental.callback import Callback
@@ -25,6 +24,9 @@ from omegaconf import DictConfig
 from tqdm import tqdm
 
 from analysis.logs import LogError, episode_summary, find_logs, is_complete
+
+if TYPE_CHECKING:  # pandas is imported where the summary is written: the sweep's workers load this module
+    import pandas as pd
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 
@@ -112,6 +114,8 @@ class SweepProgress(Callback):
 
 def summarise(sweep_dir: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Per-episode rows read back from the logs, and outcomes per scenario × strategy × h_wait."""
+    import pandas as pd
+
     rows, bad = [], []
     for path in find_logs([sweep_dir]):
         try:
@@ -135,6 +139,8 @@ def summarise(sweep_dir: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 def write_summary(sweep_dir: Path) -> pd.DataFrame:
     """Write ``summary.csv`` (one row per episode) and print the outcome table."""
+    import pandas as pd
+
     episodes, table = summarise(sweep_dir)
     if episodes.empty:
         print(f"no logs found in {sweep_dir}")

@@ -117,6 +117,16 @@ def test_report_lists_bad_logs_and_still_renders(small_sweep, tmp_path):
     assert report.blocks
 
 
+def test_report_skips_h_wait_figures_without_variants(fresh_log, tmp_path):
+    """One strategy variant per scenario: nothing to compare against h_wait, so no such figures."""
+    shutil.copy(fresh_log, tmp_path / "only.mcap")
+    build_report([tmp_path / "only.mcap"], tmp_path / "rep")
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "## Metrics against h_wait" in md and "Not drawn: every scenario was run with a single" in md
+    assert not list((tmp_path / "rep").glob("h_wait_*.png"))
+    assert (tmp_path / "rep" / "trajectories_head_on.png").exists()
+
+
 def test_report_html_renders_in_headless_chromium(small_sweep):
     browser = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
     if browser is None:
