@@ -18,7 +18,7 @@ import shapely
 import yaml
 from shapely.geometry import Point, Polygon, box
 
-from analysis.logs import LogError, is_complete, iter_messages, read_metadata, required_fields
+from analysis.logs import LogError, decode, is_complete, iter_raw_messages, read_metadata, required_fields
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
 
@@ -130,16 +130,18 @@ def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> Epi
     scene_seen = False
     required = required_fields(path)
     try:
-        for topic, _t, msg in iter_messages(path, topics):
+        for topic, _t, data in iter_raw_messages(path, topics):
+            if topic == "/scene" and scene_seen:
+                continue  # only the first scene (the static world) is read; the later ones are for Foxglove
+            msg = decode(path, topic, data)
             missing = [f for f in required.get(topic, []) if f not in msg] if isinstance(msg, dict) else ["(object)"]
             if missing:
                 step = msg.get("step", "?") if isinstance(msg, dict) else "?"
                 raise LogError(f"{path}: {topic} message at step {step} does not match its schema: "
                                f"missing field '{missing[0]}'")
             if topic == "/scene":
-                if not scene_seen:
-                    _read_scene(log, msg)
-                    scene_seen = True
+                _read_scene(log, msg)
+                scene_seen = True
             elif topic == "/tpt":
                 log.tpts[msg["step"]] = msg
             elif topic == "/episode":

@@ -111,14 +111,17 @@ def read_metadata(path: Path) -> dict[str, str]:
     raise LogError(f"{path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
 
 
-def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
-    """(topic, log time ns, decoded JSON message) in log-time order; a truncated log yields what it has."""
+def iter_raw_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time ns, raw JSON bytes) in file order, which for fuzzynav logs is log-time order (the
+    writer appends step after step); a truncated log yields what it has."""
     wanted = set(topics) if topics else None
     try:
         if is_complete(path):
             with open(path, "rb") as f:
-                for _schema, channel, message in make_reader(f).iter_messages(topics=list(wanted) if wanted else None):
-                    yield channel.topic, message.log_time, orjson.loads(message.data)
+                reader = make_reader(f)
+                for _schema, channel, message in reader.iter_messages(topics=list(wanted) if wanted else None,
+                                                                      log_time_order=False):
+                    yield channel.topic, message.log_time, message.data
             return
         channels: dict[int, str] = {}
         for record in _linear_records(path):
@@ -127,11 +130,25 @@ def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[t
             elif isinstance(record, Message):
                 topic = channels.get(record.channel_id, "")
                 if wanted is None or topic in wanted:
-                    yield topic, record.log_time, orjson.loads(record.data)
+                    yield topic, record.log_time, record.data
     except LogError:
         raise
     except Exception as err:
         raise LogError(f"{path}: cannot read messages ({type(err).__name__}: {err})") from None
+
+
+def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """(topic, log time ns, decoded JSON message) in log-time order; a truncated log yields what it has."""
+    for topic, log_time, data in iter_raw_messages(path, topics):
+        yield topic, log_time, decode(path, topic, data)
+
+
+def decode(path: Path, topic: str, data: bytes) -> Any:
+    """One JSON message; :class:`LogError` naming the file and topic if it is not JSON."""
+    try:
+        return orjson.loads(data)
+    except orjson.JSONDecodeError as err:
+        raise LogError(f"{path}: a {topic} message is not valid JSON ({err})") from None
 
 
 def episode_summary(path: Path) -> dict[str, Any]:

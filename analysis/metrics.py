@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import shapely
-from shapely.geometry import LineString, Point
 
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, find_logs
@@ -43,12 +42,45 @@ def turn_count(heading_changes_deg: np.ndarray, threshold_deg: float = 5.0) -> i
 
 
 def _swept_gap(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray) -> np.ndarray:
-    """Closest centre distance while two points move straight from (p0, o0) to (p1, o1), per obstacle."""
-    rel0 = p0[None, :] - o0
-    d = (p1 - p0)[None, :] - (o1 - o0)
+    """Closest centre distance while two points move straight from (p0, o0) to (p1, o1), per row (the
+    robot's ``p0``, ``p1`` may be one point (2,) or one per row (N, 2))."""
+    rel0 = p0 - o0
+    d = (p1 - p0) - (o1 - o0)
     dd = (d**2).sum(1)
     s = np.clip(-(rel0 * d).sum(1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
     return np.linalg.norm(rel0 + s[:, None] * d, axis=1)
+
+
+def _static_gaps(solid: shapely.Geometry, pos: np.ndarray, steps: int) -> np.ndarray:
+    """Per step, the distance (cm) from the static world to the robot centre's straight move ``pos[k]`` ->
+    ``pos[k + 1]`` (a point when the robot stood still), all steps in one vectorised shapely call."""
+    if steps == 0 or solid.is_empty:
+        return np.full(steps, math.inf)
+    p0, p1 = pos[:steps], pos[1:steps + 1]
+    still = np.hypot(*(p1 - p0).T) < 1e-9  # as the simulator decides between a point and a segment
+    paths = np.empty(steps, dtype=object)
+    paths[still] = shapely.points(p1[still])
+    paths[~still] = shapely.linestrings(np.stack([p0[~still], p1[~still]], axis=1))
+    shapely.prepare(solid)
+    return shapely.distance(solid, paths)
+
+
+def _dynamic_gaps(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, steps: int
+                  ) -> tuple[float, list[set[str]]]:
+    """Smallest surface gap (cm) to any moving obstacle over the episode, and per step the ids of the
+    obstacles touched while both moved straight over the step (all (step, obstacle) pairs at once)."""
+    pairs = [(k, o) for k in range(min(steps, len(truth))) for o in truth[k]["obstacles"]]
+    touching: list[set[str]] = [set() for _ in range(steps)]
+    if not pairs:
+        return math.inf, touching
+    k = np.array([p[0] for p in pairs])
+    o0 = np.array([(o["x_cm"], o["y_cm"]) for _, o in pairs])
+    o1 = np.array([(o["next_x_cm"], o["next_y_cm"]) for _, o in pairs])
+    radii = np.array([o["radius_cm"] for _, o in pairs])
+    gaps = _swept_gap(pos[k], pos[k + 1], o0, o1) - radius - radii
+    for i in np.nonzero(gaps < -1e-9)[0]:
+        touching[k[i]].add(pairs[i][1]["id"])
+    return float(gaps.min()), touching
 
 
 def _contacts(touching: list[set[str]]) -> int:
@@ -76,35 +108,20 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row["heading_change_deg_total"] = float(np.abs(dh).sum())
 
     # contacts recomputed from the logged geometry (swept over each step, as the simulator does)
-    solid = log.static_geometry()
-    shapely.prepare(solid)
-    touching_static, touching_dynamic, flags_static, flags_dynamic = [], [], [], []
-    min_static, min_dynamic = math.inf, math.inf
-    for k, st in enumerate(log.states):
-        p0, p1 = pos[k], pos[k + 1]
-        path = Point(p1) if np.allclose(p0, p1) else LineString([p0, p1])
-        gap_static = float(solid.distance(path)) - r if not solid.is_empty else math.inf
-        min_static = min(min_static, gap_static)
-        touching_static.append({"static"} if gap_static < -1e-9 else set())
-        flags_static.append({"static"} if st["contact_static"] else set())
-        flags_dynamic.append(set(st["contact_dynamic"]))
-        now = set()
-        if k < len(log.truth) and log.truth[k]["obstacles"]:
-            obs = log.truth[k]["obstacles"]
-            o0 = np.array([[o["x_cm"], o["y_cm"]] for o in obs])
-            o1 = np.array([[o["next_x_cm"], o["next_y_cm"]] for o in obs])
-            radii = np.array([o["radius_cm"] for o in obs])
-            gaps = _swept_gap(p0, p1, o0, o1) - r - radii
-            min_dynamic = min(min_dynamic, float(gaps.min()))
-            now = {obs[i]["id"] for i in np.nonzero(gaps < -1e-9)[0]}
-        touching_dynamic.append(now)
+    steps = len(log.states)
+    gap_static = _static_gaps(log.static_geometry(), pos, steps) - r
+    touching_static = [{"static"} if g < -1e-9 else set() for g in gap_static]
+    gap_dynamic, touching_dynamic = _dynamic_gaps(log.truth, pos, r, steps)
+    flags_static = [{"static"} if st["contact_static"] else set() for st in log.states]
+    flags_dynamic = [set(st["contact_dynamic"]) for st in log.states]
     row["collisions_static"] = _contacts(touching_static)
     row["collisions_dynamic"] = _contacts(touching_dynamic)
     logged = (_contacts(flags_static), _contacts(flags_dynamic))
     row["collision_check_agrees"] = logged == (row["collisions_static"], row["collisions_dynamic"])
     row["collisions_logged_static"], row["collisions_logged_dynamic"] = logged
-    row["min_clearance_static_cm"] = min_static if math.isfinite(min_static) else math.nan
-    row["min_clearance_dynamic_cm"] = min_dynamic if math.isfinite(min_dynamic) else math.nan
+    row["min_clearance_static_cm"] = float(gap_static.min()) if len(gap_static) and np.isfinite(gap_static.min()) \
+        else math.nan
+    row["min_clearance_dynamic_cm"] = gap_dynamic if math.isfinite(gap_dynamic) else math.nan
 
     # goal
     t_goal = math.nan
@@ -166,18 +183,20 @@ def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
             continue
         ids = list(now)
         true_now = np.array([now[i] for i in ids])
+        predicted = np.array(t["obstacles_cm"], dtype=float).reshape(len(t["obstacles_cm"]), -1, 2)  # (rows, K, 2)
         for j, radius in enumerate(t["obstacle_radii_cm"]):
-            pred = np.array([row[j] for row in t["obstacles_cm"]])  # (n_traj + 1, 2)
-            d0 = np.linalg.norm(true_now - pred[0], axis=1)
+            pred = predicted[:, j]  # (n_traj + 1, 2)
+            d0 = np.hypot(*(true_now - pred[0]).T)
             match = int(np.argmin(d0))
             if d0[match] > radius + 50.0:
                 continue
             oid = ids[match]
-            errs = [float(np.linalg.norm(pred[k] - np.array(truth_at[step + k][oid])))
-                    for k in range(1, len(pred)) if step + k in truth_at and oid in truth_at[step + k]]
-            if errs:
-                errors.extend(errs)
-                finals.append(errs[-1])
+            rows = [k for k in range(1, len(pred)) if oid in truth_at.get(step + k, {})]
+            if rows:
+                actual = np.array([truth_at[step + k][oid] for k in rows])
+                errs = np.hypot(*(pred[rows] - actual).T)
+                errors.extend(errs.tolist())
+                finals.append(float(errs[-1]))
     return (float(np.mean(errors)), float(np.mean(finals))) if errors else (math.nan, math.nan)
 
 

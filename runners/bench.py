@@ -9,8 +9,8 @@
 2. Simulation on ``mixed`` with laser perception: steps/s without and with MCAP logging, and the time per
    step by stage (sensors, tracking, TPT, planner, controller, logging, rest).
 3. Sweep overhead: a real ``runners.sweep`` of short episodes on all cores vs the same episodes' own compute
-   time (measured in-process, one core) divided by the cores.
-4. Analysis: episodes/s and messages/s of the metrics table on that sweep's logs.
+   time (measured in-process, one core) divided by the cores, with the time of each phase.
+4. Analysis: episodes/s and messages/s of the metrics table on logs of ~100-step episodes.
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
 
 Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
@@ -157,43 +157,73 @@ def bench_simulation(episodes: int) -> dict:
             "us_per_step_by_stage": {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}}
 
 
-def bench_sweep_and_analysis(seeds: int) -> tuple[dict, dict]:
-    """A real sweep of short episodes on all cores vs their in-process compute time; then the analysis."""
+def bench_sweep(episodes: int, per_job: int) -> dict:
+    """A real sweep of short episodes (``head_on``) on all cores, seeds batched ``per_job`` to a Hydra job as
+    the presets do, vs the same episodes' own compute time (in this process, one core) divided by the cores.
+
+    Phases come from the files the sweep writes: start-up (interpreter, imports, config checks) until Hydra
+    writes ``multirun.yaml``; then job validation and worker start until the first job's ``.hydra/``
+    snapshot; episodes until the last log; summary; report."""
     import os
     import subprocess
     import tempfile
 
-    from analysis.episode_log import METRIC_TOPICS
-    from analysis.logs import find_logs, iter_messages
-    from analysis.metrics import metrics_table
     from runners.run import run_episode
 
     cores = os.cpu_count() or 1
     scenario, evaluator, cfg = _scenario_and_config("head_on")
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        for seed in range(seeds):
+        for seed in range(episodes):
             run_episode(scenario, evaluator, cfg, seed, Path(tmp) / f"{seed}.mcap", "")
         own = time.perf_counter() - t
     with tempfile.TemporaryDirectory() as tmp:
-        t = time.perf_counter()
+        out = Path(tmp) / "s"
+        t0 = time.time()
         res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", "scenario=head_on", "planner=auto",
-                              f"seed=range(0,{seeds},5)", "episodes=5", f"hydra.sweep.dir={tmp}/s"],
+                              f"seed=range(0,{episodes},{per_job})", f"episodes={per_job}", f"hydra.sweep.dir={out}"],
                              cwd=CONF.parent, capture_output=True, text=True)
-        wall = time.perf_counter() - t
+        wall = time.time() - t0
         if res.returncode != 0:
             raise RuntimeError(f"sweep failed: {res.stderr[-500:]}")
-        logs = find_logs([f"{tmp}/s"])
-        t = time.perf_counter()
-        df, _ = metrics_table(logs)
-        t_metrics = time.perf_counter() - t
-        messages = sum(1 for p in logs for _ in iter_messages(p, METRIC_TOPICS))
+        first_job = min(p.stat().st_mtime for p in out.glob("*/.hydra/config.yaml"))
+        last_log = max(p.stat().st_mtime for p in out.rglob("*.mcap"))
+        marks = {"start-up": (out / "multirun.yaml").stat().st_mtime, "validation + workers": first_job,
+                 "episodes": last_log, "summary": (out / "summary.csv").stat().st_mtime,
+                 "report": (out / "report" / "report.html").stat().st_mtime}
+    phases, previous = {}, t0
+    for name, mark in marks.items():
+        phases[name] = mark - previous
+        previous = mark
     ideal = own / cores
-    sweep = {"episodes": seeds, "cores": cores, "wall_s_including_report": wall, "own_compute_s": own,
-             "ideal_s": ideal, "wall_over_ideal": wall / ideal}
-    analysis = {"episodes": len(df), "seconds": t_metrics, "episodes_per_s": len(df) / t_metrics,
-                "messages_per_s": messages / t_metrics, "mean_steps": float(df["steps"].mean())}
-    return sweep, analysis
+    to_summary = marks["summary"] - t0
+    return {"episodes": episodes, "jobs": episodes // per_job, "episodes_per_job": per_job, "cores": cores,
+            "own_compute_s": own, "ideal_s": ideal, "wall_s_to_summary": to_summary, "wall_s_with_report": wall,
+            "wall_over_ideal": to_summary / ideal, "wall_with_report_over_ideal": wall / ideal,
+            "phases_s": phases}
+
+
+def bench_analysis(episodes: int) -> dict:
+    """Metrics table throughput on logs of ~100-step episodes (``overtaking``), one core."""
+    import tempfile
+
+    from analysis.episode_log import METRIC_TOPICS
+    from analysis.logs import iter_messages
+    from analysis.metrics import metrics_table
+    from runners.run import run_episode
+
+    scenario, evaluator, cfg = _scenario_and_config("overtaking")
+    with tempfile.TemporaryDirectory() as tmp:
+        logs = [Path(tmp) / f"{seed}.mcap" for seed in range(episodes)]
+        for seed, path in enumerate(logs):
+            run_episode(scenario, evaluator, cfg, seed, path, "")
+        metrics_table([str(p) for p in logs[:2]])  # warm-up (imports)
+        t = time.perf_counter()
+        df, _ = metrics_table([str(p) for p in logs])
+        seconds = time.perf_counter() - t
+        messages = sum(1 for p in logs for _ in iter_messages(p, METRIC_TOPICS))
+    return {"scenario": "overtaking", "episodes": len(df), "seconds": seconds, "episodes_per_s": len(df) / seconds,
+            "messages_per_s": messages / seconds, "mean_steps": float(df["steps"].mean())}
 
 
 def bench_memory(episodes: int) -> dict:
@@ -222,7 +252,7 @@ def bench_memory(episodes: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="fewer repetitions (about 20 s)")
+    parser.add_argument("--quick", action="store_true", help="reduced sizes (under a minute)")
     parser.add_argument("--out", default="bench.json", help="where to write the results (JSON)")
     args = parser.parse_args(argv)
     warnings.filterwarnings("ignore", category=DeprecationWarning)
@@ -232,7 +262,8 @@ def main(argv: list[str] | None = None) -> int:
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3 if args.quick else 20)
-    results["sweep"], results["analysis"] = bench_sweep_and_analysis(25 if args.quick else 120)
+    results["sweep"] = bench_sweep(100, 25) if args.quick else bench_sweep(1000, 50)
+    results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
     print("fuzzy decision (median of repetitions, after warm-up)")
     print(f"{'controller':<10} {'fast µs':>9} {'skfuzzy µs':>11} {'ratio':>7} {'batch/s':>10} "
@@ -247,12 +278,14 @@ def main(argv: list[str] | None = None) -> int:
           f"{sim['steps_per_s_with_logging']:.0f} with; logging is {sim['logging_share_of_step']:.0%} of a step")
     print("  µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in sim["us_per_step_by_stage"].items()))
     sw = results["sweep"]
-    print(f"sweep: {sw['episodes']} episodes on {sw['cores']} cores in {sw['wall_s_including_report']:.1f} s "
-          f"(incl. summary and report); own compute {sw['own_compute_s']:.1f} s -> ideal {sw['ideal_s']:.1f} s; "
-          f"wall/ideal = {sw['wall_over_ideal']:.2f}")
+    print(f"sweep: {sw['episodes']} episodes ({sw['jobs']} jobs x {sw['episodes_per_job']}) on {sw['cores']} cores: "
+          f"own compute {sw['own_compute_s']:.1f} s -> ideal {sw['ideal_s']:.1f} s; wall to summary "
+          f"{sw['wall_s_to_summary']:.1f} s = {sw['wall_over_ideal']:.2f} x ideal; with the report "
+          f"{sw['wall_s_with_report']:.1f} s = {sw['wall_with_report_over_ideal']:.2f} x")
+    print("  phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in sw["phases_s"].items()))
     an = results["analysis"]
     print(f"analysis: {an['episodes_per_s']:.1f} episodes/s, {an['messages_per_s']:.0f} messages/s "
-          f"({an['episodes']} episodes of {an['mean_steps']:.0f} steps)")
+          f"({an['episodes']} {an['scenario']} episodes of {an['mean_steps']:.0f} steps)")
     mem = results["memory"]
     print(f"memory: RSS {mem['rss_mb_at_10pct']:.1f} MB after {mem['episodes'] // 10} episodes, "
           f"{mem['rss_mb_at_end']:.1f} MB after {mem['episodes']} ({mem['growth']:+.1%})")

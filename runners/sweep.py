@@ -11,6 +11,7 @@ outcomes per scenario, strategy and h_wait, and writes the analysis report into 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import threading
@@ -78,6 +79,40 @@ def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
                 break
 
 
+def _import_runner() -> int:
+    """Run in a launcher worker: import what every job needs (the worker keeps it for the next jobs)."""
+    import os
+
+    import runners.run  # noqa: F401
+
+    return os.getpid()
+
+
+def prewarm_workers(config: DictConfig) -> threading.Thread | None:
+    """Start the joblib launcher's worker processes now, in the background, so their start-up and imports
+    (about a second) overlap with Hydra validating every job's config in this process. loky keeps a pool of
+    workers and reuses it for the next ``Parallel`` call with the same settings, which is the launcher's."""
+    launcher = config.hydra.get("launcher") or {}
+    if "joblib" not in str(launcher.get("_target_", "")):
+        return None
+    from hydra_plugins.hydra_joblib_launcher._core import process_joblib_cfg
+    from joblib import Parallel, cpu_count, delayed
+
+    settings = {k: v for k, v in launcher.items() if k != "_target_"}
+    settings["backend"] = "loky"  # as the launcher sets it
+    process_joblib_cfg(settings)
+    n_jobs = int(settings.get("n_jobs") or 1)
+    workers = cpu_count() if n_jobs < 0 else n_jobs
+
+    def warm() -> None:
+        with contextlib.suppress(Exception):  # only an optimisation: the launcher starts workers itself anyway
+            Parallel(**settings)(delayed(_import_runner)() for _ in range(workers))
+
+    thread = threading.Thread(target=warm, daemon=True)
+    thread.start()
+    return thread
+
+
 class SweepProgress(Callback):
     """Shows a progress bar over episodes (counting finished logs) and writes the summary at the end."""
 
@@ -89,6 +124,7 @@ class SweepProgress(Callback):
         if before and not config.get("resume", False):
             print(f"warning: {sweep_dir} already holds {len(before)} complete logs; without resume=true they are "
                   "re-run and overwritten", file=sys.stderr)
+        prewarm_workers(config)
         stop = threading.Event()
         thread = threading.Thread(target=_watch, args=(sweep_dir, count_episodes(config), stop), daemon=True)
         _WATCHERS[str(sweep_dir)] = (thread, stop)
