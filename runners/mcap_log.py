@@ -59,6 +59,12 @@ def _r(x: float) -> float:
     return float(x)
 
 
+def _array(values, *shape: int) -> np.ndarray:
+    """A float64 C-ordered array of ``shape`` (orjson writes it as nested JSON lists, full precision); empty
+    inputs keep the shape (e.g. no obstacles: ``[[], [], ...]`` rows)."""
+    return np.ascontiguousarray(values, dtype=np.float64).reshape(shape or (-1,))
+
+
 def _stamp(t: float) -> dict[str, int]:
     ns = round(t * 1e9)
     return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
@@ -98,12 +104,14 @@ def _point(x_cm: float, y_cm: float, z_m: float = 0.0) -> dict:
     return {"x": _m(x_cm), "y": _m(y_cm), "z": z_m}
 
 
-def _entity(t: float, eid: str, lifetime_zero: bool = True, **primitives: list) -> dict:
-    ent = {"timestamp": _stamp(t), "frame_id": FRAME, "id": eid, "lifetime": {"sec": 0, "nsec": 0},
-           "frame_locked": False, "metadata": []}
-    for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
-        ent[kind] = primitives.get(kind, [])
-    return ent
+_NO_PRIMITIVES = {kind: () for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts",
+                                         "models")}  # shared read-only defaults: written as empty arrays
+
+
+def _entity(t: float, eid: str, **primitives: list) -> dict:
+    """A ``foxglove.SceneEntity`` (lifetime 0: until replaced) with the given primitive lists."""
+    return {"timestamp": _stamp(t), "frame_id": FRAME, "id": eid, "lifetime": {"sec": 0, "nsec": 0},
+            "frame_locked": False, "metadata": (), **_NO_PRIMITIVES, **primitives}
 
 
 def _disc(x_cm: float, y_cm: float, r_cm: float, height_m: float, color: dict) -> dict:
@@ -221,11 +229,11 @@ class EpisodeLogWriter:
         self._write("/tpt", t, {
             "timestamp": _stamp(t), "step": k, "n_traj": tpt.n_traj, "dt_s": tpt.dt,
             "robot_speed_cm_s": _r(tpt.robot_speed), "robot_radius_cm": _r(tpt.robot_radius),
-            "safety_margin_cm": _r(tpt.safety_margin), "robot_cm": [[_r(x), _r(y)] for x, y in tpt.robot],
-            "obstacle_ids": list(tpt.obstacle_ids), "obstacle_radii_cm": [_r(r) for r in tpt.obstacle_radii],
-            "obstacle_velocities_cm_s": [[_r(x), _r(y)] for x, y in tpt.obstacle_velocities],
-            "obstacles_cm": [[[_r(x), _r(y)] for x, y in row] for row in tpt.obstacles],
-            "collide": [[bool(c) for c in row] for row in tpt.collide]})
+            "safety_margin_cm": _r(tpt.safety_margin), "robot_cm": _array(tpt.robot, -1, 2),
+            "obstacle_ids": list(tpt.obstacle_ids), "obstacle_radii_cm": _array(tpt.obstacle_radii),
+            "obstacle_velocities_cm_s": _array(tpt.obstacle_velocities, -1, 2),
+            "obstacles_cm": _array(tpt.obstacles, len(tpt.robot), len(tpt.obstacle_ids), 2),
+            "collide": np.ascontiguousarray(tpt.collide, dtype=bool)})
 
     def _write_decision(self, t: float, k: int, rec: StepRecord) -> None:
         d = rec.decision
