@@ -18,7 +18,7 @@ import shapely
 import yaml
 from shapely.geometry import Point, Polygon, box
 
-from analysis.logs import LogError, decode, is_complete, iter_raw_messages, read_metadata, required_fields
+from analysis.logs import LogError, LogFile, decode
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
 
@@ -110,6 +110,30 @@ def _read_scene(log: EpisodeLog, scene: dict[str, Any]) -> None:
 
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when PyYAML has it: ~10x faster
 
+def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], required: dict[str, list[str]]
+                   ) -> None:
+    """Decode, check against the schema's required fields, and file each message into ``log``."""
+    scene_seen = False
+    for topic, _t, data in messages:
+        if topic == "/scene" and scene_seen:
+            continue  # only the first scene (the static world) is read; the later ones are for Foxglove
+        msg = decode(log.path, topic, data)
+        missing = [f for f in required.get(topic, []) if f not in msg] if isinstance(msg, dict) else ["(object)"]
+        if missing:
+            step = msg.get("step", "?") if isinstance(msg, dict) else "?"
+            raise LogError(f"{log.path}: {topic} message at step {step} does not match its schema: "
+                           f"missing field '{missing[0]}'")
+        if topic == "/scene":
+            _read_scene(log, msg)
+            scene_seen = True
+        elif topic == "/tpt":
+            log.tpts[msg["step"]] = msg
+        elif topic == "/episode":
+            log.episode = msg
+        else:
+            getattr(log, _TOPIC_LISTS[topic]).append(msg)
+
+
 _TOPIC_LISTS = {"/robot/state": "states", "/obstacles/truth": "truth", "/planner/decision": "decisions",
                 "/tracks": "tracks", "/sonar": "sonar", "/laser": "laser", "/log": "logs"}
 
@@ -118,40 +142,23 @@ def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> Epi
     """Read the given topics of one log. Raises :class:`LogError` (naming the file) if it is not a
     fuzzynav log; a truncated log loads what it has, with ``complete`` False and outcome ``incomplete``."""
     path = Path(path)
-    meta = read_metadata(path)
-    try:
-        config = yaml.load(meta.get("config", ""), Loader=_YAML_LOADER) or {}
-    except yaml.YAMLError:
-        config = {}
-    if not isinstance(config, dict):
-        config = {}
-    log = EpisodeLog(path=path, meta=meta, config=config, complete=is_complete(path),
-                     dt=float(config.get("dt", 1.0)))
-    scene_seen = False
-    required = required_fields(path)
-    try:
-        for topic, _t, data in iter_raw_messages(path, topics):
-            if topic == "/scene" and scene_seen:
-                continue  # only the first scene (the static world) is read; the later ones are for Foxglove
-            msg = decode(path, topic, data)
-            missing = [f for f in required.get(topic, []) if f not in msg] if isinstance(msg, dict) else ["(object)"]
-            if missing:
-                step = msg.get("step", "?") if isinstance(msg, dict) else "?"
-                raise LogError(f"{path}: {topic} message at step {step} does not match its schema: "
-                               f"missing field '{missing[0]}'")
-            if topic == "/scene":
-                _read_scene(log, msg)
-                scene_seen = True
-            elif topic == "/tpt":
-                log.tpts[msg["step"]] = msg
-            elif topic == "/episode":
-                log.episode = msg
-            else:
-                getattr(log, _TOPIC_LISTS[topic]).append(msg)
-    except LogError as err:
-        if log.complete or "does not match its schema" in str(err):
-            raise
-        # a truncated log: keep what was read before the damage
+    with LogFile(path) as source:
+        meta = source.metadata()
+        try:
+            config = yaml.load(meta.get("config", ""), Loader=_YAML_LOADER) or {}
+        except yaml.YAMLError:
+            config = {}
+        if not isinstance(config, dict):
+            config = {}
+        log = EpisodeLog(path=path, meta=meta, config=config, complete=source.complete,
+                         dt=float(config.get("dt", 1.0)))
+        required = source.required_fields()
+        try:
+            _read_messages(log, source.raw_messages(topics), required)
+        except LogError as err:
+            if log.complete or "does not match its schema" in str(err):
+                raise
+            # a truncated log: keep what was read before the damage
     if log.states:
         log.robot_radius = float(log.states[0]["radius_cm"])
     return log

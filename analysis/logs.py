@@ -59,88 +59,124 @@ def _linear_records(path: Path) -> Iterator[Any]:
             yield record
 
 
+class LogFile:
+    """One log opened once: metadata, schemas and messages from the same reader (the MCAP summary of a
+    complete log is parsed once). A truncated log (no summary) is read linearly instead. Use as a context
+    manager; every reading error becomes a :class:`LogError` naming the file."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.complete = is_complete(self.path)
+        self._file = open(self.path, "rb") if self.complete else None  # noqa: SIM115 - closed in close()
+        try:
+            self._reader = make_reader(self._file) if self._file is not None else None
+        except Exception as err:  # ends like an MCAP but does not start like one
+            self.close()
+            raise LogError(f"{self.path}: not an MCAP file ({type(err).__name__}: {err})") from None
+
+    def __enter__(self) -> LogFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+
+    def _fail(self, err: Exception, what: str) -> LogError:
+        return err if isinstance(err, LogError) else LogError(f"{self.path}: {what} ({type(err).__name__}: {err})")
+
+    def metadata(self) -> dict[str, str]:
+        """The ``fuzzynav.run`` metadata record."""
+        try:
+            records = self._reader.iter_metadata() if self._reader is not None else \
+                (r for r in _linear_records(self.path) if isinstance(r, Metadata))
+            for record in records:
+                if record.name == RUN_METADATA:
+                    return dict(record.metadata)
+        except Exception as err:  # the mcap reader raises many types on corrupt input
+            raise self._fail(err, "not a readable MCAP file") from None
+        raise LogError(f"{self.path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
+
+    def required_fields(self) -> dict[str, list[str]]:
+        """Per topic, the top-level fields its embedded JSON schema requires (topics without one: none)."""
+        schemas: dict[int, Any] = {}
+        channels: dict[int, tuple[str, int]] = {}
+        try:
+            if self._reader is not None:
+                summary = self._reader.get_summary()
+                if summary is not None:
+                    schemas = dict(summary.schemas)
+                    channels = {cid: (c.topic, c.schema_id) for cid, c in summary.channels.items()}
+            else:
+                for record in _linear_records(self.path):
+                    if isinstance(record, Schema):
+                        schemas[record.id] = record
+                    elif isinstance(record, Channel):
+                        channels[record.id] = (record.topic, record.schema_id)
+        except Exception as err:
+            raise self._fail(err, "not a readable MCAP file") from None
+        out: dict[str, list[str]] = {}
+        for topic, schema_id in channels.values():
+            schema = schemas.get(schema_id)
+            if schema is None or schema.encoding != "jsonschema":
+                continue
+            try:
+                out[topic] = list(json.loads(schema.data).get("required", []))
+            except (ValueError, AttributeError):
+                raise LogError(f"{self.path}: the schema of {topic} is not valid JSON") from None
+        return out
+
+    def raw_messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
+        """(topic, log time ns, raw JSON bytes) in file order, which for fuzzynav logs is log-time order
+        (the writer appends step after step); a truncated log yields what it has."""
+        wanted = set(topics) if topics else None
+        try:
+            if self._reader is not None:
+                for _schema, channel, message in self._reader.iter_messages(
+                        topics=list(wanted) if wanted else None, log_time_order=False):
+                    yield channel.topic, message.log_time, message.data
+                return
+            channels: dict[int, str] = {}
+            for record in _linear_records(self.path):
+                if isinstance(record, Channel):
+                    channels[record.id] = record.topic
+                elif isinstance(record, Message):
+                    topic = channels.get(record.channel_id, "")
+                    if wanted is None or topic in wanted:
+                        yield topic, record.log_time, record.data
+        except Exception as err:
+            raise self._fail(err, "cannot read messages") from None
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+        """(topic, log time ns, decoded JSON message), as :meth:`raw_messages`."""
+        for topic, log_time, data in self.raw_messages(topics):
+            yield topic, log_time, decode(self.path, topic, data)
+
+
 def required_fields(path: Path) -> dict[str, list[str]]:
     """Per topic, the top-level fields its embedded JSON schema requires (topics without a schema: none)."""
-    schemas: dict[int, Any] = {}
-    channels: dict[int, tuple[str, int]] = {}
-    try:
-        if is_complete(path):
-            with open(path, "rb") as f:
-                summary = make_reader(f).get_summary()
-            if summary is not None:
-                schemas = dict(summary.schemas)
-                channels = {cid: (c.topic, c.schema_id) for cid, c in summary.channels.items()}
-        else:
-            for record in _linear_records(path):
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = (record.topic, record.schema_id)
-    except LogError:
-        raise
-    except Exception as err:
-        raise LogError(f"{path}: not a readable MCAP file ({type(err).__name__}: {err})") from None
-    out: dict[str, list[str]] = {}
-    for topic, schema_id in channels.values():
-        schema = schemas.get(schema_id)
-        if schema is None or schema.encoding != "jsonschema":
-            continue
-        try:
-            out[topic] = list(json.loads(schema.data).get("required", []))
-        except (ValueError, AttributeError):
-            raise LogError(f"{path}: the schema of {topic} is not valid JSON") from None
-    return out
+    with LogFile(path) as log:
+        return log.required_fields()
 
 
 def read_metadata(path: Path) -> dict[str, str]:
     """The ``fuzzynav.run`` metadata record of a log (complete or truncated)."""
-    try:
-        if is_complete(path):
-            with open(path, "rb") as f:
-                for record in make_reader(f).iter_metadata():
-                    if record.name == RUN_METADATA:
-                        return dict(record.metadata)
-        else:
-            for record in _linear_records(path):
-                if isinstance(record, Metadata) and record.name == RUN_METADATA:
-                    return dict(record.metadata)
-    except LogError:
-        raise
-    except Exception as err:  # the mcap reader raises many types on corrupt input
-        raise LogError(f"{path}: not a readable MCAP file ({type(err).__name__}: {err})") from None
-    raise LogError(f"{path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
+    with LogFile(path) as log:
+        return log.metadata()
 
 
 def iter_raw_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
-    """(topic, log time ns, raw JSON bytes) in file order, which for fuzzynav logs is log-time order (the
-    writer appends step after step); a truncated log yields what it has."""
-    wanted = set(topics) if topics else None
-    try:
-        if is_complete(path):
-            with open(path, "rb") as f:
-                reader = make_reader(f)
-                for _schema, channel, message in reader.iter_messages(topics=list(wanted) if wanted else None,
-                                                                      log_time_order=False):
-                    yield channel.topic, message.log_time, message.data
-            return
-        channels: dict[int, str] = {}
-        for record in _linear_records(path):
-            if isinstance(record, Channel):
-                channels[record.id] = record.topic
-            elif isinstance(record, Message):
-                topic = channels.get(record.channel_id, "")
-                if wanted is None or topic in wanted:
-                    yield topic, record.log_time, record.data
-    except LogError:
-        raise
-    except Exception as err:
-        raise LogError(f"{path}: cannot read messages ({type(err).__name__}: {err})") from None
+    """(topic, log time ns, raw JSON bytes) in file order (= log-time order); see :meth:`LogFile.raw_messages`."""
+    with LogFile(path) as log:
+        yield from log.raw_messages(topics)
 
 
 def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """(topic, log time ns, decoded JSON message) in log-time order; a truncated log yields what it has."""
-    for topic, log_time, data in iter_raw_messages(path, topics):
-        yield topic, log_time, decode(path, topic, data)
+    with LogFile(path) as log:
+        yield from log.messages(topics)
 
 
 def decode(path: Path, topic: str, data: bytes) -> Any:
@@ -153,13 +189,14 @@ def decode(path: Path, topic: str, data: bytes) -> Any:
 
 def episode_summary(path: Path) -> dict[str, Any]:
     """One row: run parameters from the metadata and the ``/episode`` outcome (``incomplete`` if missing)."""
-    meta = read_metadata(path)
-    row: dict[str, Any] = {"log": str(path), "scenario": meta.get("scenario"), "strategy": meta.get("strategy"),
-                           "h_wait": _int(meta.get("h_wait")), "controller": meta.get("controller"),
-                           "perception": meta.get("perception"), "seed": _int(meta.get("seed")),
-                           "outcome": "incomplete", "steps": None, "time_s": None, "contacts": None}
-    for _topic, _t, msg in iter_messages(path, ["/episode"]):
-        row.update(outcome=msg["outcome"], steps=msg["steps"], time_s=msg["time_s"], contacts=msg["contacts"])
+    with LogFile(path) as log:
+        meta = log.metadata()
+        row: dict[str, Any] = {"log": str(path), "scenario": meta.get("scenario"), "strategy": meta.get("strategy"),
+                               "h_wait": _int(meta.get("h_wait")), "controller": meta.get("controller"),
+                               "perception": meta.get("perception"), "seed": _int(meta.get("seed")),
+                               "outcome": "incomplete", "steps": None, "time_s": None, "contacts": None}
+        for _topic, _t, msg in log.messages(["/episode"]):
+            row.update(outcome=msg["outcome"], steps=msg["steps"], time_s=msg["time_s"], contacts=msg["contacts"])
     return row
 
 

@@ -18,7 +18,8 @@ from analysis.logs import episode_summary, find_logs, is_complete
 from analysis.metrics import metrics_table
 from tests.conftest import ROOT
 
-LONG = ["scenario=u_trap", "scenario.max_steps=100000"]  # the robot never escapes: an endless episode
+# a 20 km corridor (tests/scenarios/scenario/endless_corridor.yaml): an episode that only a signal ends
+LONG = [f"hydra.searchpath=[file://{ROOT / 'tests' / 'scenarios'}]", "scenario=endless_corridor"]
 
 
 def start(args, **kw):
