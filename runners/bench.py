@@ -110,8 +110,9 @@ def _scenario_and_config(name: str):
     return load_scenario(base), load_evaluator(base), episode_config(base)
 
 
-def bench_simulation(episodes: int) -> dict:
-    """Steps/s on ``mixed`` (laser perception) with and without logging, and the per-stage breakdown."""
+def bench_simulation(episodes: int, reps: int) -> dict:
+    """Steps/s on ``mixed`` (laser perception) with and without logging (medians of ``reps`` alternated
+    runs of ``episodes`` episodes each), and the per-stage breakdown."""
     import tempfile
 
     from fuzzynav import episode as episode_mod
@@ -133,8 +134,13 @@ def bench_simulation(episodes: int) -> dict:
         return time.perf_counter() - t, steps
 
     run(False)  # warm-up
-    t_plain, steps = run(False)
-    t_log, _ = run(True)
+    run(True)
+    plain, logged = [], []
+    for _ in range(reps):  # alternated, so that a slow spell of the machine hits both alike
+        t_plain, steps = run(False)
+        plain.append(t_plain)
+        logged.append(run(True)[0])
+    t_plain, t_log = statistics.median(plain), statistics.median(logged)
     timers = _Timers()
     timers.wrap(Sonar, "read", "sensors")
     timers.wrap(laser_mod, "scan", "sensors")
@@ -151,7 +157,7 @@ def bench_simulation(episodes: int) -> dict:
         timers.restore()
     stages = {k: v for k, v in timers.total.items() if not k.startswith("_")}
     stages["rest"] = max(t_prof - sum(stages.values()), 0.0)
-    return {"scenario": "mixed", "episodes": episodes, "steps": steps,
+    return {"scenario": "mixed", "episodes": episodes, "repetitions": reps, "steps": steps,
             "steps_per_s_without_logging": steps / t_plain, "steps_per_s_with_logging": steps / t_log,
             "logging_share_of_step": (t_log - t_plain) / t_log,
             "us_per_step_by_stage": {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}}
@@ -261,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
                            "system": platform.platform()},
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
-    results["simulation"] = bench_simulation(3 if args.quick else 20)
+    results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 5)
     results["sweep"] = bench_sweep(100, 25) if args.quick else bench_sweep(1000, 50)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
@@ -273,7 +279,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['ratio']:7.0f} {r['batch_decisions_per_s']:10.0f} {r['max_disagreement_dtheta_deg']:10.2e} "
               f"{r['max_disagreement_v_cm_s']:10.2e}")
     sim = results["simulation"]
-    print(f"\nsimulation ({sim['scenario']}, laser perception, {sim['steps']} steps): "
+    print(f"\nsimulation ({sim['scenario']}, laser perception, {sim['steps']} steps, median of "
+          f"{sim['repetitions']}): "
           f"{sim['steps_per_s_without_logging']:.0f} steps/s without logging, "
           f"{sim['steps_per_s_with_logging']:.0f} with; logging is {sim['logging_share_of_step']:.0%} of a step")
     print("  µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in sim["us_per_step_by_stage"].items()))
