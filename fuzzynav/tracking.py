@@ -26,7 +26,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from fuzzynav.laser import LaserScan
 
@@ -184,6 +183,10 @@ def update(state: TrackerState, scan: LaserScan, time_s: float,
             px, py = t.x + t.vx * dt, t.y + t.vy * dt
             for j, d in enumerate(dets):
                 cost[i, j] = math.hypot(d.x - px, d.y - py)
+        # imported here: scipy.optimize takes ~0.25 s to import, which every process importing fuzzynav (a
+        # sweep's launching process, the analysis' tests, a single run's start-up) would otherwise pay
+        from scipy.optimize import linear_sum_assignment
+
         rows, cols = linear_sum_assignment(np.where(cost <= config.gate_cm, cost, 1e9))
         matched = {int(c): int(r) for r, c in zip(rows, cols, strict=True) if cost[r, c] <= config.gate_cm}
     tracks: list[_Tracked] = []

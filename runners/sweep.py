@@ -80,8 +80,11 @@ def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
 
 
 def _import_runner() -> int:
-    """Run in a launcher worker: import what every job needs (the worker keeps it for the next jobs)."""
+    """Run in a launcher worker: import what every job needs (the worker keeps it for the next jobs),
+    including what the tracker imports on first use."""
     import os
+
+    import scipy.optimize  # noqa: F401
 
     import runners.run  # noqa: F401
 

@@ -51,3 +51,6 @@ def test_bench_quick_writes_results(tmp_path):
         assert section in data, section
     assert data["simulation"]["steps_per_s_with_logging"] > 0 and data["sweep"]["wall_over_ideal"] > 0
     assert set(data["simulation"]["us_per_step_by_stage"]) >= {"sensors", "tracking", "logging", "controller"}
+    assert set(data["sweep"]["phases_s"]) == {"start-up", "validation + workers", "episodes", "summary", "report"}
+    assert data["sweep"]["jobs"] * data["sweep"]["episodes_per_job"] == data["sweep"]["episodes"] >= 100
+    assert data["analysis"]["mean_steps"] > 80  # the target is stated for ~100-step episodes
