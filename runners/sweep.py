@@ -98,8 +98,11 @@ def prewarm_workers(config: DictConfig) -> threading.Thread | None:
     launcher = config.hydra.get("launcher") or {}
     if "joblib" not in str(launcher.get("_target_", "")):
         return None
-    from hydra_plugins.hydra_joblib_launcher._core import process_joblib_cfg
-    from joblib import Parallel, cpu_count, delayed
+    try:  # only an optimisation: without it the launcher starts its workers itself
+        from hydra_plugins.hydra_joblib_launcher._core import process_joblib_cfg
+        from joblib import Parallel, cpu_count, delayed
+    except ImportError:
+        return None
 
     settings = {k: v for k, v in launcher.items() if k != "_target_"}
     settings["backend"] = "loky"  # as the launcher sets it
@@ -108,7 +111,7 @@ def prewarm_workers(config: DictConfig) -> threading.Thread | None:
     workers = cpu_count() if n_jobs < 0 else n_jobs
 
     def warm() -> None:
-        with contextlib.suppress(Exception):  # only an optimisation: the launcher starts workers itself anyway
+        with contextlib.suppress(Exception):
             Parallel(**settings)(delayed(_import_runner)() for _ in range(workers))
 
     thread = threading.Thread(target=warm, daemon=True)
