@@ -94,6 +94,14 @@ def test_paper_fig5_dataset_verifies():
     assert "all episodes and the metrics table of the dataset match" in out.stdout
 
 
+def test_suite_v1_dataset_verifies_on_its_first_seeds():
+    """All eleven scenarios and four strategies, seeds 0-1: catches a change of behaviour (or of floating-point
+    summation order) that the paper_fig5 dataset alone would not exercise."""
+    out = run_dataset("verify", "suite_v1", "--seeds", "0:2")
+    assert out.returncode == 0, out.stdout + out.stderr[-2000:]
+    assert "seeds 0:2 of the dataset match" in out.stdout
+
+
 def test_verify_fails_readably_when_a_behaviour_parameter_changes():
     out = run_dataset("verify", "paper_fig5", "planner.safety_margin_cm=12", "--seeds", "0:1")
     assert out.returncode == 1
