@@ -143,6 +143,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         for record in episode.run():
             if log is not None:
                 log.step(record)
+            _stop_if_requested()
         outcome = episode.outcome or "error"
         reason = {"goal": "within goal tolerance", "collision": "contact with an obstacle",
                   "timeout": f"max_steps {scenario.max_steps} reached"}.get(outcome, "")
@@ -192,8 +193,22 @@ class Interrupted(KeyboardInterrupt):
     """SIGTERM, turned into the same clean stop as Ctrl-C (the log in flight is finished as interrupted)."""
 
 
-def _on_sigterm(signum, frame) -> None:
-    raise Interrupted("terminated")
+_STOP_REQUESTED: list[int] = []  # signals received while a job runs, acted on between two steps
+
+
+def _on_stop_signal(signum, frame) -> None:
+    """SIGINT/SIGTERM during a job: noted, and raised between two steps (see :func:`_stop_if_requested`), so
+    that a log is never cut in the middle of a message. A second signal stops at once."""
+    if _STOP_REQUESTED:
+        raise Interrupted("terminated") if signum == signal.SIGTERM else KeyboardInterrupt
+    _STOP_REQUESTED.append(signum)
+
+
+def _stop_if_requested() -> None:
+    """Raise the pending stop (KeyboardInterrupt for SIGINT, :class:`Interrupted` for SIGTERM), if any."""
+    if _STOP_REQUESTED:
+        signum = _STOP_REQUESTED[0]
+        raise Interrupted("terminated") if signum == signal.SIGTERM else KeyboardInterrupt
 
 
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
@@ -207,9 +222,10 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
     results = []
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    previous = _install_stop_handlers()
     try:
         for seed in seeds:
+            _stop_if_requested()
             scenario = scenarios[seed]
             path = out_dir / log_name(scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
@@ -220,8 +236,22 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
                 continue
             results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml, digest))
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     return results
+
+
+def _install_stop_handlers() -> dict[int, Any]:
+    """Route SIGINT and SIGTERM to :func:`_on_stop_signal`; returns the previous handlers (none outside the
+    main thread, where Python cannot install handlers: there the signals act as before)."""
+    _STOP_REQUESTED.clear()
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[signum] = signal.signal(signum, _on_stop_signal)
+        except ValueError:  # not the main thread
+            break
+    return previous
 
 
 @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
