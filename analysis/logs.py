@@ -155,22 +155,10 @@ class LogFile:
             yield topic, log_time, decode(self.path, topic, data)
 
 
-def required_fields(path: Path) -> dict[str, list[str]]:
-    """Per topic, the top-level fields its embedded JSON schema requires (topics without a schema: none)."""
-    with LogFile(path) as log:
-        return log.required_fields()
-
-
 def read_metadata(path: Path) -> dict[str, str]:
     """The ``fuzzynav.run`` metadata record of a log (complete or truncated)."""
     with LogFile(path) as log:
         return log.metadata()
-
-
-def iter_raw_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
-    """(topic, log time ns, raw JSON bytes) in file order (= log-time order); see :meth:`LogFile.raw_messages`."""
-    with LogFile(path) as log:
-        yield from log.raw_messages(topics)
 
 
 def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:

@@ -47,8 +47,6 @@ class _Output:
     falling_neg: tuple[list[float], ...]  # per term: negated samples from the last maximum (non-decreasing)
     mf_rows: tuple[list[float], ...]  # per term: the sampled membership as a plain list (scalar path)
     support: tuple[tuple[int, int], ...]  # per term: grid slice [lo, hi) outside which the membership is 0
-    grid_list: list[float]  # the grid as plain floats (scalar path)
-    falling_start_list: list[int]  # falling_start as plain ints (scalar path)
 
 
 class FastEvaluator:
@@ -99,8 +97,7 @@ class FastEvaluator:
                 rising=tuple(mfs[t, : rising_end[t] + 1].tolist() for t in range(len(var.terms))),
                 falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))),
                 mf_rows=tuple(mfs.tolist()),
-                support=tuple(_support(row) for row in mfs), grid_list=var.grid.tolist(),
-                falling_start_list=[int(i) for i in falling_start])
+                support=tuple(_support(row) for row in mfs))
         # plain-Python copies for the scalar path
         self._scalar_inputs = [(var.name, var.universe[0], var.universe[1], var.resolution, var.is_crisp,
                                 [t.params for t in var.terms], mfs.T.tolist())
@@ -231,9 +228,11 @@ class FastEvaluator:
     @staticmethod
     def _defuzz_scalar(out: _Output, act: list[float]) -> float:
         cuts = [max([act[r] for r in rules]) if rules else 0.0 for rules in out.term_rules]
-        y = np.minimum(np.array(cuts)[:, None], out.mfs).max(axis=0)
-        area, moment = float(out.area_w @ y), float(out.moment_w @ y)
-        grid, h, mf_rows = out.grid_list, out.step, out.mf_rows
+        cut_arr = np.array(cuts)
+        y = np.minimum(cut_arr[:, None], out.mfs).max(axis=0)
+        area = float(out.area_w @ y)
+        moment = float(out.moment_w @ y)
+        grid, h, mf_rows = out.grid, out.step, out.mf_rows
         points = []  # (x, segment) where a term crosses its cut level, as scikit-fuzzy adds them
         for t, level in enumerate(cuts):
             if level <= 0.0:
@@ -241,18 +240,18 @@ class FastEvaluator:
             rise = out.rising[t]
             j = bisect.bisect_left(rise, level)
             if 1 <= j < len(rise):
-                points.append((grid[j - 1] + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1))
+                points.append((float(grid[j - 1]) + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1))
             fall = out.falling_neg[t]
             cnt = bisect.bisect_right(fall, -level)
             if 1 <= cnt < len(fall):
                 k = cnt - 1
-                start = out.falling_start_list[t]
-                points.append((grid[start + k] + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k))
+                start = int(out.falling_start[t])
+                points.append((float(grid[start + k]) + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k))
         if points:
             # split each grid segment that holds crossing points: drop its plain trapezoid, add the pieces
             points.sort()
             for seg, group in itertools.groupby(points, key=lambda p: p[1]):
-                x0, x1, y0, y1 = grid[seg], grid[seg + 1], float(y[seg]), float(y[seg + 1])
+                x0, x1, y0, y1 = float(grid[seg]), float(grid[seg + 1]), float(y[seg]), float(y[seg + 1])
                 a, m = _trapezoids(x0, x1, y0, y1)
                 area -= a
                 moment -= m

@@ -91,18 +91,18 @@ def _import_runner() -> int:
     return os.getpid()
 
 
-def prewarm_workers(config: DictConfig) -> threading.Thread | None:
+def prewarm_workers(config: DictConfig) -> None:
     """Start the joblib launcher's worker processes now, in the background, so their start-up and imports
     (about a second) overlap with Hydra validating every job's config in this process. loky keeps a pool of
     workers and reuses it for the next ``Parallel`` call with the same settings, which is the launcher's."""
     launcher = config.hydra.get("launcher") or {}
     if "joblib" not in str(launcher.get("_target_", "")):
-        return None
+        return
     try:  # only an optimisation: without it the launcher starts its workers itself
         from hydra_plugins.hydra_joblib_launcher._core import process_joblib_cfg
         from joblib import Parallel, cpu_count, delayed
     except ImportError:
-        return None
+        return
 
     settings = {k: v for k, v in launcher.items() if k != "_target_"}
     settings["backend"] = "loky"  # as the launcher sets it
@@ -114,9 +114,7 @@ def prewarm_workers(config: DictConfig) -> threading.Thread | None:
         with contextlib.suppress(Exception):
             Parallel(**settings)(delayed(_import_runner)() for _ in range(workers))
 
-    thread = threading.Thread(target=warm, daemon=True)
-    thread.start()
-    return thread
+    threading.Thread(target=warm, daemon=True).start()
 
 
 class SweepProgress(Callback):
