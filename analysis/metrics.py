@@ -200,11 +200,10 @@ def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
     return (float(np.mean(errors)), float(np.mean(finals))) if errors else (math.nan, math.nan)
 
 
-def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None
-                  ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(one row per usable episode, logs left out with the reason)."""
+def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:
+    """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with the reason."""
     rows, excluded = [], []
-    for path in find_logs(paths):
+    for path in paths:
         try:
             log = load_episode(path)
         except LogError as err:
@@ -221,4 +220,28 @@ def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = N
             excluded.append({"log": str(path), "reason": why})
             continue
         rows.append(episode_metrics(log, options))
+    return rows, excluded
+
+
+PARALLEL_MIN_LOGS = 200  # fewer logs are read in this process: starting worker processes costs about a second
+
+
+def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1
+                  ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(one row per usable episode, logs left out with the reason), in the order of :func:`find_logs`.
+
+    ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes (joblib's loky backend)
+    when there are at least ``PARALLEL_MIN_LOGS`` of them; the result is the same as with ``jobs=1``."""
+    logs = find_logs(paths)
+    if jobs == 1 or len(logs) < PARALLEL_MIN_LOGS:
+        rows, excluded = _metrics_rows(logs, options)
+    else:
+        from joblib import Parallel, cpu_count, delayed
+
+        workers = cpu_count() if jobs < 0 else jobs
+        size = max(1, math.ceil(len(logs) / (4 * workers)))  # a few chunks per worker balance the load
+        parts = Parallel(n_jobs=workers)(delayed(_metrics_rows)(logs[i:i + size], options)
+                                         for i in range(0, len(logs), size))
+        rows = [r for part_rows, _ in parts for r in part_rows]
+        excluded = [e for _, part_excluded in parts for e in part_excluded]
     return pd.DataFrame(rows), pd.DataFrame(excluded, columns=["log", "reason"])

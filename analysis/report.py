@@ -172,11 +172,13 @@ class Report:
                 f"<style>{style}</style>{check}</head><body>{''.join(body)}</body></html>")
 
 
-def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions | None = None) -> Report:
-    """Compute everything and write the report files into ``out``; returns the report content."""
+def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions | None = None,
+                 jobs: int = 1) -> Report:
+    """Compute everything and write the report files into ``out``; returns the report content. ``jobs``:
+    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`)."""
     out.mkdir(parents=True, exist_ok=True)
     sources = [str(p) for p in paths]
-    df, excluded = metrics_table(sources, options)
+    df, excluded = metrics_table(sources, options, jobs=jobs)
     report = Report("fuzzynav report")
     report.add("p", f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out.")
     if df.empty:
@@ -241,6 +243,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", help="output directory (default: the first path if it is a directory, "
                                       "else ./report)")
     parser.add_argument("--turn-threshold-deg", type=float, default=5.0, help="heading change counted as a turn")
+    parser.add_argument("--jobs", type=int, default=-1,
+                        help="worker processes reading the logs (default -1: every core; 1: this process only)")
     args = parser.parse_args(argv)
     missing = [p for p in args.paths if not Path(p).exists()]
     if missing:
@@ -248,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     first = Path(args.paths[0])
     out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
-    build_report(args.paths, out, MetricOptions(turn_threshold_deg=args.turn_threshold_deg))
+    build_report(args.paths, out, MetricOptions(turn_threshold_deg=args.turn_threshold_deg), jobs=args.jobs)
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
     return 0
 

@@ -8,8 +8,9 @@
    throughput and the largest disagreement.
 2. Simulation on ``mixed`` with laser perception: steps/s without and with MCAP logging, and the time per
    step by stage (sensors, tracking, TPT, planner, controller, logging, rest).
-3. Sweep overhead: a real ``runners.sweep`` of short episodes on all cores vs the same episodes' own compute
-   time (measured in-process, one core) divided by the cores, with the time of each phase.
+3. Sweep overhead: real ``runners.sweep`` runs of short episodes on all cores (two jobs per core, and 20
+   jobs) vs the same episodes' own compute time (measured in-process, one core, before and after) divided
+   by the cores, with the time of each phase.
 4. Analysis: episodes/s and messages/s of the metrics table on logs of ~100-step episodes.
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
 
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import statistics
 import sys
@@ -163,26 +165,29 @@ def bench_simulation(episodes: int, reps: int) -> dict:
             "us_per_step_by_stage": {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}}
 
 
-def bench_sweep(episodes: int, per_job: int) -> dict:
-    """A real sweep of short episodes (``head_on``) on all cores, seeds batched ``per_job`` to a Hydra job as
-    the presets do, vs the same episodes' own compute time (in this process, one core) divided by the cores.
-
-    Phases come from the files the sweep writes: start-up (interpreter, imports, config checks) until Hydra
-    writes ``multirun.yaml``; then job validation and worker start until the first job's ``.hydra/``
-    snapshot; episodes until the last log; summary; report."""
-    import os
-    import subprocess
+def _own_compute(episodes: int) -> float:
+    """Seconds to run ``episodes`` logged ``head_on`` episodes one after the other in this process."""
     import tempfile
 
     from runners.run import run_episode
 
-    cores = os.cpu_count() or 1
     scenario, evaluator, cfg = _scenario_and_config("head_on")
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         for seed in range(episodes):
             run_episode(scenario, evaluator, cfg, seed, Path(tmp) / f"{seed}.mcap", "")
-        own = time.perf_counter() - t
+        return time.perf_counter() - t
+
+
+def _sweep_once(episodes: int, per_job: int) -> dict:
+    """Wall time and phases of one real ``runners.sweep`` of ``head_on`` episodes, ``per_job`` seeds a job.
+
+    Phases come from the files the sweep writes: start-up (interpreter, imports, config checks) until Hydra
+    writes ``multirun.yaml``; then job validation and worker start until the first job's ``.hydra/``
+    snapshot; episodes until the last log; summary; report."""
+    import subprocess
+    import tempfile
+
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "s"
         t0 = time.time()
@@ -201,12 +206,25 @@ def bench_sweep(episodes: int, per_job: int) -> dict:
     for name, mark in marks.items():
         phases[name] = mark - previous
         previous = mark
-    ideal = own / cores
-    to_summary = marks["summary"] - t0
-    return {"episodes": episodes, "jobs": episodes // per_job, "episodes_per_job": per_job, "cores": cores,
-            "own_compute_s": own, "ideal_s": ideal, "wall_s_to_summary": to_summary, "wall_s_with_report": wall,
-            "wall_over_ideal": to_summary / ideal, "wall_with_report_over_ideal": wall / ideal,
-            "phases_s": phases}
+    return {"jobs": episodes // per_job, "episodes_per_job": per_job, "wall_s_to_summary": marks["summary"] - t0,
+            "wall_s_with_report": wall, "phases_s": phases}
+
+
+def bench_sweep(episodes: int, job_counts: tuple[int, ...]) -> dict:
+    """Real sweeps of ``episodes`` short episodes (``head_on``) on all cores, once per number of Hydra jobs
+    in ``job_counts`` (seeds batched into jobs as the presets do), against the same episodes' own compute
+    time: run one after the other in this process before and after the sweeps (the mean of the two, so that
+    a drift of the machine's speed during the bench does not count), divided by the cores."""
+    cores = os.cpu_count() or 1
+    before = _own_compute(episodes)
+    shapes = [_sweep_once(episodes, episodes // jobs) for jobs in job_counts]
+    after = _own_compute(episodes)
+    ideal = (before + after) / 2 / cores
+    for shape in shapes:
+        shape.update(wall_over_ideal=shape["wall_s_to_summary"] / ideal,
+                     wall_with_report_over_ideal=shape["wall_s_with_report"] / ideal)
+    return {"episodes": episodes, "cores": cores, "own_compute_s_before": before, "own_compute_s_after": after,
+            "ideal_s": ideal, "shapes": shapes}
 
 
 def bench_analysis(episodes: int) -> dict:
@@ -234,7 +252,6 @@ def bench_analysis(episodes: int) -> dict:
 
 def bench_memory(episodes: int) -> dict:
     """RSS of this process while running ``episodes`` logged episodes: after 10 %, and at the end."""
-    import os
     import tempfile
 
     from runners.run import run_episode
@@ -268,7 +285,9 @@ def main(argv: list[str] | None = None) -> int:
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 5)
-    results["sweep"] = bench_sweep(100, 25) if args.quick else bench_sweep(1000, 50)
+    # two jobs per core (the README's advice for a seed sweep), and 20 shorter jobs (per-job cost visible)
+    cores = os.cpu_count() or 1
+    results["sweep"] = bench_sweep(100 if args.quick else 1000, (2 * cores, 20))
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
     print("fuzzy decision (median of repetitions, after warm-up)")
@@ -285,11 +304,13 @@ def main(argv: list[str] | None = None) -> int:
           f"{sim['steps_per_s_with_logging']:.0f} with; logging is {sim['logging_share_of_step']:.0%} of a step")
     print("  µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in sim["us_per_step_by_stage"].items()))
     sw = results["sweep"]
-    print(f"sweep: {sw['episodes']} episodes ({sw['jobs']} jobs x {sw['episodes_per_job']}) on {sw['cores']} cores: "
-          f"own compute {sw['own_compute_s']:.1f} s -> ideal {sw['ideal_s']:.1f} s; wall to summary "
-          f"{sw['wall_s_to_summary']:.1f} s = {sw['wall_over_ideal']:.2f} x ideal; with the report "
-          f"{sw['wall_s_with_report']:.1f} s = {sw['wall_with_report_over_ideal']:.2f} x")
-    print("  phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in sw["phases_s"].items()))
+    print(f"sweep: {sw['episodes']} episodes on {sw['cores']} cores: own compute {sw['own_compute_s_before']:.1f} s "
+          f"before and {sw['own_compute_s_after']:.1f} s after the sweeps -> ideal {sw['ideal_s']:.1f} s")
+    for shape in sw["shapes"]:
+        print(f"  {shape['jobs']} jobs x {shape['episodes_per_job']}: wall to summary "
+              f"{shape['wall_s_to_summary']:.1f} s = {shape['wall_over_ideal']:.2f} x ideal; with the report "
+              f"{shape['wall_s_with_report']:.1f} s = {shape['wall_with_report_over_ideal']:.2f} x")
+        print("    phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in shape["phases_s"].items()))
     an = results["analysis"]
     print(f"analysis: {an['episodes_per_s']:.1f} episodes/s, {an['messages_per_s']:.0f} messages/s "
           f"({an['episodes']} {an['scenario']} episodes of {an['mean_steps']:.0f} steps)")

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ValueType
+from omegaconf import DictConfig
 
 from runners import schema
 
@@ -46,8 +48,11 @@ def _one_line(err: BaseException) -> str:
     return f"config: {texts[0].splitlines()[0]}"
 
 
-def precheck(args: list[str]) -> str | None:
-    """One-line description of why these command-line overrides cannot be composed, or None."""
+def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = None) -> str | None:
+    """One-line description of why these command-line overrides cannot be composed, or None.
+
+    ``on_config`` is called with the first composed config, Hydra's node included (the sweep uses it to start
+    its worker processes while the rest is checked and Hydra starts)."""
     overrides = [a for a in args if not a.startswith("-")]
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
@@ -62,7 +67,7 @@ def precheck(args: list[str]) -> str | None:
             continue  # globs only select existing options
         values = list(o.sweep_string_iterator())
         if o.value_type in (ValueType.RANGE_SWEEP, ValueType.INTERVAL_SWEEP):
-            values = values[:1] + values[-1:]  # numbers of one kind: the ends are enough
+            values = values[:1]  # numbers of one type compose alike: the first is enough
         prefix = "+" if o.is_add() else ""
         variants.append([f"{prefix}{o.get_key_element()}={v}" for v in values])
     firsts = [v[0] for v in variants if v]
@@ -72,9 +77,11 @@ def precheck(args: list[str]) -> str | None:
             trials.append([*base, *firsts[:i], value, *firsts[i + 1:]])
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        for overrides in trials:
+        for k, overrides in enumerate(trials):
             try:
-                compose("config", overrides=overrides)
+                cfg = compose("config", overrides=overrides, return_hydra_config=k == 0 and on_config is not None)
             except Exception as err:
                 return _one_line(err)
+            if k == 0 and on_config is not None:
+                on_config(cfg)
     return None

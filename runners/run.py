@@ -17,6 +17,7 @@ import os
 import signal
 import sys
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -275,8 +276,9 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
     return results
 
 
-def cli() -> None:
-    """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra."""
+def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
+    """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra.
+    ``on_config`` gets the first config the check composes (see :func:`runners.precheck.precheck`)."""
     from runners.precheck import debug_requested, precheck
 
     args = sys.argv[1:]
@@ -285,11 +287,29 @@ def cli() -> None:
         sys.argv = [sys.argv[0], *args]
         os.environ["HYDRA_FULL_ERROR"] = "1"
     if not debug_requested(args) and "--help" not in args and "-h" not in args:
-        problem = precheck(args)
+        problem = precheck(args, on_config)
         if problem:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)
+    register_sweeper()
     main()
+
+
+def register_sweeper() -> None:
+    """Register fuzzynav's sweeper (``conf/hydra/sweeper/fuzzynav.yaml``) with Hydra. Hydra finds plugins by
+    scanning the ``hydra_plugins`` package, which misses packages installed in editable mode (``pip install
+    -e``), so it is registered here by hand; without fuzzynav installed, multirun says how to install it."""
+    from hydra.core.plugins import Plugins
+
+    try:
+        from hydra_plugins.fuzzynav_sweeper import FuzzynavSweeper
+    except ImportError:
+        if "--multirun" in sys.argv or "-m" in sys.argv:
+            print("error: the sweeper hydra_plugins.fuzzynav_sweeper is not installed: run `pip install -e .` in "
+                  "the fuzzynav checkout (or choose Hydra's with hydra/sweeper=basic)", file=sys.stderr)
+            sys.exit(2)
+        return
+    Plugins.instance().register(FuzzynavSweeper)
 
 
 if __name__ == "__main__":

@@ -91,10 +91,17 @@ def _import_runner() -> int:
     return os.getpid()
 
 
+_PREWARMED: list[bool] = []  # prewarm_workers has started the workers in this process
+
+
 def prewarm_workers(config: DictConfig) -> None:
     """Start the joblib launcher's worker processes now, in the background, so their start-up and imports
-    (about a second) overlap with Hydra validating every job's config in this process. loky keeps a pool of
-    workers and reuses it for the next ``Parallel`` call with the same settings, which is the launcher's."""
+    (about a second) overlap with Hydra starting and validating every job's config in this process. loky keeps
+    a pool of workers and reuses it for the next ``Parallel`` call with the same settings, which are the
+    launcher's. Called as soon as the first config is composed, and again (doing nothing) when the sweep
+    starts."""
+    if _PREWARMED or "hydra" not in config:
+        return
     launcher = config.hydra.get("launcher") or {}
     if "joblib" not in str(launcher.get("_target_", "")):
         return
@@ -114,6 +121,7 @@ def prewarm_workers(config: DictConfig) -> None:
         with contextlib.suppress(Exception):
             Parallel(**settings)(delayed(_import_runner)() for _ in range(workers))
 
+    _PREWARMED.append(True)
     threading.Thread(target=warm, daemon=True).start()
 
 
@@ -148,7 +156,7 @@ class SweepProgress(Callback):
         write_summary(sweep_dir)
         from analysis.report import build_report
 
-        build_report([sweep_dir], sweep_dir / "report")
+        build_report([sweep_dir], sweep_dir / "report", jobs=-1)
         print(f"report: {sweep_dir / 'report' / 'report.html'} (and report.md)")
 
 
@@ -199,7 +207,7 @@ def main() -> None:
     sys.argv = [sys.argv[0], "--multirun", *args]
     from runners import run
 
-    run.cli()
+    run.cli(on_config=prewarm_workers)
 
 
 if __name__ == "__main__":

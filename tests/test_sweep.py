@@ -78,3 +78,39 @@ def test_count_episodes_of_the_default_sweep():
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose("config", overrides=["sweep=default"], return_hydra_config=True)
         assert count_episodes(cfg) == 3 * 7 * 5
+
+
+def test_sweeper_composes_every_swept_value_once():
+    from hydra_plugins.fuzzynav_sweeper import representative_jobs
+
+    grid = [[f"scenario={s}", f"planner={p}", "episodes=5"] for s in ("a", "b", "c") for p in range(7)]
+    grid = [[job[0], f"planner=auto_h{job[1].split('=')[1]}", job[2]] for job in grid]
+    picked = representative_jobs(grid)
+    assert len(picked) == 9  # 7 planners with the first scenario, then the 2 other scenarios
+    assert {j[0] for j in picked} == {"scenario=a", "scenario=b", "scenario=c"}
+    assert {j[1] for j in picked} == {f"planner=auto_h{k}" for k in range(7)}
+    seeds = [[f"seed={s}", "episodes=50"] for s in range(0, 1000, 50)]
+    assert representative_jobs(seeds) == seeds[:1]  # numbers of one type compose alike
+    mixed = [["x=1"], ["x=2"], ["x=1.5"], ["x=true"], ["x=null"], ["x=abc"], ["x=abd"], ["x=${seed}"]]
+    assert representative_jobs(mixed) == [["x=1"], ["x=1.5"], ["x=true"], ["x=null"], ["x=abc"], ["x=abd"],
+                                          ["x=${seed}"]]
+
+
+def test_sweeper_reports_a_bad_preset_value_before_any_job(tmp_path):
+    presets = tmp_path / "conf" / "sweep"
+    presets.mkdir(parents=True)
+    (presets / "bad_value.yaml").write_text(
+        "# @package _global_\nepisodes: 1\nhydra:\n  sweeper:\n    params:\n"
+        "      scenario: head_on,no_such_scenario\n      seed: range(0,6)\n")
+    out = cli("runners.sweep", f"hydra.searchpath=[file://{tmp_path / 'conf'}]", "sweep=bad_value",
+              f"hydra.sweep.dir={tmp_path / 's'}")
+    assert out.returncode == 1 and "scenario/no_such_scenario" in out.stderr, out.stderr[-2000:]
+    assert not find_logs([tmp_path / "s"])  # validated before launching: nothing ran
+
+
+def test_hydra_basic_sweeper_still_selectable(tmp_path):
+    out = cli("runners.sweep", "sweep=quick", "scenario=head_on", "planner=auto,none", "hydra/sweeper=basic",
+              f"hydra.sweep.dir={tmp_path}")
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert len(find_logs([tmp_path])) == 4
+    assert "BasicSweeper" in (tmp_path / "multirun.yaml").read_text()
