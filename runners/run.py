@@ -304,7 +304,8 @@ def register_sweeper() -> None:
     try:
         from hydra_plugins.fuzzynav_sweeper import FuzzynavSweeper
     except ImportError:
-        if "--multirun" in sys.argv or "-m" in sys.argv:
+        multirun = "--multirun" in sys.argv or "-m" in sys.argv
+        if multirun and not any(a.startswith("hydra/sweeper=") for a in sys.argv):
             print("error: the sweeper hydra_plugins.fuzzynav_sweeper is not installed: run `pip install -e .` in "
                   "the fuzzynav checkout (or choose Hydra's with hydra/sweeper=basic)", file=sys.stderr)
             sys.exit(2)

@@ -96,6 +96,21 @@ def test_bad_logs_are_left_out_with_a_reason(tmp_path):
     assert "junk.mcap" in reasons["junk.mcap"]
 
 
+def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch):
+    import analysis.metrics
+
+    for k in range(6):
+        write_log(tmp_path / f"good{k}.mcap", square_poses()[: 4 + k], goal=(0.0, 0.0))
+    write_log(tmp_path / "err.mcap", square_poses(), outcome="error")
+    write_log(tmp_path / "cut.mcap", square_poses(), truncate=True)
+    (tmp_path / "junk.mcap").write_bytes(b"\x00not an mcap" * 10)
+    serial_rows, serial_bad = metrics_table([tmp_path])
+    monkeypatch.setattr(analysis.metrics, "PARALLEL_MIN_LOGS", 1)  # 9 logs in ~9 chunks over 2 workers
+    rows, bad = metrics_table([tmp_path], jobs=2)
+    assert len(rows) == 6 and len(bad) == 3
+    assert rows.equals(serial_rows) and bad.equals(serial_bad)  # same rows, same order
+
+
 def test_wilson_interval_known_values():
     p, lo, hi = wilson(5, 5)
     assert p == 1.0 and lo == pytest.approx(0.5655, abs=1e-3) and hi == 1.0
