@@ -210,14 +210,15 @@ def _sweep_once(episodes: int, per_job: int) -> dict:
             "wall_s_with_report": wall, "phases_s": phases}
 
 
-def bench_sweep(episodes: int, job_counts: tuple[int, ...]) -> dict:
-    """Real sweeps of ``episodes`` short episodes (``head_on``) on all cores, once per number of Hydra jobs
-    in ``job_counts`` (seeds batched into jobs as the presets do), against the same episodes' own compute
-    time: run one after the other in this process before and after the sweeps (the mean of the two, so that
-    a drift of the machine's speed during the bench does not count), divided by the cores."""
+def bench_sweep(episodes: int) -> dict:
+    """Real sweeps of ``episodes`` short episodes (``head_on``) on all cores, seeds batched into Hydra jobs as
+    the presets do: as two jobs per core (the README's advice for a seed sweep) and as 20 shorter jobs (the
+    per-job cost visible). Against the same episodes' own compute time: run one after the other in this
+    process before and after the sweeps (the mean of the two, so that a drift of the machine's speed during
+    the bench does not count), divided by the cores."""
     cores = os.cpu_count() or 1
     before = _own_compute(episodes)
-    shapes = [_sweep_once(episodes, episodes // jobs) for jobs in job_counts]
+    shapes = [_sweep_once(episodes, episodes // jobs) for jobs in (2 * cores, 20)]
     after = _own_compute(episodes)
     ideal = (before + after) / 2 / cores
     for shape in shapes:
@@ -285,9 +286,7 @@ def main(argv: list[str] | None = None) -> int:
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 5)
-    # two jobs per core (the README's advice for a seed sweep), and 20 shorter jobs (per-job cost visible)
-    cores = os.cpu_count() or 1
-    results["sweep"] = bench_sweep(100 if args.quick else 1000, (2 * cores, 20))
+    results["sweep"] = bench_sweep(100 if args.quick else 1000)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
     print("fuzzy decision (median of repetitions, after warm-up)")

@@ -2,7 +2,8 @@
 
 Hydra reports composition errors on several lines; researchers launching thousands of episodes want
 ``error: config: planner.h_wiat: Key 'h_wiat' not in 'PlannerConfigSchema'`` and a non-zero exit before
-anything starts. For a sweep, the first value of every swept override is composed. With ``--debug`` or
+anything starts. For a sweep, every value of a swept override is composed once (the other swept keys at their
+first value; of a numeric range only the first, as numbers of one type compose alike). With ``--debug`` or
 ``HYDRA_FULL_ERROR=1`` the check is skipped and Hydra's full report is shown.
 """
 

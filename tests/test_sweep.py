@@ -83,8 +83,7 @@ def test_count_episodes_of_the_default_sweep():
 def test_sweeper_composes_every_swept_value_once():
     from hydra_plugins.fuzzynav_sweeper import representative_jobs
 
-    grid = [[f"scenario={s}", f"planner={p}", "episodes=5"] for s in ("a", "b", "c") for p in range(7)]
-    grid = [[job[0], f"planner=auto_h{job[1].split('=')[1]}", job[2]] for job in grid]
+    grid = [[f"scenario={s}", f"planner=auto_h{p}", "episodes=5"] for s in ("a", "b", "c") for p in range(7)]
     picked = representative_jobs(grid)
     assert len(picked) == 9  # 7 planners with the first scenario, then the 2 other scenarios
     assert {j[0] for j in picked} == {"scenario=a", "scenario=b", "scenario=c"}
