@@ -9,7 +9,8 @@ per-call graph walk:
 3. accumulation: per output term, the maximum activation over the rules that name it (the *cut*);
 4. aggregation: the output membership is ``max_t min(cut_t, mf_t)`` sampled on the universe grid **plus**
    the points where each term's sampled membership crosses its cut level (scikit-fuzzy's upsampling);
-5. defuzzification: centroid of that polyline (trapezoid rule on each segment).
+5. defuzzification: centroid of that polyline: the trapezoid rule on the plain grid (precomputed weights),
+   plus, for each inserted crossing point, the signed triangle it adds to the polyline.
 
 Inputs and outputs are in the variables' own units (for the default controllers: cm, degrees, cm/s).
 When no rule fires (zero output area) the definition's ``fallback`` output is returned.
@@ -18,7 +19,6 @@ When no rule fires (zero output area) the definition's ``fallback`` output is re
 from __future__ import annotations
 
 import bisect
-import itertools
 import math
 import operator
 from collections.abc import Mapping
@@ -41,11 +41,11 @@ class _Output:
     rule_mask: np.ndarray  # (T, R) True where rule r has this term as consequent
     fallback: float
     term_rules: tuple[tuple[int, ...], ...]  # rules naming each term (scalar path)
-    area_w: np.ndarray  # (G,) area of the grid polyline = area_w @ y
-    moment_w: np.ndarray  # (G,) first moment of the grid polyline = moment_w @ y
+    weights: np.ndarray  # (2, G): area and first moment of the grid polyline = weights @ y
     rising: tuple[list[float], ...]  # per term: samples up to the first maximum (non-decreasing)
     falling_neg: tuple[list[float], ...]  # per term: negated samples from the last maximum (non-decreasing)
     mf_rows: tuple[list[float], ...]  # per term: the sampled membership as a plain list (scalar path)
+    grid_list: list[float]  # the grid as a plain list (scalar path)
     support: tuple[tuple[int, int], ...]  # per term: grid slice [lo, hi) outside which the membership is 0
 
 
@@ -88,15 +88,14 @@ class FastEvaluator:
             fallback = spec.fallback_dtheta if var.role == "dtheta" else spec.fallback_v
             rising_end = at_peak.argmax(axis=1)
             falling_start = mfs.shape[1] - 1 - at_peak[:, ::-1].argmax(axis=1)
-            area_w, moment_w = _grid_weights(var.grid)
             self._outputs[var.role] = _Output(
                 grid=var.grid, step=var.resolution, mfs=mfs, rising_end=rising_end, falling_start=falling_start,
                 rule_mask=mask, fallback=fallback,
                 term_rules=tuple(tuple(int(r) for r in np.nonzero(row)[0]) for row in mask),
-                area_w=area_w, moment_w=moment_w,
+                weights=np.stack(_grid_weights(var.grid)),
                 rising=tuple(mfs[t, : rising_end[t] + 1].tolist() for t in range(len(var.terms))),
                 falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))),
-                mf_rows=tuple(mfs.tolist()),
+                mf_rows=tuple(mfs.tolist()), grid_list=var.grid.tolist(),
                 support=tuple(_support(row) for row in mfs))
         # plain-Python copies for the scalar path
         self._scalar_inputs = [(var.name, var.universe[0], var.universe[1], var.resolution, var.is_crisp,
@@ -179,8 +178,7 @@ class FastEvaluator:
             np.maximum(block, term, out=block)
         y = y_t.T
         # the polyline integral over the plain grid (trapezoid rule as precomputed weights)
-        total_area = y @ out.area_w
-        total_moment = y @ out.moment_w
+        total_area, total_moment = out.weights @ y_t
         # scikit-fuzzy adds the points where each term crosses its cut level; split those grid segments
         xs, segs = _cut_points(out, cuts)  # (N, K) positions, segment index (-1 = none)
         order = np.argsort(np.where(segs >= 0, xs, np.inf), axis=1, kind="stable")
@@ -191,18 +189,16 @@ class FastEvaluator:
             ys = _polyline_at(out, cuts, xs, segs)
             seg_c = np.clip(segs, 0, g - 2)
             rows = np.arange(n)[:, None]
+            # as in the scalar path: each point adds the triangle it forms with its left neighbour (the
+            # previous point in the same segment, else the segment's start) and the segment's end
             prev_same = np.zeros_like(valid)
             prev_same[:, 1:] = valid[:, 1:] & valid[:, :-1] & (segs[:, 1:] == segs[:, :-1])
-            next_same = np.zeros_like(valid)
-            next_same[:, :-1] = prev_same[:, 1:]
-            x_left = np.where(prev_same, np.roll(xs, 1, axis=1), grid[seg_c])
-            y_left = np.where(prev_same, np.roll(ys, 1, axis=1), y[rows, seg_c])
-            a1, m1 = _trapezoids(x_left, xs, y_left, ys)  # piece ending at each cut point
-            last = valid & ~next_same  # last cut in its segment: also the piece to the segment's end
-            a2, m2 = _trapezoids(xs, grid[seg_c + 1], ys, y[rows, seg_c + 1])
-            a0, m0 = _trapezoids(grid[seg_c], grid[seg_c + 1], y[rows, seg_c], y[rows, seg_c + 1])
-            total_area += np.where(valid, a1, 0).sum(1) + np.where(last, a2 - a0, 0).sum(1)
-            total_moment += np.where(valid, m1, 0).sum(1) + np.where(last, m2 - m0, 0).sum(1)
+            xa = np.where(prev_same, np.roll(xs, 1, axis=1), grid[seg_c])
+            ya = np.where(prev_same, np.roll(ys, 1, axis=1), y[rows, seg_c])
+            xb, yb = grid[seg_c + 1], y[rows, seg_c + 1]
+            triangle = np.where(valid, 0.5 * (ys * (xb - xa) - ya * (xb - xs) - yb * (xs - xa)), 0.0)
+            total_area += triangle.sum(1)
+            total_moment += (triangle * (xa + xs + xb)).sum(1) / 3.0
         ok = total_area > 0
         result = np.full(n, out.fallback)
         result[ok] = total_moment[ok] / total_area[ok]
@@ -228,45 +224,46 @@ class FastEvaluator:
     @staticmethod
     def _defuzz_scalar(out: _Output, act: list[float]) -> float:
         cuts = [max([act[r] for r in rules]) if rules else 0.0 for rules in out.term_rules]
-        cut_arr = np.array(cuts)
-        y = np.minimum(cut_arr[:, None], out.mfs).max(axis=0)
-        area = float(out.area_w @ y)
-        moment = float(out.moment_w @ y)
-        grid, h, mf_rows = out.grid, out.step, out.mf_rows
-        points = []  # (x, segment) where a term crosses its cut level, as scikit-fuzzy adds them
+        y = np.minimum(np.array(cuts)[:, None], out.mfs).max(axis=0)
+        area, moment = (out.weights @ y).tolist()
+        grid, h = out.grid_list, out.step
+        points = []  # (x, segment, term) where a term crosses its cut level, as scikit-fuzzy adds them
         for t, level in enumerate(cuts):
             if level <= 0.0:
                 continue
             rise = out.rising[t]
             j = bisect.bisect_left(rise, level)
             if 1 <= j < len(rise):
-                points.append((float(grid[j - 1]) + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1))
+                points.append((grid[j - 1] + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1, t))
             fall = out.falling_neg[t]
             cnt = bisect.bisect_right(fall, -level)
             if 1 <= cnt < len(fall):
                 k = cnt - 1
                 start = int(out.falling_start[t])
-                points.append((float(grid[start + k]) + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k))
-        if points:
-            # split each grid segment that holds crossing points: drop its plain trapezoid, add the pieces
-            points.sort()
-            for seg, group in itertools.groupby(points, key=lambda p: p[1]):
-                x0, x1, y0, y1 = float(grid[seg]), float(grid[seg + 1]), float(y[seg]), float(y[seg + 1])
-                a, m = _trapezoids(x0, x1, y0, y1)
-                area -= a
-                moment -= m
-                px, py = x0, y0
-                for x, _ in group:
-                    f = (x - x0) / h
-                    yx = max([min(c, row[seg] * (1.0 - f) + row[seg + 1] * f)
-                              for row, c in zip(mf_rows, cuts, strict=True)])
-                    a, m = _trapezoids(px, x, py, yx)
-                    area += a
-                    moment += m
-                    px, py = x, yx
-                a, m = _trapezoids(px, x1, py, y1)
-                area += a
-                moment += m
+                points.append((grid[start + k] + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k, t))
+        if not points:
+            return moment / area if area > 0 else out.fallback
+        # insert the crossing points into the grid polyline, left to right: each one adds the (signed)
+        # triangle it forms with its neighbours on the polyline so far, whose centroid is the mean of its corners
+        points.sort()
+        seg_open = -1
+        xa = ya = xb = yb = 0.0
+        for x, seg, t in points:
+            if seg != seg_open:
+                seg_open = seg
+                xa, ya, xb, yb = grid[seg], float(y[seg]), grid[seg + 1], float(y[seg + 1])
+            # the membership there: term t sits exactly at its cut; only a term with a higher cut can exceed it
+            level = yx = cuts[t]
+            f = (x - grid[seg]) / h
+            for row, c in zip(out.mf_rows, cuts, strict=True):
+                if c > level:
+                    value = min(c, row[seg] * (1.0 - f) + row[seg + 1] * f)
+                    if value > yx:
+                        yx = value
+            triangle = 0.5 * (yx * (xb - xa) - ya * (xb - x) - yb * (x - xa))
+            area += triangle
+            moment += triangle * (xa + x + xb) / 3.0
+            xa, ya = x, yx
         return moment / area if area > 0 else out.fallback
 
 
