@@ -71,8 +71,15 @@ def _stamp(t: float) -> dict[str, int]:
 
 
 def _m(cm: float) -> float:
-    """cm -> m, rounded to 0.1 mm: display geometry only (the analysis reads positions from cm topics)."""
-    return round(float(cm) / 100.0, 4)
+    """cm -> m, rounded to 0.1 mm (half to even, exactly as :func:`_points_m` rounds with numpy): geometry for
+    Foxglove (the analysis reads moving positions from the cm topics, the static world from the first scene)."""
+    return round(cm / 100.0 * 10_000.0) / 10_000.0
+
+
+def _points_m(points_cm, z_m: float) -> list[dict]:
+    """``foxglove.Point3`` list of an (N, 2) array of cm points, in m rounded to 0.1 mm, at height ``z_m``."""
+    xy = np.round(np.asarray(points_cm, dtype=np.float64).reshape(-1, 2) / 100.0, 4).tolist()
+    return [{"x": x, "y": y, "z": z_m} for x, y in xy]
 
 
 def _compact(schema: Any) -> Any:
@@ -94,34 +101,42 @@ def _schema_bytes(schema_name: str) -> bytes:
     return json.dumps(schema, separators=(",", ":")).encode()
 
 
+_NO_ROTATION = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}  # shared read-only: the quaternion of heading 0
+_ORIGIN = {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": _NO_ROTATION}
+
+
 def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) -> dict:
-    half = math.radians(heading_deg) / 2.0
-    return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": float(z_m)},
-            "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}
-
-
-def _point(x_cm: float, y_cm: float, z_m: float = 0.0) -> dict:
-    return {"x": _m(x_cm), "y": _m(y_cm), "z": z_m}
+    if heading_deg == 0.0:
+        orientation = _NO_ROTATION
+    else:
+        half = math.radians(heading_deg) / 2.0
+        orientation = {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}
+    return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": float(z_m)}, "orientation": orientation}
 
 
 _NO_PRIMITIVES = {kind: () for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts",
                                          "models")}  # shared read-only defaults: written as empty arrays
 
 
-def _entity(t: float, eid: str, **primitives: list) -> dict:
+_FOREVER = {"sec": 0, "nsec": 0}
+
+
+def _entity(stamp: dict[str, int], eid: str, **primitives: list) -> dict:
     """A ``foxglove.SceneEntity`` (lifetime 0: until replaced) with the given primitive lists."""
-    return {"timestamp": _stamp(t), "frame_id": FRAME, "id": eid, "lifetime": {"sec": 0, "nsec": 0},
+    return {"timestamp": stamp, "frame_id": FRAME, "id": eid, "lifetime": _FOREVER,
             "frame_locked": False, "metadata": (), **_NO_PRIMITIVES, **primitives}
 
 
 def _disc(x_cm: float, y_cm: float, r_cm: float, height_m: float, color: dict) -> dict:
-    return {"pose": _pose(x_cm, y_cm, 0.0, height_m / 2), "size": {"x": _m(2 * r_cm), "y": _m(2 * r_cm),
-            "z": height_m}, "bottom_scale": 1.0, "top_scale": 1.0, "color": color}
+    diameter = _m(2 * r_cm)
+    return {"pose": _pose(x_cm, y_cm, 0.0, height_m / 2), "size": {"x": diameter, "y": diameter, "z": height_m},
+            "bottom_scale": 1.0, "top_scale": 1.0, "color": color}
 
 
 def _line(points_cm, color: dict, loop: bool = False, thickness_m: float = 0.02, z_m: float = 0.01) -> dict:
-    return {"type": 1 if loop else 0, "pose": _pose(0.0, 0.0), "thickness": thickness_m, "scale_invariant": False,
-            "points": [_point(x, y, z_m) for x, y in points_cm], "color": color, "colors": [], "indices": []}
+    """A ``foxglove.LinePrimitive`` through an (N, 2) array of cm points."""
+    return {"type": 1 if loop else 0, "pose": _ORIGIN, "thickness": thickness_m, "scale_invariant": False,
+            "points": _points_m(points_cm, z_m), "color": color, "colors": (), "indices": ()}
 
 
 class EpisodeLogWriter:
@@ -147,7 +162,8 @@ class EpisodeLogWriter:
         self.steps = 0
         self.finished = False
         self._last_time = 0.0
-        self._plan_path: list[list[float]] = []
+        self._plan_lines: list[dict] = []
+        self._radii = [float(r) for r in episode.motion.radii]  # moving obstacles' radii (cm)
         self.log(0.0, LOG_INFO, f"episode started: scenario {self.scenario.name}, strategy {strategy}, "
                                 f"h_wait {self.h_wait}, seed {episode.seed}")
         self._write_static_scene()
@@ -166,17 +182,18 @@ class EpisodeLogWriter:
     def _write_static_scene(self) -> None:
         s = self.scenario
         xmin, ymin, xmax, ymax = s.bounds
-        entities = [_entity(0.0, "walls", lines=[_line([(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)],
+        stamp = _stamp(0.0)
+        entities = [_entity(stamp, "walls", lines=[_line([(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)],
                                                        _GREY, loop=True, thickness_m=0.04)])]
         for i, obs in enumerate(s.static_obstacles):
             if obs.circle is not None:
                 c = obs.circle
-                entities.append(_entity(0.0, f"static/{i}", cylinders=[_disc(*c.center, c.radius, 0.3, _GREY)]))
+                entities.append(_entity(stamp, f"static/{i}", cylinders=[_disc(*c.center, c.radius, 0.3, _GREY)]))
             else:
-                entities.append(_entity(0.0, f"static/{i}", lines=[_line(obs.polygon, _GREY, loop=True,
+                entities.append(_entity(stamp, f"static/{i}", lines=[_line(obs.polygon, _GREY, loop=True,
                                                                          thickness_m=0.03)]))
         gx, gy = s.robot.goal
-        entities.append(_entity(0.0, "goal", cylinders=[_disc(gx, gy, s.tolerance, 0.02, _GREEN)]))
+        entities.append(_entity(stamp, "goal", cylinders=[_disc(gx, gy, s.tolerance, 0.02, _GREEN)]))
         self._write("/scene", 0.0, {"deletions": [], "entities": entities})
 
     # -- per step ---------------------------------------------------------------------------------------
@@ -188,46 +205,48 @@ class EpisodeLogWriter:
         d = rec.decision
         k = rec.step
         radius = self.scenario.robot.radius
-        self._write("/robot/pose", t, {"timestamp": _stamp(t), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading)})
-        self._write_laser(rec)
-        self._write("/sonar", t, {"timestamp": _stamp(t), "step": k, "left_cm": _r(rec.sonar[0]),
+        stamp = _stamp(t)  # one (read-only) timestamp object shared by this step's messages
+        self._write("/robot/pose", t, {"timestamp": stamp, "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading)})
+        self._write_laser(rec, stamp)
+        self._write("/sonar", t, {"timestamp": stamp, "step": k, "left_cm": _r(rec.sonar[0]),
                                   "front_cm": _r(rec.sonar[1]), "right_cm": _r(rec.sonar[2]),
                                   "range_cm": _r(self.episode.config.sonar.range_cm)})
-        self._write("/tracks", t, {"timestamp": _stamp(t), "step": k, "mode": self.perception_mode,
+        self._write("/tracks", t, {"timestamp": stamp, "step": k, "mode": self.perception_mode,
                                    "moving_beams": np.nonzero(rec.moving_beams)[0].tolist(), "tracks": [
             {"id": tr.id, "x_cm": _r(tr.x), "y_cm": _r(tr.y), "vx_cm_s": _r(tr.vx), "vy_cm_s": _r(tr.vy),
              "speed_cm_s": _r(tr.speed), "heading_deg": _r(tr.moving_angle_deg), "radius_cm": _r(tr.radius)}
             for tr in rec.tracks]})
-        self._write("/obstacles/truth", t, {"timestamp": _stamp(t), "step": k, "obstacles": [
-            {"id": oid, "x_cm": _r(p[0]), "y_cm": _r(p[1]), "vx_cm_s": _r(v[0]), "vy_cm_s": _r(v[1]),
-             "radius_cm": _r(r), "next_x_cm": _r(q[0]), "next_y_cm": _r(q[1])}
-            for oid, p, v, r, q in zip(self.episode.obstacle_ids, rec.obstacle_positions, rec.obstacle_velocities,
-                                       self.episode.motion.radii, rec.obstacle_next_positions, strict=True)]})
+        self._write("/obstacles/truth", t, {"timestamp": stamp, "step": k, "obstacles": [
+            {"id": oid, "x_cm": x, "y_cm": y, "vx_cm_s": vx, "vy_cm_s": vy, "radius_cm": r, "next_x_cm": qx,
+             "next_y_cm": qy}
+            for oid, (x, y), (vx, vy), r, (qx, qy) in zip(
+                self.episode.obstacle_ids, rec.obstacle_positions.tolist(), rec.obstacle_velocities.tolist(),
+                self._radii, rec.obstacle_next_positions.tolist(), strict=True)]})
         self._write("/robot/state", t, {
-            "timestamp": _stamp(t), "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),
+            "timestamp": stamp, "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),
             "v_cm_s": _r(s.v), "next_x_cm": _r(n.x), "next_y_cm": _r(n.y), "next_heading_deg": _r(n.heading),
             "next_v_cm_s": _r(n.v), "radius_cm": _r(radius), "contact_static": rec.contact_static,
             "contact_dynamic": list(rec.contact_dynamic), "new_contacts": rec.new_contacts,
             "distance_to_goal_cm": _r(rec.distance_to_goal)})
         if d.tpt is not None:
-            self._write_tpt(t, k, d.tpt)
-        self._write_decision(t, k, rec)
-        self._write_scene(t, rec)
+            self._write_tpt(t, stamp, k, d.tpt)
+        self._write_decision(t, stamp, k, rec)
+        self._write_scene(t, stamp, rec)
         self._write_events(t, rec)
         self.steps += 1
 
-    def _write_laser(self, rec: StepRecord) -> None:
+    def _write_laser(self, rec: StepRecord, stamp: dict[str, int]) -> None:
         scan, s = rec.scan, rec.state
         n = len(scan.ranges)
         returned = scan.ranges < scan.range_cm
         self._write("/laser", rec.time_s, {
-            "timestamp": _stamp(rec.time_s), "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
+            "timestamp": stamp, "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
             "start_angle": 0.0, "end_angle": 2 * math.pi * (n - 1) / n,
             "ranges": np.round(scan.ranges / 100.0, 6), "intensities": returned.astype(np.int64)})
 
-    def _write_tpt(self, t: float, k: int, tpt) -> None:
+    def _write_tpt(self, t: float, stamp: dict[str, int], k: int, tpt) -> None:
         self._write("/tpt", t, {
-            "timestamp": _stamp(t), "step": k, "n_traj": tpt.n_traj, "dt_s": tpt.dt,
+            "timestamp": stamp, "step": k, "n_traj": tpt.n_traj, "dt_s": tpt.dt,
             "robot_speed_cm_s": _r(tpt.robot_speed), "robot_radius_cm": _r(tpt.robot_radius),
             "safety_margin_cm": _r(tpt.safety_margin), "robot_cm": _array(tpt.robot, -1, 2),
             "obstacle_ids": list(tpt.obstacle_ids), "obstacle_radii_cm": _array(tpt.obstacle_radii),
@@ -235,7 +254,7 @@ class EpisodeLogWriter:
             "obstacles_cm": _array(tpt.obstacles, len(tpt.robot), len(tpt.obstacle_ids), 2),
             "collide": np.ascontiguousarray(tpt.collide, dtype=bool)})
 
-    def _write_decision(self, t: float, k: int, rec: StepRecord) -> None:
+    def _write_decision(self, t: float, stamp: dict[str, int], k: int, rec: StepRecord) -> None:
         d = rec.decision
         planning = None
         if d.new_plan and d.plan is not None:
@@ -246,35 +265,35 @@ class EpisodeLogWriter:
                         "path_cm": [[_r(x), _r(y)] for x, y in p.path]}
         left, front, right, angle = d.inputs
         self._write("/planner/decision", t, {
-            "timestamp": _stamp(t), "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
+            "timestamp": stamp, "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
             "front_cm": _r(front), "right_cm": _r(right), "angle_deg": _r(angle), "dtheta_deg": _r(d.dtheta_deg),
             "v_cm_s": _r(d.v_cm_s), "strategy": self.strategy, "planning": planning,
             "compute_time_us": round(rec.compute_time_us, 1)})
 
-    def _write_scene(self, t: float, rec: StepRecord) -> None:
+    def _write_scene(self, t: float, stamp: dict[str, int], rec: StepRecord) -> None:
         s, d = rec.state, rec.decision
         r = self.scenario.robot.radius
         arrow = {"pose": _pose(s.x, s.y, s.heading, 0.2), "shaft_length": _m(r), "shaft_diameter": 0.03,
                  "head_length": _m(r * 0.6), "head_diameter": 0.08, "color": _BLUE}
-        entities = [_entity(t, "robot", cylinders=[_disc(s.x, s.y, r, 0.2, _BLUE)], arrows=[arrow])]
-        for oid, p, rad in zip(self.episode.obstacle_ids, rec.obstacle_positions, self.episode.motion.radii,
-                               strict=True):
-            entities.append(_entity(t, f"obstacle/{oid}", cylinders=[_disc(p[0], p[1], rad, 0.3, _RED)]))
+        entities = [_entity(stamp, "robot", cylinders=[_disc(s.x, s.y, r, 0.2, _BLUE)], arrows=[arrow])]
+        for oid, (x, y), rad in zip(self.episode.obstacle_ids, rec.obstacle_positions.tolist(), self._radii,
+                                    strict=True):
+            entities.append(_entity(stamp, f"obstacle/{oid}", cylinders=[_disc(x, y, rad, 0.3, _RED)]))
         tpt_lines, hits = [], []
         if d.tpt is not None:
-            tpt_lines.append(_line(d.tpt.robot, _CYAN, z_m=0.02))
-            for j in range(len(d.tpt.obstacle_ids)):
-                tpt_lines.append(_line(d.tpt.obstacles[:, j, :], _ORANGE, z_m=0.02))
-            for row in np.unique(d.tpt.collide[1:].nonzero()[0]):
-                x, y = d.tpt.robot[row + 1]
-                hits.append(_disc(x, y, d.tpt.robot_radius, 0.05, _HIT))
-        entities.append(_entity(t, "tpt", lines=tpt_lines, cylinders=hits))
+            tpt = d.tpt
+            tpt_lines.append(_line(tpt.robot, _CYAN, z_m=0.02))
+            for j in range(len(tpt.obstacle_ids)):
+                tpt_lines.append(_line(tpt.obstacles[:, j, :], _ORANGE, z_m=0.02))
+            for row in np.flatnonzero(tpt.collide[1:].any(axis=1)).tolist():
+                x, y = tpt.robot[row + 1].tolist()
+                hits.append(_disc(x, y, tpt.robot_radius, 0.05, _HIT))
+        entities.append(_entity(stamp, "tpt", lines=tpt_lines, cylinders=hits))
         if d.plan is None:
-            self._plan_path = []
-        elif d.new_plan:
-            self._plan_path = [[s.x, s.y], *d.plan.path.tolist()]
-        plan_lines = [_line(self._plan_path, _PURPLE, thickness_m=0.04, z_m=0.03)] if self._plan_path else []
-        entities.append(_entity(t, "plan", lines=plan_lines))
+            self._plan_lines = []
+        elif d.new_plan:  # the line of a plan is built once and repeated while the plan runs
+            self._plan_lines = [_line([[s.x, s.y], *d.plan.path.tolist()], _PURPLE, thickness_m=0.04, z_m=0.03)]
+        entities.append(_entity(stamp, "plan", lines=self._plan_lines))
         self._write("/scene", t, {"deletions": [], "entities": entities})
 
     def _write_events(self, t: float, rec: StepRecord) -> None:
