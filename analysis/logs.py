@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import orjson
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+
+T = TypeVar("T")
 
 RUN_METADATA = "fuzzynav.run"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -173,6 +175,25 @@ def decode(path: Path, topic: str, data: bytes) -> Any:
         return orjson.loads(data)
     except orjson.JSONDecodeError as err:
         raise LogError(f"{path}: a {topic} message is not valid JSON ({err})") from None
+
+
+PARALLEL_MIN_LOGS = 200  # fewer logs are read in this process: starting worker processes costs about a second
+
+
+def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1) -> list[T]:
+    """``read`` applied to consecutive chunks of ``logs``, results in order: in this process, or with ``jobs``
+    > 1 (-1: every core) in that many worker processes (joblib's loky backend, whose pool a sweep has already
+    started) when there are at least ``PARALLEL_MIN_LOGS`` logs. ``read`` must be a module-level function."""
+    if jobs == 1 or len(logs) < PARALLEL_MIN_LOGS:
+        return [read(logs)]
+    from joblib import Parallel, cpu_count, delayed
+
+    workers = cpu_count() if jobs < 0 else jobs
+    size = max(1, -(-len(logs) // (4 * workers)))  # a few chunks per worker balance the load
+    # max_nbytes=None as Hydra's joblib launcher sets it: with equal settings loky reuses the sweep's worker
+    # pool instead of starting a new one (only paths travel to the workers: nothing to memory-map)
+    return Parallel(n_jobs=workers, max_nbytes=None)(delayed(read)(logs[i:i + size])
+                                                     for i in range(0, len(logs), size))
 
 
 def episode_summary(path: Path) -> dict[str, Any]:

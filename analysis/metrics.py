@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -17,7 +18,7 @@ import pandas as pd
 import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
-from analysis.logs import LogError, find_logs
+from analysis.logs import LogError, find_logs, read_logs
 
 PARAMETERS = ("scenario", "strategy", "h_wait", "seed", "controller", "perception")
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
@@ -223,25 +224,13 @@ def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[lis
     return rows, excluded
 
 
-PARALLEL_MIN_LOGS = 200  # fewer logs are read in this process: starting worker processes costs about a second
-
-
 def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1
                   ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(one row per usable episode, logs left out with the reason), in the order of :func:`find_logs`.
 
-    ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes (joblib's loky backend)
-    when there are at least ``PARALLEL_MIN_LOGS`` of them; the result is the same as with ``jobs=1``."""
-    logs = find_logs(paths)
-    if jobs == 1 or len(logs) < PARALLEL_MIN_LOGS:
-        rows, excluded = _metrics_rows(logs, options)
-    else:
-        from joblib import Parallel, cpu_count, delayed
-
-        workers = cpu_count() if jobs < 0 else jobs
-        size = max(1, math.ceil(len(logs) / (4 * workers)))  # a few chunks per worker balance the load
-        parts = Parallel(n_jobs=workers)(delayed(_metrics_rows)(logs[i:i + size], options)
-                                         for i in range(0, len(logs), size))
-        rows = [r for part_rows, _ in parts for r in part_rows]
-        excluded = [e for _, part_excluded in parts for e in part_excluded]
+    ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes when there are many
+    (:func:`analysis.logs.read_logs`); the result is the same as with ``jobs=1``."""
+    parts = read_logs(functools.partial(_metrics_rows, options=options), find_logs(paths), jobs)
+    rows = [r for part_rows, _ in parts for r in part_rows]
+    excluded = [e for _, part_excluded in parts for e in part_excluded]
     return pd.DataFrame(rows), pd.DataFrame(excluded, columns=["log", "reason"])

@@ -24,7 +24,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 from tqdm import tqdm
 
-from analysis.logs import LogError, episode_summary, find_logs, is_complete
+from analysis.logs import LogError, episode_summary, find_logs, is_complete, read_logs
 
 if TYPE_CHECKING:  # pandas is imported where the summary is written: the sweep's workers load this module
     import pandas as pd
@@ -153,23 +153,32 @@ class SweepProgress(Callback):
             kept = sum(1 for p, t in before.items() if p.exists() and p.stat().st_mtime == t)
             total = len(find_logs([sweep_dir]))
             print(f"resume: {kept} complete episode(s) kept, {total - kept} run (incomplete, missing or changed)")
-        write_summary(sweep_dir)
+        write_summary(sweep_dir, jobs=-1)  # on the launcher's worker pool, still running
         from analysis.report import build_report
 
         build_report([sweep_dir], sweep_dir / "report", jobs=-1)
         print(f"report: {sweep_dir / 'report' / 'report.html'} (and report.md)")
 
 
-def summarise(sweep_dir: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Per-episode rows read back from the logs, and outcomes per scenario × strategy × h_wait."""
-    import pandas as pd
-
+def _summary_rows(paths: list[Path]) -> tuple[list[dict], list[dict]]:
+    """Summary rows of the readable logs among ``paths``, and the unreadable ones with the reason."""
     rows, bad = [], []
-    for path in find_logs([sweep_dir]):
+    for path in paths:
         try:
             rows.append(episode_summary(path))
         except LogError as err:
             bad.append({"log": str(path), "outcome": "unreadable", "reason": str(err)})
+    return rows, bad
+
+
+def summarise(sweep_dir: Path, jobs: int = 1) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Per-episode rows read back from the logs (in ``jobs`` processes when there are many), and outcomes per
+    scenario × strategy × h_wait."""
+    import pandas as pd
+
+    parts = read_logs(_summary_rows, find_logs([sweep_dir]), jobs)
+    rows = [r for part_rows, _ in parts for r in part_rows]
+    bad = [b for _, part_bad in parts for b in part_bad]
     episodes = pd.DataFrame(rows + bad)
     if not rows:
         return episodes, pd.DataFrame()
@@ -185,11 +194,11 @@ def summarise(sweep_dir: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     return episodes, table
 
 
-def write_summary(sweep_dir: Path) -> pd.DataFrame:
+def write_summary(sweep_dir: Path, jobs: int = 1) -> pd.DataFrame:
     """Write ``summary.csv`` (one row per episode) and print the outcome table."""
     import pandas as pd
 
-    episodes, table = summarise(sweep_dir)
+    episodes, table = summarise(sweep_dir, jobs)
     if episodes.empty:
         print(f"no logs found in {sweep_dir}")
         return table

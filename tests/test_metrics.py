@@ -97,7 +97,7 @@ def test_bad_logs_are_left_out_with_a_reason(tmp_path):
 
 
 def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch):
-    import analysis.metrics
+    import analysis.logs
 
     for k in range(6):
         write_log(tmp_path / f"good{k}.mcap", square_poses()[: 4 + k], goal=(0.0, 0.0))
@@ -105,7 +105,7 @@ def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch):
     write_log(tmp_path / "cut.mcap", square_poses(), truncate=True)
     (tmp_path / "junk.mcap").write_bytes(b"\x00not an mcap" * 10)
     serial_rows, serial_bad = metrics_table([tmp_path])
-    monkeypatch.setattr(analysis.metrics, "PARALLEL_MIN_LOGS", 1)  # 9 logs in 5 chunks over 2 workers
+    monkeypatch.setattr(analysis.logs, "PARALLEL_MIN_LOGS", 1)  # 9 logs in 5 chunks over 2 workers
     rows, bad = metrics_table([tmp_path], jobs=2)
     assert len(rows) == 6 and len(bad) == 3
     assert rows.equals(serial_rows) and bad.equals(serial_bad)  # same rows, same order

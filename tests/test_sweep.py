@@ -113,3 +113,20 @@ def test_hydra_basic_sweeper_still_selectable(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert len(find_logs([tmp_path])) == 4
     assert "BasicSweeper" in (tmp_path / "multirun.yaml").read_text()
+
+
+def test_parallel_summary_equals_the_serial_one(tmp_path, monkeypatch):
+    import analysis.logs
+    from runners.sweep import summarise
+    from tests.handmade import write_log
+
+    poses = [(100.0 * k, 0.0, 0.0) for k in range(8)]
+    for k in range(5):
+        write_log(tmp_path / f"good{k}.mcap", poses[: 3 + k], outcome="goal" if k % 2 else "timeout")
+    write_log(tmp_path / "cut.mcap", poses, truncate=True)
+    (tmp_path / "junk.mcap").write_bytes(b"\x00not an mcap" * 10)
+    serial_episodes, serial_table = summarise(tmp_path)
+    monkeypatch.setattr(analysis.logs, "PARALLEL_MIN_LOGS", 1)  # 7 logs in 4 chunks over 2 workers
+    episodes, table = summarise(tmp_path, jobs=2)
+    assert len(episodes) == 7 and (episodes["outcome"] == "unreadable").sum() == 1
+    assert episodes.equals(serial_episodes) and table.equals(serial_table)
