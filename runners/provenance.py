@@ -8,7 +8,7 @@ from importlib import metadata
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LIBRARIES = ("numpy", "scikit-fuzzy", "shapely", "mcap", "scipy", "hydra-core")
+LIBRARIES = ("numpy", "scikit-fuzzy", "shapely", "mcap", "foxglove-sdk", "scipy", "hydra-core")
 
 
 def _version(dist: str) -> str:

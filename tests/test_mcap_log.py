@@ -45,7 +45,8 @@ def test_log_has_every_topic_and_metadata(head_on_log):
     assert 0 < counts["/tpt"] <= steps and counts["/log"] >= 3
     meta = read_metadata(path)
     for key in ("config", "seed", "scenario", "fuzzynav_version", "git_commit", "numpy_version",
-                "scikit-fuzzy_version", "shapely_version", "mcap_version", "strategy", "h_wait"):
+                "scikit-fuzzy_version", "shapely_version", "mcap_version", "foxglove-sdk_version", "strategy",
+                "h_wait"):
         assert key in meta, key
     assert meta["seed"] == "3" and meta["scenario"] == "head_on" and meta["config"] == "seed: 3\n"
     row = episode_summary(path)
@@ -149,3 +150,19 @@ def test_log_writes_to_any_binary_stream():
         log.step(rec)
     log.finish(ep.outcome)
     assert buf.getvalue().endswith(b"\x89MCAP0\r\n")
+
+
+def test_one_open_log_per_process():
+    """The writer's channels are shared in a process: a second log cannot open until the first is finished."""
+    from fuzzynav.episode import Episode
+    from runners.mcap_log import EpisodeLogWriter
+
+    ep = Episode(load_scenario("head_on"), load_controller("table1"))
+    first = EpisodeLogWriter(io.BytesIO(), ep, {"seed": "0"}, "auto", "laser")
+    with pytest.raises(RuntimeError, match="already open"):
+        EpisodeLogWriter(io.BytesIO(), ep, {"seed": "0"}, "auto", "laser")
+    first.finish("interrupted")
+    second_buf = io.BytesIO()
+    second = EpisodeLogWriter(second_buf, ep, {"seed": "1"}, "auto", "laser")
+    second.finish("interrupted")
+    assert second_buf.getvalue().endswith(b"\x89MCAP0\r\n")
