@@ -60,6 +60,22 @@ def count_episodes(config: DictConfig) -> int | None:
     return total * int(config.get("episodes", 1))
 
 
+SHORT_JOBS = 50  # from this many jobs of fewer than SHORT_JOB_EPISODES episodes, the sweep suggests batching
+SHORT_JOB_EPISODES = 10
+
+
+def short_jobs_tip(total_episodes: int | None, episodes_per_job: int) -> str | None:
+    """A one-line tip when the sweep is many jobs of a few episodes: each Hydra job costs about 0.15-0.2 s of
+    CPU (its config is composed and snapshotted where it runs), often more than a short episode itself."""
+    if total_episodes is None or episodes_per_job >= SHORT_JOB_EPISODES:
+        return None
+    jobs = total_episodes // max(episodes_per_job, 1)
+    if jobs < SHORT_JOBS:
+        return None
+    return (f"tip: {jobs} jobs of {episodes_per_job} episode(s) each; every job costs about 0.15-0.2 s of CPU "
+            "besides its episodes. Batch seeds into longer jobs, e.g. seed='range(0,1000,250)' episodes=250")
+
+
 # watcher threads live here, not on the callback: the launcher pickles callbacks to send them to workers
 _WATCHERS: dict[str, tuple[threading.Thread, threading.Event]] = {}
 _BEFORE: dict[str, dict[Path, float]] = {}  # complete logs (and their mtimes) present when the sweep started
@@ -137,8 +153,12 @@ class SweepProgress(Callback):
             print(f"warning: {sweep_dir} already holds {len(before)} complete logs; without resume=true they are "
                   "re-run and overwritten", file=sys.stderr)
         prewarm_workers(config)
+        total = count_episodes(config)
+        tip = short_jobs_tip(total, int(config.get("episodes", 1)))
+        if tip:
+            print(tip, file=sys.stderr)
         stop = threading.Event()
-        thread = threading.Thread(target=_watch, args=(sweep_dir, count_episodes(config), stop), daemon=True)
+        thread = threading.Thread(target=_watch, args=(sweep_dir, total, stop), daemon=True)
         _WATCHERS[str(sweep_dir)] = (thread, stop)
         thread.start()
 

@@ -130,3 +130,14 @@ def test_parallel_summary_equals_the_serial_one(tmp_path, monkeypatch):
     episodes, table = summarise(tmp_path, jobs=2)
     assert len(episodes) == 7 and (episodes["outcome"] == "unreadable").sum() == 1
     assert episodes.equals(serial_episodes) and table.equals(serial_table)
+
+
+def test_many_one_episode_jobs_get_a_batching_tip():
+    from runners.sweep import short_jobs_tip
+
+    assert short_jobs_tip(105, 5) is None  # the default sweep: 21 jobs of 5 episodes
+    assert short_jobs_tip(20, 1) is None and short_jobs_tip(None, 1) is None
+    assert short_jobs_tip(1000, 250) is None and short_jobs_tip(5000, 10) is None
+    tip = short_jobs_tip(1000, 1)
+    assert tip is not None and "1000 jobs of 1 episode(s)" in tip and "episodes=" in tip
+    assert "60 jobs of 2 episode(s)" in (short_jobs_tip(120, 2) or "")
