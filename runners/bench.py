@@ -9,8 +9,9 @@
 2. Simulation on ``mixed`` with laser perception: steps/s without and with MCAP logging, and the time per
    step by stage (sensors, tracking, TPT, planner, controller, logging, rest).
 3. Sweep overhead: real ``runners.sweep`` runs of short episodes on all cores (two jobs per core, and 20
-   jobs) vs the same episodes' own compute time (measured in-process, one core, before and after) divided
-   by the cores, with the time of each phase.
+   jobs) vs the same episodes' own compute time divided by the cores, measured before and after the sweeps
+   in two ways: one after the other in this process (one core), and split over one plain process per core
+   started together (all cores busy, as in the sweep, but no launcher or Hydra); with the time of each phase.
 4. Analysis: episodes/s and messages/s of the metrics table on logs of ~100-step episodes.
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
 
@@ -29,6 +30,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -168,8 +170,9 @@ def bench_simulation(episodes: int, reps: int) -> dict:
             "us_per_step_by_stage": {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}}
 
 
-def _own_compute(episodes: int) -> float:
-    """Seconds to run ``episodes`` logged ``head_on`` episodes one after the other in this process."""
+def _own_compute(episodes: int, first_seed: int = 0) -> float:
+    """Seconds to run ``episodes`` logged ``head_on`` episodes (seeds from ``first_seed``) one after the other
+    in this process."""
     import tempfile
 
     from runners.run import run_episode
@@ -177,9 +180,36 @@ def _own_compute(episodes: int) -> float:
     scenario, evaluator, cfg = _scenario_and_config("head_on")
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        for seed in range(episodes):
+        for seed in range(first_seed, first_seed + episodes):
             run_episode(scenario, evaluator, cfg, seed, Path(tmp) / f"{seed}.mcap", "")
         return time.perf_counter() - t
+
+
+def _share_after_barrier(args: tuple[int, int, Any]) -> float:
+    """In a worker of :func:`_own_compute_all_cores`: warm up, wait for the others, run this share."""
+    episodes, first_seed, barrier = args
+    _own_compute(5, first_seed=10**6)  # imports and caches, outside the timing
+    barrier.wait()
+    return _own_compute(episodes, first_seed)
+
+
+def _own_compute_all_cores(episodes: int, cores: int) -> float:
+    """Wall seconds for the same ``episodes`` split over ``cores`` plain processes that start together: every
+    core busy, as in a sweep, with no launcher or Hydra (cores share caches and memory bandwidth, so this is
+    slower than one core's time divided by the cores)."""
+    import multiprocessing
+
+    shares = [episodes // cores + (i < episodes % cores) for i in range(cores)]
+    firsts = [sum(shares[:i]) for i in range(cores)]
+    context = multiprocessing.get_context("spawn")
+    with context.Manager() as manager:
+        barrier = manager.Barrier(cores + 1)
+        with context.Pool(cores) as pool:
+            done = pool.map_async(_share_after_barrier, [(n, f, barrier) for n, f in zip(shares, firsts, strict=True)])
+            barrier.wait()
+            t = time.perf_counter()
+            done.get()
+            return time.perf_counter() - t
 
 
 def _sweep_once(episodes: int, per_job: int) -> dict:
@@ -220,15 +250,18 @@ def bench_sweep(episodes: int) -> dict:
     process before and after the sweeps (the mean of the two, so that a drift of the machine's speed during
     the bench does not count), divided by the cores."""
     cores = os.cpu_count() or 1
-    before = _own_compute(episodes)
+    before, before_all = _own_compute(episodes), _own_compute_all_cores(episodes, cores)
     shapes = [_sweep_once(episodes, episodes // jobs) for jobs in (2 * cores, 20)]
-    after = _own_compute(episodes)
+    after_all, after = _own_compute_all_cores(episodes, cores), _own_compute(episodes)
     ideal = (before + after) / 2 / cores
+    all_cores = (before_all + after_all) / 2
     for shape in shapes:
         shape.update(wall_over_ideal=shape["wall_s_to_summary"] / ideal,
-                     wall_with_report_over_ideal=shape["wall_s_with_report"] / ideal)
+                     wall_with_report_over_ideal=shape["wall_s_with_report"] / ideal,
+                     wall_over_all_cores=shape["wall_s_to_summary"] / all_cores)
     return {"episodes": episodes, "cores": cores, "own_compute_s_before": before, "own_compute_s_after": after,
-            "ideal_s": ideal, "shapes": shapes}
+            "ideal_s": ideal, "all_cores_s_before": before_all, "all_cores_s_after": after_all,
+            "all_cores_s": all_cores, "shapes": shapes}
 
 
 def bench_analysis(episodes: int) -> dict:
@@ -307,10 +340,12 @@ def main(argv: list[str] | None = None) -> int:
     print("  µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in sim["us_per_step_by_stage"].items()))
     sw = results["sweep"]
     print(f"sweep: {sw['episodes']} episodes on {sw['cores']} cores: own compute {sw['own_compute_s_before']:.1f} s "
-          f"before and {sw['own_compute_s_after']:.1f} s after the sweeps -> ideal {sw['ideal_s']:.1f} s")
+          f"before and {sw['own_compute_s_after']:.1f} s after the sweeps -> ideal {sw['ideal_s']:.1f} s; "
+          f"the same on all cores without launcher or Hydra {sw['all_cores_s']:.1f} s")
     for shape in sw["shapes"]:
         print(f"  {shape['jobs']} jobs x {shape['episodes_per_job']}: wall to summary "
-              f"{shape['wall_s_to_summary']:.1f} s = {shape['wall_over_ideal']:.2f} x ideal; with the report "
+              f"{shape['wall_s_to_summary']:.1f} s = {shape['wall_over_ideal']:.2f} x ideal "
+              f"({shape['wall_over_all_cores']:.2f} x the all-cores run); with the report "
               f"{shape['wall_s_with_report']:.1f} s = {shape['wall_with_report_over_ideal']:.2f} x")
         print("    phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in shape["phases_s"].items()))
     an = results["analysis"]
