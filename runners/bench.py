@@ -9,9 +9,10 @@
 2. Simulation on ``mixed`` with laser perception: steps/s without and with MCAP logging, and the time per
    step by stage (sensors, tracking, TPT, planner, controller, logging, rest).
 3. Sweep overhead: real ``runners.sweep`` runs of short episodes on all cores (two jobs per core, and 20
-   jobs) vs the same episodes' own compute time divided by the cores, measured before and after the sweeps
-   in two ways: one after the other in this process (one core), and split over one plain process per core
-   started together (all cores busy, as in the sweep, but no launcher or Hydra); with the time of each phase.
+   jobs), three rounds, vs the same episodes' own compute time divided by the cores, measured two ways: one
+   after the other in this process (one core) before and after, and in each round split over one plain
+   process per core started together (all cores busy, as in the sweep, but no launcher or Hydra); with the
+   time of each phase.
 4. Analysis: episodes/s and messages/s of the metrics table on logs of ~100-step episodes.
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
 
@@ -243,25 +244,36 @@ def _sweep_once(episodes: int, per_job: int) -> dict:
             "wall_s_with_report": wall, "phases_s": phases}
 
 
-def bench_sweep(episodes: int) -> dict:
+def bench_sweep(episodes: int, rounds: int = 3) -> dict:
     """Real sweeps of ``episodes`` short episodes (``head_on``) on all cores, seeds batched into Hydra jobs as
     the presets do: as two jobs per core (the README's advice for a seed sweep) and as 20 shorter jobs (the
-    per-job cost visible). Against the same episodes' own compute time: run one after the other in this
-    process before and after the sweeps (the mean of the two, so that a drift of the machine's speed during
-    the bench does not count), divided by the cores."""
+    per-job cost visible). Against the same episodes' own compute time, measured two ways: one after the other
+    in this process before and after all rounds, divided by the cores (``ideal``); and split over one plain
+    process per core (:func:`_own_compute_all_cores`), run right before the sweeps of each round, so that a
+    slow spell of the machine hits a sweep and its reference alike. Each shape reports the round with the
+    median ratio to its all-cores run."""
     cores = os.cpu_count() or 1
-    before, before_all = _own_compute(episodes), _own_compute_all_cores(episodes, cores)
-    shapes = [_sweep_once(episodes, episodes // jobs) for jobs in (2 * cores, 20)]
-    after_all, after = _own_compute_all_cores(episodes, cores), _own_compute(episodes)
+    before = _own_compute(episodes)
+    per_round = []
+    for _ in range(rounds):
+        all_cores = _own_compute_all_cores(episodes, cores)
+        shapes = [_sweep_once(episodes, episodes // jobs) for jobs in (2 * cores, 20)]
+        for shape in shapes:
+            shape.update(all_cores_s=all_cores, wall_over_all_cores=shape["wall_s_to_summary"] / all_cores)
+        per_round.append(shapes)
+    after = _own_compute(episodes)
     ideal = (before + after) / 2 / cores
-    all_cores = (before_all + after_all) / 2
-    for shape in shapes:
+    shapes = []
+    for k in range(len(per_round[0])):
+        runs = sorted((r[k] for r in per_round), key=lambda shape: shape["wall_over_all_cores"])
+        shape = dict(runs[len(runs) // 2])
         shape.update(wall_over_ideal=shape["wall_s_to_summary"] / ideal,
                      wall_with_report_over_ideal=shape["wall_s_with_report"] / ideal,
-                     wall_over_all_cores=shape["wall_s_to_summary"] / all_cores)
-    return {"episodes": episodes, "cores": cores, "own_compute_s_before": before, "own_compute_s_after": after,
-            "ideal_s": ideal, "all_cores_s_before": before_all, "all_cores_s_after": after_all,
-            "all_cores_s": all_cores, "shapes": shapes}
+                     rounds_over_all_cores=[r[k]["wall_over_all_cores"] for r in per_round],
+                     rounds_over_ideal=[r[k]["wall_s_to_summary"] / ideal for r in per_round])
+        shapes.append(shape)
+    return {"episodes": episodes, "cores": cores, "rounds": rounds, "own_compute_s_before": before,
+            "own_compute_s_after": after, "ideal_s": ideal, "shapes": shapes}
 
 
 def bench_analysis(episodes: int) -> dict:
@@ -322,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 5)
-    results["sweep"] = bench_sweep(100 if args.quick else 1000)
+    results["sweep"] = bench_sweep(100, rounds=1) if args.quick else bench_sweep(1000)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
     print("fuzzy decision (median of repetitions, after warm-up)")
@@ -339,14 +351,15 @@ def main(argv: list[str] | None = None) -> int:
           f"{sim['steps_per_s_with_logging']:.0f} with; logging is {sim['logging_share_of_step']:.0%} of a step")
     print("  µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in sim["us_per_step_by_stage"].items()))
     sw = results["sweep"]
-    print(f"sweep: {sw['episodes']} episodes on {sw['cores']} cores: own compute {sw['own_compute_s_before']:.1f} s "
-          f"before and {sw['own_compute_s_after']:.1f} s after the sweeps -> ideal {sw['ideal_s']:.1f} s; "
-          f"the same on all cores without launcher or Hydra {sw['all_cores_s']:.1f} s")
+    print(f"sweep: {sw['episodes']} episodes on {sw['cores']} cores, {sw['rounds']} round(s): own compute "
+          f"{sw['own_compute_s_before']:.1f} s before and {sw['own_compute_s_after']:.1f} s after -> ideal "
+          f"{sw['ideal_s']:.1f} s; each round also runs them on all cores without launcher or Hydra first")
     for shape in sw["shapes"]:
-        print(f"  {shape['jobs']} jobs x {shape['episodes_per_job']}: wall to summary "
-              f"{shape['wall_s_to_summary']:.1f} s = {shape['wall_over_ideal']:.2f} x ideal "
-              f"({shape['wall_over_all_cores']:.2f} x the all-cores run); with the report "
-              f"{shape['wall_s_with_report']:.1f} s = {shape['wall_with_report_over_ideal']:.2f} x")
+        rounds = ", ".join(f"{r:.2f}" for r in shape["rounds_over_all_cores"])
+        print(f"  {shape['jobs']} jobs x {shape['episodes_per_job']}: {shape['wall_over_all_cores']:.2f} x the "
+              f"all-cores run (rounds: {rounds}); that round: wall to summary {shape['wall_s_to_summary']:.1f} s "
+              f"vs all-cores {shape['all_cores_s']:.1f} s, {shape['wall_over_ideal']:.2f} x ideal; with the report "
+              f"{shape['wall_s_with_report']:.1f} s = {shape['wall_with_report_over_ideal']:.2f} x ideal")
         print("    phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in shape["phases_s"].items()))
     an = results["analysis"]
     print(f"analysis: {an['episodes_per_s']:.1f} episodes/s, {an['messages_per_s']:.0f} messages/s "
