@@ -16,6 +16,7 @@ import functools
 import json
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, BinaryIO
 
 import foxglove
@@ -159,9 +160,11 @@ def _line(points_cm, color: dict, loop: bool = False, thickness_m: float = 0.02,
 
 
 class EpisodeLogWriter:
-    """Writes one episode to an open binary stream. Use :meth:`step` per record, then :meth:`finish`."""
+    """Writes one episode to ``destination``: a file path (created or replaced; the SDK writes the file itself,
+    which is cheaper than through a Python stream) or an open binary stream with ``write``, ``seek`` and
+    ``flush``. Use :meth:`step` per record, then :meth:`finish`."""
 
-    def __init__(self, stream: BinaryIO, episode: Episode, metadata: Mapping[str, str], strategy: str,
+    def __init__(self, destination: str | Path | BinaryIO, episode: Episode, metadata: Mapping[str, str], strategy: str,
                  perception_mode: str) -> None:
         self.episode = episode
         self.scenario = episode.scenario
@@ -178,7 +181,11 @@ class EpisodeLogWriter:
         self._last_time = 0.0
         self._plan_lines: list[dict] = []
         self._radii = [float(r) for r in episode.motion.radii]  # moving obstacles' radii (cm)
-        self.writer = foxglove.open_mcap(stream, context=context, writer_options=_WRITE_OPTIONS)
+        try:
+            self.writer = foxglove.open_mcap(destination, context=context, writer_options=_WRITE_OPTIONS,
+                                             allow_overwrite=True)
+        except OSError as err:  # the SDK's message does not name the file
+            raise type(err)(f"{destination}: cannot write the log: {err}") from None
         try:
             self.writer.write_metadata(RUN_METADATA, dict(metadata))
             self.log(0.0, LOG_INFO, f"episode started: scenario {self.scenario.name}, strategy {strategy}, "

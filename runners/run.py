@@ -131,16 +131,15 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
     summary = {"scenario": scenario.name, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
                "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode, "seed": seed,
                "log": str(log_path) if log_path else ""}
-    stream = open(log_path, "wb") if log_path else None  # noqa: SIM115 - closed in finally
-    log = None
+    log = None  # created before the episode: a log that cannot be written is an error, not an episode outcome
+    if log_path is not None:
+        meta = run_metadata(config_yaml, seed, scenario.name, {
+            "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
+            "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
+            "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
+        log = EpisodeLogWriter(log_path, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
     outcome, reason = "error", ""
     try:
-        if stream is not None:
-            meta = run_metadata(config_yaml, seed, scenario.name, {
-                "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
-                "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
-                "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
-            log = EpisodeLogWriter(stream, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
         for record in episode.run():
             if log is not None:
                 log.step(record)
@@ -159,8 +158,6 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
     finally:
         if log is not None:
             log.finish(outcome, reason)
-        if stream is not None:
-            stream.close()
     summary.update(outcome=outcome, steps=episode.step_index, time_s=episode.step_index * ep_cfg.dt,
                    contacts=episode.contacts, reason=reason)
     return summary
