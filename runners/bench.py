@@ -200,7 +200,7 @@ def _share_after_barrier(args: tuple[int, int, Any]) -> float:
 def _own_compute_all_cores(episodes: int, cores: int) -> float:
     """Wall seconds for the same ``episodes`` split over ``cores`` plain processes that start together: every
     core busy, as in a sweep, with no launcher or Hydra (cores share caches and memory bandwidth, so this is
-    slower than one core's time divided by the cores)."""
+    usually slower than one core's time divided by the cores)."""
     import multiprocessing
 
     shares = [episodes // cores + (i < episodes % cores) for i in range(cores)]
