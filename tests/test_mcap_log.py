@@ -171,7 +171,7 @@ def test_one_open_log_per_process():
 def test_unwritable_log_path_is_an_error_naming_it(tmp_path):
     scenario, controller = load_scenario("head_on"), FastEvaluator(load_controller("table1"))
     bad = tmp_path / "missing" / "x.mcap"
-    with pytest.raises(FileNotFoundError, match="missing/x.mcap"):
+    with pytest.raises(FileNotFoundError, match=r"missing/x\.mcap"):
         run_episode(scenario, controller, episode_config_from_dict({}), 0, bad, "")
     good = tmp_path / "x.mcap"  # the failed open left no log open in the process
     assert run_episode(scenario, controller, episode_config_from_dict({}), 0, good, "")["outcome"] == "goal"
