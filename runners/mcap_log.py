@@ -350,15 +350,17 @@ class EpisodeLogWriter:
         level = LOG_INFO if outcome == "goal" else LOG_ERROR if outcome == "error" else LOG_WARNING
         text = {"goal": "goal reached", "collision": "collision", "timeout": "timeout: step limit reached",
                 "error": "error", "interrupted": "interrupted"}.get(outcome, outcome)
-        self.log(t, level, f"{text} after {self.steps} step(s)" + (f": {reason}" if reason else ""))
-        self._write("/episode", t, {"timestamp": _stamp(t), "outcome": outcome, "steps": self.steps,
-                                    "time_s": _r(self.steps * self.dt), "contacts": self.episode.contacts,
-                                    "reason": reason})
         try:
-            self.writer.close()
-        finally:
-            _OPEN.remove(self)
-            self.finished = True
+            self.log(t, level, f"{text} after {self.steps} step(s)" + (f": {reason}" if reason else ""))
+            self._write("/episode", t, {"timestamp": _stamp(t), "outcome": outcome, "steps": self.steps,
+                                        "time_s": _r(self.steps * self.dt), "contacts": self.episode.contacts,
+                                        "reason": reason})
+        finally:  # whatever happens, the file is closed and the process can open the next log
+            try:
+                self.writer.close()
+            finally:
+                _OPEN.remove(self)
+                self.finished = True
 
 
 def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:
