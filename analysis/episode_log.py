@@ -110,6 +110,7 @@ def _read_scene(log: EpisodeLog, scene: dict[str, Any]) -> None:
 
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when PyYAML has it: ~10x faster
 
+
 def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], required: dict[str, list[str]]
                    ) -> None:
     """Decode, check against the schema's required fields, and file each message into ``log``."""

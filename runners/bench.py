@@ -190,7 +190,7 @@ def _own_compute(episodes: int, first_seed: int = 0) -> float:
 
 
 def _share_after_barrier(args: tuple[int, int, Any]) -> float:
-    """In a worker of :func:`_own_compute_all_cores`: warm up, wait for the others, run this share."""
+    """In a worker of :func:`_own_compute_all_cores`: warm up, wait for the others, run this share; seconds."""
     episodes, first_seed, barrier = args
     _own_compute(5, first_seed=10**6)  # imports and caches, outside the timing
     barrier.wait()

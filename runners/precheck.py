@@ -3,15 +3,16 @@
 Hydra reports composition errors on several lines; researchers launching thousands of episodes want
 ``error: config: planner.h_wiat: Key 'h_wiat' not in 'PlannerConfigSchema'`` and a non-zero exit before
 anything starts. For a sweep, every value of a swept override is composed once (the other swept keys at their
-first value; of a numeric range only the first, as numbers of one type compose alike). With ``--debug`` or
+first value), one per type for numbers, as numbers of one type compose alike. With ``--debug`` or
 ``HYDRA_FULL_ERROR=1`` the check is skipped and Hydra's full report is shown.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from hydra import compose, initialize_config_dir
@@ -22,6 +23,28 @@ from omegaconf import DictConfig
 from runners import schema
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
+
+
+def _value_kind(value: object) -> object:
+    """What composing a value depends on: the type for numbers, booleans and null; the value otherwise."""
+    if value is None or isinstance(value, bool | int | float):
+        return type(value).__name__
+    return repr(value)
+
+
+def representative_jobs(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
+    """The jobs of ``batch`` (each a list of ``key=value`` overrides), in order, that first bring a new
+    (key, value kind) pair: composing them tries every swept value (see :func:`_value_kind`). Used by the
+    command-line check below and by fuzzynav's Hydra sweeper (``runners/hydra_sweeper/``)."""
+    parser = OverridesParser.create()
+    seen: set[tuple[str, object]] = set()
+    picked = []
+    for job in batch:
+        pairs = {(o.get_key_element(), _value_kind(o.value())) for o in parser.parse_overrides(list(job))}
+        if not pairs <= seen:
+            seen |= pairs
+            picked.append(job)
+    return picked
 
 
 def debug_requested(argv: list[str]) -> bool:
@@ -68,7 +91,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
             continue  # globs only select existing options
         values = list(o.sweep_string_iterator())
         if o.value_type in (ValueType.RANGE_SWEEP, ValueType.INTERVAL_SWEEP):
-            values = values[:1]  # numbers of one type compose alike: the first is enough
+            values = values[:1]  # numbers of one type: the first stands for all (without listing them all)
         prefix = "+" if o.is_add() else ""
         variants.append([f"{prefix}{o.get_key_element()}={v}" for v in values])
     firsts = [v[0] for v in variants if v]
@@ -76,6 +99,8 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     for i, values in enumerate(variants):  # every other value of each swept key, the rest at their first value
         for value in values[1:]:
             trials.append([*base, *firsts[:i], value, *firsts[i + 1:]])
+    with contextlib.suppress(Exception):  # an override that does not parse: composing it below reports it
+        trials = representative_jobs(trials)  # one value of each kind per key is enough
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         for k, overrides in enumerate(trials):

@@ -194,19 +194,23 @@ class Interrupted(KeyboardInterrupt):
 _STOP_REQUESTED: list[int] = []  # signals received while a job runs, acted on between two steps
 
 
+def _stop(signum: int) -> KeyboardInterrupt:
+    """The exception a stop signal raises: :class:`Interrupted` for SIGTERM, KeyboardInterrupt for SIGINT."""
+    return Interrupted("terminated") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
 def _on_stop_signal(signum, frame) -> None:
     """SIGINT/SIGTERM during a job: noted, and raised between two steps (see :func:`_stop_if_requested`), so
     that a log is never cut in the middle of a message. A second signal stops at once."""
     if _STOP_REQUESTED:
-        raise Interrupted("terminated") if signum == signal.SIGTERM else KeyboardInterrupt
+        raise _stop(signum)
     _STOP_REQUESTED.append(signum)
 
 
 def _stop_if_requested() -> None:
-    """Raise the pending stop (KeyboardInterrupt for SIGINT, :class:`Interrupted` for SIGTERM), if any."""
+    """Raise the pending stop, if any (see :func:`_stop`)."""
     if _STOP_REQUESTED:
-        signum = _STOP_REQUESTED[0]
-        raise Interrupted("terminated") if signum == signal.SIGTERM else KeyboardInterrupt
+        raise _stop(_STOP_REQUESTED[0])
 
 
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:

@@ -18,30 +18,12 @@ import time
 from collections.abc import Sequence
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-from hydra.core.override_parser.overrides_parser import OverridesParser
+
+from runners.precheck import representative_jobs
+
+__all__ = ["FuzzynavSweeper", "representative_jobs"]
 
 log = logging.getLogger(__name__)
-
-
-def _value_kind(value: object) -> object:
-    """What composing a value depends on: the type for numbers, booleans and null; the value otherwise."""
-    if value is None or isinstance(value, bool | int | float):
-        return type(value).__name__
-    return repr(value)
-
-
-def representative_jobs(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
-    """The jobs of ``batch`` (each a list of ``key=value`` overrides), in order, that first bring a new
-    (key, value kind) pair: composing them tries every swept value (see :func:`_value_kind`)."""
-    parser = OverridesParser.create()
-    seen: set[tuple[str, object]] = set()
-    picked = []
-    for job in batch:
-        pairs = {(o.get_key_element(), _value_kind(o.value())) for o in parser.parse_overrides(list(job))}
-        if not pairs <= seen:
-            seen |= pairs
-            picked.append(job)
-    return picked
 
 
 class FuzzynavSweeper(BasicSweeper):
