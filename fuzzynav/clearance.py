@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fuzzynav.portable_math import dot2, norm2
+
 
 def segment_point_clearance(start: np.ndarray, ends: np.ndarray, points: np.ndarray) -> np.ndarray:
     """For each move ``start -> ends[i]`` (cm), the smallest distance (cm) from the segment to any of
@@ -14,6 +16,6 @@ def segment_point_clearance(start: np.ndarray, ends: np.ndarray, points: np.ndar
     start = np.asarray(start, dtype=float)
     seg = ends - start[None, :]  # (S, 2)
     rel = points[None, :, :] - start[None, None, :]  # (1, P, 2)
-    ll = (seg**2).sum(-1)[:, None]
-    s = np.clip((rel * seg[:, None, :]).sum(-1) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
-    return np.linalg.norm(rel - s[..., None] * seg[:, None, :], axis=-1).min(axis=1)
+    ll = dot2(seg, seg)[:, None]
+    s = np.clip(dot2(rel, seg[:, None, :]) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
+    return norm2(rel - s[..., None] * seg[:, None, :]).min(axis=1)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fuzzynav import laser as laser_mod
+from fuzzynav import portable_math
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
@@ -148,7 +149,7 @@ class Episode:
         new_contacts = len(touching - self._touching)
         self._touching = touching
         self.contacts += new_contacts
-        dist = math.dist((nxt.x, nxt.y), goal)
+        dist = portable_math.dist((nxt.x, nxt.y), goal)
         self.state = nxt
         self.step_index += 1
         if touching and cfg.terminate_on_collision:
@@ -178,7 +179,7 @@ def _swept_contacts(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarr
         return []
     rel0 = p0[None, :] - o0
     d = (p1 - p0)[None, :] - (o1 - o0)
-    dd = (d**2).sum(1)
-    s = np.clip(-(rel0 * d).sum(1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    closest = np.linalg.norm(rel0 + s[:, None] * d, axis=1)
+    dd = portable_math.dot2(d, d)
+    s = np.clip(-portable_math.dot2(rel0, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    closest = portable_math.norm2(rel0 + s[:, None] * d)
     return [int(k) for k in np.nonzero(closest < radius + radii)[0]]

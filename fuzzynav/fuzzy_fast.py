@@ -41,7 +41,7 @@ class _Output:
     rule_mask: np.ndarray  # (T, R) True where rule r has this term as consequent
     fallback: float
     term_rules: tuple[tuple[int, ...], ...]  # rules naming each term (scalar path)
-    weights: np.ndarray  # (2, G): area and first moment of the grid polyline = weights @ y
+    weights: np.ndarray  # (2, G): area and first moment of the grid polyline = sum(weights[i] * y)
     rising: tuple[list[float], ...]  # per term: samples up to the first maximum (non-decreasing)
     falling_neg: tuple[list[float], ...]  # per term: negated samples from the last maximum (non-decreasing)
     mf_rows: tuple[list[float], ...]  # per term: the sampled membership as a plain list (scalar path)
@@ -178,7 +178,9 @@ class FastEvaluator:
             np.maximum(block, term, out=block)
         y = y_t.T
         # the polyline integral over the plain grid (trapezoid rule as precomputed weights)
-        total_area, total_moment = out.weights @ y_t
+        # elementwise products summed down the grid in a fixed order (a matrix product would go through BLAS)
+        total_area = (out.weights[0][:, None] * y_t).sum(axis=0)
+        total_moment = (out.weights[1][:, None] * y_t).sum(axis=0)
         # scikit-fuzzy adds the points where each term crosses its cut level; split those grid segments
         xs, segs = _cut_points(out, cuts)  # (N, K) positions, segment index (-1 = none)
         order = np.argsort(np.where(segs >= 0, xs, np.inf), axis=1, kind="stable")
@@ -225,7 +227,7 @@ class FastEvaluator:
     def _defuzz_scalar(out: _Output, act: list[float]) -> float:
         cuts = [max([act[r] for r in rules]) if rules else 0.0 for rules in out.term_rules]
         y = np.minimum(np.array(cuts)[:, None], out.mfs).max(axis=0)
-        area, moment = (out.weights @ y).tolist()
+        area, moment = math.fsum((out.weights[0] * y).tolist()), math.fsum((out.weights[1] * y).tolist())
         grid, h = out.grid_list, out.step
         points = []  # (x, segment, term) where a term crosses its cut level, as scikit-fuzzy adds them
         for t, level in enumerate(cuts):
@@ -274,7 +276,8 @@ def _support(mf: np.ndarray) -> tuple[int, int]:
 
 
 def _grid_weights(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Weights w_a, w_m with area = w_a @ y and first moment = w_m @ y for the polyline through (grid, y)."""
+    """Weights w_a, w_m with area = sum(w_a * y) and first moment = sum(w_m * y) for the polyline through
+    (grid, y)."""
     n = len(grid)
     eye = np.eye(n)
     area, moment = _trapezoids(grid[:-1, None], grid[1:, None], eye[:-1], eye[1:])

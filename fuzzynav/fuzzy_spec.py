@@ -50,6 +50,8 @@ from typing import Any
 
 import numpy as np
 
+from fuzzynav.portable_math import exp_array
+
 SOURCES = ("left", "front", "right", "angle")
 ROLES = ("dtheta", "v")
 MF_PARAM_COUNT = {"trap": 4, "tri": 3, "gauss": 2, "crisp": 2}
@@ -318,7 +320,8 @@ def sample_membership(term: Term, grid: np.ndarray, universe_max: float) -> np.n
         return sample_membership(Term(term.name, "trap", (p[0], p[1], p[1], p[2])), grid, universe_max)
     if term.mf == "gauss":
         mean, sigma = p
-        return np.exp(-((x - mean) ** 2) / (2.0 * sigma**2))
+        d = x - mean
+        return exp_array(-(d * d) / (2.0 * (sigma * sigma)))
     lo, hi = p
     inside = (x >= lo) & ((x < hi) | ((hi >= universe_max) & (x <= hi)))
     return inside.astype(float)

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from fuzzynav.portable_math import dist, sin_cos_deg
+from fuzzynav.portable_random import uniform
 from fuzzynav.scenario import ScenarioError, scenario_from_dict
 
 ROBOT_RADIUS = 20.0
@@ -58,14 +60,14 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
     placed: list[tuple[np.ndarray, float]] = []
     for _ in range(n_static):
         for _attempt in range(200):
-            size = rng.uniform(size_lo, size_hi)
+            size = uniform(rng, size_lo, size_hi)
             if h - size - 10 <= size + 10:
                 continue  # too big for this height
-            centre = np.array([rng.uniform(min(250.0, w / 2), max(w - 250.0, w / 2)),
-                               rng.uniform(size + 10, h - size - 10)])
-            if min(np.linalg.norm(centre - start), np.linalg.norm(centre - goal)) < keep_out + size * math.sqrt(2):
+            centre = np.array([uniform(rng, min(250.0, w / 2), max(w - 250.0, w / 2)),
+                               uniform(rng, size + 10, h - size - 10)])
+            if min(dist(centre, start), dist(centre, goal)) < keep_out + size * math.sqrt(2):
                 continue
-            if any(np.linalg.norm(centre - c) < size * math.sqrt(2) + s * math.sqrt(2) + 2 * ROBOT_RADIUS
+            if any(dist(centre, c) < size * math.sqrt(2) + s * math.sqrt(2) + 2 * ROBOT_RADIUS
                    for c, s in placed):
                 continue
             placed.append((centre, size))
@@ -78,17 +80,17 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
             break
     dynamics = []
     for i in range(n_dynamic):
-        radius = round(float(rng.uniform(r_lo, r_hi)), 3)
-        speed = float(rng.uniform(v_lo, v_hi))
-        cross_x = rng.uniform(min(300.0, w / 2), max(w - 300.0, w / 2))
+        radius = round(uniform(rng, r_lo, r_hi), 3)
+        speed = uniform(rng, v_lo, v_hi)
+        cross_x = uniform(rng, min(300.0, w / 2), max(w - 300.0, w / 2))
         from_below = rng.random() < 0.5
-        angle = math.radians(rng.uniform(-30, 30)) + (math.pi / 2 if from_below else -math.pi / 2)
-        vel = np.array([math.cos(angle), math.sin(angle)]) * speed
+        sin, cos = sin_cos_deg(uniform(rng, -30, 30) + (90.0 if from_below else -90.0))
+        vel = np.array([cos, sin]) * speed
         # time at which it should cross the line: when the robot (about 25 cm/s) could be there, +- jitter
-        t_cross = max(2.0, (cross_x - start[0]) / 25.0 + rng.uniform(-6, 6))
+        t_cross = max(2.0, (cross_x - start[0]) / 25.0 + uniform(rng, -6, 6))
         p0 = np.array([cross_x, h / 2]) - vel * t_cross
         p0 = np.clip(p0, [radius, radius], [w - radius, h - radius])
-        if np.linalg.norm(p0 - start) < ROBOT_RADIUS + radius + CLEAR_CM:
+        if dist(p0, start) < ROBOT_RADIUS + radius + CLEAR_CM:
             p0 = p0 + np.array([0.0, (1 if p0[1] >= start[1] else -1) * (ROBOT_RADIUS + radius + CLEAR_CM)])
         dynamics.append({"id": f"m{i}", "radius": radius, "start": [round(float(p0[0]), 3), round(float(p0[1]), 3)],
                          "velocity": [round(float(vel[0]), 3), round(float(vel[1]), 3)]})

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+
+from fuzzynav import portable_math
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ def wrap_deg(angle: float) -> float:
 
 def bearing_deg(x: float, y: float, tx: float, ty: float) -> float:
     """Absolute bearing in degrees [0, 360) from (x, y) to (tx, ty)."""
-    return math.degrees(math.atan2(ty - y, tx - x)) % 360.0
+    return portable_math.bearing_deg(x, y, tx, ty)
 
 
 def step_unicycle(state: RobotState, dtheta_deg: float, v_cm_s: float, dt: float,
@@ -53,6 +54,5 @@ def step_unicycle(state: RobotState, dtheta_deg: float, v_cm_s: float, dt: float
     dtheta = max(-limits.max_turn_deg, min(limits.max_turn_deg, dtheta_deg))
     heading = (state.heading + dtheta) % 360.0
     v = 0.0 if v_cm_s <= 0.0 else max(limits.v_min, min(limits.v_max, v_cm_s))
-    rad = math.radians(heading)
-    return RobotState(x=state.x + v * dt * math.cos(rad), y=state.y + v * dt * math.sin(rad),
-                      heading=heading, v=v)
+    sin, cos = portable_math.sin_cos_deg(heading)
+    return RobotState(x=state.x + v * dt * cos, y=state.y + v * dt * sin, heading=heading, v=v)

@@ -11,6 +11,8 @@ from functools import cached_property
 
 import numpy as np
 
+from fuzzynav.portable_math import sin_cos_deg, sin_cos_deg_array
+from fuzzynav.portable_random import normal
 from fuzzynav.raycast import cast_rays
 
 
@@ -31,19 +33,24 @@ class LaserConfig:
             raise ValueError(f"sensors.laser.noise_std_cm: must be >= 0, got {self.noise_std_cm}")
 
     @property
-    def relative_angles_rad(self) -> np.ndarray:
-        """Beam angles relative to the heading, radians."""
-        return np.arange(self.beams) * (2.0 * np.pi / self.beams)
+    def relative_angles_deg(self) -> np.ndarray:
+        """Beam angles relative to the heading, degrees."""
+        return np.arange(self.beams) * (360.0 / self.beams)
+
+    @cached_property
+    def relative_directions(self) -> tuple[np.ndarray, np.ndarray]:
+        """(sin, cos) of every beam angle relative to the heading (computed once per configuration)."""
+        return sin_cos_deg_array(self.relative_angles_deg)
 
 
 @dataclass(frozen=True)
 class LaserScan:
-    """One laser frame: ranges (cm), world-frame beam angles (rad), and what each beam hit (ground truth,
-    for tests and ablations: -1 nothing, 0 static, k+1 moving obstacle k). The tracker does not read
-    ``labels``."""
+    """One laser frame: ranges (cm), world-frame beam directions (unit vectors, (N, 2)), and what each beam
+    hit (ground truth, for tests and ablations: -1 nothing, 0 static, k+1 moving obstacle k). The tracker
+    does not read ``labels``."""
 
     ranges: np.ndarray
-    angles_world_rad: np.ndarray
+    directions: np.ndarray
     labels: np.ndarray
     origin: tuple[float, float]
     range_cm: float
@@ -56,8 +63,8 @@ class LaserScan:
     @cached_property
     def xy(self) -> np.ndarray:
         """World coordinates (N, 2) in cm of every beam's end point (computed once per frame)."""
-        a = self.angles_world_rad
-        return np.stack([self.origin[0] + self.ranges * np.cos(a), self.origin[1] + self.ranges * np.sin(a)], axis=1)
+        d = self.directions
+        return np.stack([self.origin[0] + self.ranges * d[:, 0], self.origin[1] + self.ranges * d[:, 1]], axis=1)
 
     def points(self) -> np.ndarray:
         """World coordinates (K, 2) in cm of the beams that returned."""
@@ -67,13 +74,15 @@ class LaserScan:
 def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: np.ndarray,
          static_circles: np.ndarray, discs: np.ndarray, rng: np.random.Generator | None = None) -> LaserScan:
     """Cast all beams from (x, y) cm against the static world and moving discs (K, 3: x, y, r in cm)."""
-    angles = np.radians(heading_deg) + config.relative_angles_rad
+    # beam directions: the relative ones rotated by the heading (one sin/cos per frame, not one per beam)
+    s, c = sin_cos_deg(heading_deg)
+    rel_sin, rel_cos = config.relative_directions
+    directions = np.stack([c * rel_cos - s * rel_sin, s * rel_cos + c * rel_sin], axis=1)
     circles = np.vstack([static_circles.reshape(-1, 3), discs.reshape(-1, 3)])
-    ranges, hit = cast_rays(np.array([x, y]), angles, segments, circles, config.range_cm)
+    ranges, hit = cast_rays(np.array([x, y]), directions, segments, circles, config.range_cm)
     n_static = len(segments) + len(static_circles)
     labels = np.where(hit < 0, -1, np.where(hit < n_static, 0, hit - n_static + 1))
     if config.noise_std_cm > 0 and rng is not None:
-        noisy = ranges + rng.normal(0.0, config.noise_std_cm, size=ranges.shape)
+        noisy = ranges + normal(rng, 0.0, config.noise_std_cm, len(ranges))
         ranges = np.where(hit >= 0, np.clip(noisy, 0.0, np.nextafter(config.range_cm, 0)), ranges)
-    return LaserScan(ranges=ranges, angles_world_rad=angles % (2 * np.pi), labels=labels, origin=(x, y),
-                     range_cm=config.range_cm)
+    return LaserScan(ranges=ranges, directions=directions, labels=labels, origin=(x, y), range_cm=config.range_cm)

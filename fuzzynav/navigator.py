@@ -27,7 +27,6 @@ Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -37,6 +36,7 @@ from fuzzynav.clearance import segment_point_clearance
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState, bearing_deg, wrap_deg
 from fuzzynav.planner import Plan, PlannerConfig, find_new_path, path_collides, plan_heading_change
+from fuzzynav.portable_math import dist, sin_cos_deg
 from fuzzynav.tpt import TrajectoryPredictionTable, build_tpt
 from fuzzynav.tracking import Track
 
@@ -155,7 +155,7 @@ class Navigator:
         if active is not None:
             target = active.remaining[0]
             here = (s.x, s.y)
-            step = math.dist(here, target)
+            step = dist(here, target)
             after = ActivePlan(active.plan, active.done + 1)
             carry = after if after.done < len(after.plan.path) else None
             if step < 1e-6:
@@ -164,8 +164,8 @@ class Navigator:
             mode = active.plan.strategy if active.plan.strategy in ("detour", "evade") else "wait"
             return Decision(mode, plan_heading_change(s.heading, here, target), step / self.dt, inputs, tpt,
                             active.plan, new_plan), carry
-        dist = math.dist((s.x, s.y), obs.goal)
-        v = max(self.limits.v_min, min(self.config.direct_speed_cm_s, self.limits.v_max, dist / self.dt))
+        to_goal = dist((s.x, s.y), obs.goal)
+        v = max(self.limits.v_min, min(self.config.direct_speed_cm_s, self.limits.v_max, to_goal / self.dt))
         dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
         near = self._static_near(obs.sonar, angle) and not self._goal_in_reach(obs, angle)
         if near or not self._direct_is_clear(obs, dtheta, v):
@@ -180,9 +180,9 @@ class Navigator:
             return True
         s = obs.state
         turn = max(-self.limits.max_turn_deg, min(self.limits.max_turn_deg, dtheta))
-        rad = math.radians(s.heading + turn)
+        sin, cos = sin_cos_deg(s.heading + turn)
         here = np.array([s.x, s.y])
-        end = here + v * self.dt * np.array([math.cos(rad), math.sin(rad)])
+        end = here + v * self.dt * np.array([cos, sin])
         gap = segment_point_clearance(here, end, obs.static_points)[0]
         return bool(gap >= self.robot_radius + self.config.clear_path_margin_cm)
 
@@ -199,13 +199,13 @@ class Navigator:
             return False
         rel = angle - 90.0  # bearing of the goal relative to the heading, degrees
         lo, hi = self.front_sector
-        dist = math.dist(obs.state.position, obs.goal) - self.robot_radius
-        return lo <= rel <= hi and dist < obs.sonar[1]
+        to_goal = dist(obs.state.position, obs.goal) - self.robot_radius
+        return lo <= rel <= hi and to_goal < obs.sonar[1]
 
     def _still_valid(self, active: ActivePlan, obs: Observation, tpt: TrajectoryPredictionTable | None) -> bool:
         expected = active.plan.path[active.done - 1] if active.done > 0 else None
         here = np.array(obs.state.position)
-        if expected is not None and math.dist(here, expected) > self.planner.plan_tolerance_cm:
+        if expected is not None and dist(here, expected) > self.planner.plan_tolerance_cm:
             return False
         if tpt is None:
             return True

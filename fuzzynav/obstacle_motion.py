@@ -9,6 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fuzzynav.portable_math import norm2
 from fuzzynav.scenario import DynamicObstacle
 
 
@@ -27,7 +28,7 @@ class ObstacleMotion:
             if o.loop and len(pts) > 1:
                 pts = np.vstack([pts, pts[:1]])
             seg = np.diff(pts, axis=0)
-            lengths = np.hypot(seg[:, 0], seg[:, 1]) if len(pts) > 1 else np.zeros(0)
+            lengths = norm2(seg) if len(pts) > 1 else np.zeros(0)
             cum = np.concatenate([[0.0], np.cumsum(lengths)])
             self._paths.append(("wp", pts, cum, float(o.speed), bool(o.loop)))
 

@@ -8,13 +8,14 @@ the planner may use to keep detours off walls.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fuzzynav import tracking
 from fuzzynav.laser import LaserScan
+from fuzzynav.portable_math import hypot
+from fuzzynav.portable_random import normal
 from fuzzynav.tracking import Track, TrackerConfig, TrackerState
 
 MODES = ("laser", "ground_truth")
@@ -57,15 +58,15 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
     tracks = []
     for k in range(len(truth_radii)):
         p = np.array(truth_positions[k], dtype=float)
-        if math.hypot(p[0] - ox, p[1] - oy) - truth_radii[k] > scan.range_cm:
+        if hypot(float(p[0]) - ox, float(p[1]) - oy) - truth_radii[k] > scan.range_cm:
             continue
         v = np.array(truth_velocities[k], dtype=float)
         if not v.any():
             continue  # a stopped obstacle is not a moving obstacle
         if config.position_noise_std_cm > 0:
-            p = p + rng.normal(0.0, config.position_noise_std_cm, 2)
+            p = p + normal(rng, 0.0, config.position_noise_std_cm, 2)
         if config.velocity_noise_std_cm_s > 0:
-            v = v + rng.normal(0.0, config.velocity_noise_std_cm_s, 2)
+            v = v + normal(rng, 0.0, config.velocity_noise_std_cm_s, 2)
         tracks.append(Track(k + 1, float(p[0]), float(p[1]), float(v[0]), float(v[1]), float(truth_radii[k])))
     moving = scan.returned & (scan.labels > 0)
     return state, Perceived(tuple(tracks), moving, static_points(scan, moving))

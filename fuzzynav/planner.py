@@ -42,7 +42,6 @@ Choices where the listing is silent (documented in the README, tested):
 from __future__ import annotations
 
 import heapq
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -50,6 +49,7 @@ import numpy as np
 
 from fuzzynav.clearance import segment_point_clearance
 from fuzzynav.kinematics import wrap_deg
+from fuzzynav.portable_math import atan2_deg, dist, dot2, norm2, sin_cos_deg_array
 from fuzzynav.tpt import TrajectoryPredictionTable
 
 STRATEGIES = ("auto", "wait", "detour", "none")
@@ -170,13 +170,13 @@ def get_successors(r: Sequence[float], r_goal: Sequence[float], phi_deg: float, 
 
     Returns positions (S, 2) cm in the listing's order (speed outer, heading inner), their speeds (cm/s),
     their headings (degrees) and φLow."""
-    theta = math.degrees(math.atan2(r_goal[1] - r[1], r_goal[0] - r[0])) % 360.0
+    theta = atan2_deg(r_goal[1] - r[1], r_goal[0] - r[0]) % 360.0
     low = phi_low(theta, phi_deg, rule)
     headings = low + heading_step_deg * np.arange(n_headings)
     v = np.repeat(np.asarray(speeds, dtype=float), n_headings)
     h = np.tile(headings, len(speeds))
-    rad = np.radians(h)
-    pos = np.stack([r[0] + v * dt * np.cos(rad), r[1] + v * dt * np.sin(rad)], axis=1)
+    sin, cos = sin_cos_deg_array(h)
+    pos = np.stack([r[0] + v * dt * cos, r[1] + v * dt * sin], axis=1)
     return pos, v, h % 360.0, low
 
 
@@ -189,9 +189,9 @@ def obstacle_gaps(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.nd
     o1 = tpt.obstacles_at(step)
     p0 = start[None, None, :] - o0[None, :, :]  # relative position at the start, (1, J, 2)
     dp = (ends[:, None, :] - start[None, None, :]) - (o1 - o0)[None, :, :]  # (S, J, 2)
-    dd = (dp**2).sum(-1)
-    s = np.clip(-(p0 * dp).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    closest = np.linalg.norm(p0 + s[..., None] * dp, axis=-1)
+    dd = dot2(dp, dp)
+    s = np.clip(-dot2(p0, dp) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    closest = norm2(p0 + s[..., None] * dp)
     return closest - tpt.robot_radius - tpt.obstacle_radii[None, :]
 
 
@@ -244,8 +244,8 @@ def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, headin
         succ, _speeds, heads, low = get_successors(current, r_goal, phi, config.successor_speeds, tpt.dt,
                                                    config.n_headings, config.heading_step_deg,
                                                    config.phi_low_rule)
-        g = np.linalg.norm(succ - current, axis=1)
-        f = g + np.linalg.norm(succ - r_goal, axis=1)
+        g = norm2(succ - current)
+        f = g + norm2(succ - r_goal)
         bad = moves_collide(tpt, current, succ, time + 1, static_points, static_clearance)
         if config.respect_turn_limit:
             bad |= np.abs((heads - head + 180.0) % 360.0 - 180.0) > max_turn_deg + 1e-9
@@ -264,12 +264,12 @@ def _greedy(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.nda
     same heading straight at rG all have f = |rG - current| exactly; such ties (within 1e-9 cm) go to the
     faster move, as the paper's text asks ("the robot has to move faster"), then to the listing's order."""
     current, time, path, first_low = start, t_s1, [], None
-    while math.dist(current, r_goal) > config.detour_tolerance_cm:
+    while dist(current, r_goal) > config.detour_tolerance_cm:
         if time - t_s1 >= config.detour_max_steps:
             return None, first_low or 0.0, f"rG not reached within {config.detour_max_steps} steps"
         succ, heads, f, low = expand(current, heading, time)
         first_low = low if first_low is None else first_low
-        best = _argmin_prefer_fast(f, np.linalg.norm(succ - current, axis=1))
+        best = _argmin_prefer_fast(f, norm2(succ - current))
         if not np.isfinite(f[best]):
             return None, first_low, f"no collision-free successor at step {time + 1}"
         current, heading = succ[best], float(heads[best])
@@ -293,7 +293,7 @@ def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndar
     successors and costs, with g accumulated along the path and backtracking, in (position, step) space.
     States are merged on a 10 cm grid (first arrival wins); ties in f go to the path with fewer steps."""
     first_low = None
-    h0 = float(np.linalg.norm(start - r_goal))
+    h0 = dist(start, r_goal)
     heap: list = [(h0, 0, 0, 0.0, tuple(start), heading, t_s1, None)]
     parents: dict[int, tuple] = {}
     seen: set[tuple[int, int]] = set()
@@ -303,7 +303,7 @@ def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndar
         _f, depth, node_id, g, pos, head, time, parent = heapq.heappop(heap)
         parents[node_id] = (pos, parent)
         here = np.array(pos)
-        if math.dist(pos, r_goal) <= config.detour_tolerance_cm and depth > 0:
+        if dist(pos, r_goal) <= config.detour_tolerance_cm and depth > 0:
             path = []
             nid = node_id
             while nid is not None and parents[nid][1] is not None:
@@ -319,11 +319,11 @@ def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndar
             return None, first_low or 0.0, f"rG not reached within {config.astar_max_expansions} expansions"
         succ, heads, f, low = expand(here, head, time)
         first_low = low if first_low is None else first_low
-        steps = np.linalg.norm(succ - here, axis=1)
+        steps = norm2(succ - here)
         for i in np.nonzero(np.isfinite(f))[0]:
             counter += 1
             g2 = g + float(steps[i])
-            h2 = float(np.linalg.norm(succ[i] - r_goal))
+            h2 = dist(succ[i], r_goal)
             heapq.heappush(heap, (g2 + h2, depth + 1, counter, g2, tuple(succ[i]), float(heads[i]), time + 1,
                                   node_id))
     return None, first_low or 0.0, "no collision-free path to rG"
@@ -331,7 +331,7 @@ def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndar
 
 def _bearing(p: np.ndarray, goal: Sequence[float], default: float) -> float:
     dx, dy = goal[0] - p[0], goal[1] - p[1]
-    return default if dx == 0 and dy == 0 else math.degrees(math.atan2(dy, dx)) % 360.0
+    return default if dx == 0 and dy == 0 else atan2_deg(dy, dx) % 360.0
 
 
 def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading_deg: float,
@@ -405,12 +405,12 @@ def _evade(tpt: TrajectoryPredictionTable, here: np.ndarray, heading_deg: float,
     headings = heading_deg + np.arange(-max_turn_deg, max_turn_deg + 1e-9, config.heading_step_deg)
     speeds = np.asarray(config.successor_speeds, dtype=float)
     v = np.repeat(speeds, len(headings))
-    h = np.radians(np.tile(headings, len(speeds)))
-    ends = here[None, :] + (v * tpt.dt)[:, None] * np.stack([np.cos(h), np.sin(h)], axis=1)
+    sin, cos = sin_cos_deg_array(np.tile(headings, len(speeds)))
+    ends = here[None, :] + (v * tpt.dt)[:, None] * np.stack([cos, sin], axis=1)
     gap = obstacle_gaps(tpt, here, ends, 1).min(axis=1)  # the move itself (swept)
     for k in range(2, tpt.n_traj + 1):  # then standing at the end point
-        dist = np.linalg.norm(ends[:, None, :] - tpt.obstacles_at(k)[None, :, :], axis=2)
-        gap = np.minimum(gap, (dist - tpt.robot_radius - tpt.obstacle_radii[None, :]).min(axis=1))
+        centre_gap = norm2(ends[:, None, :] - tpt.obstacles_at(k)[None, :, :])
+        gap = np.minimum(gap, (centre_gap - tpt.robot_radius - tpt.obstacle_radii[None, :]).min(axis=1))
     if static_points is not None and len(static_points):
         gap = np.where(segment_point_clearance(here, ends, static_points) < static_clearance, -np.inf, gap)
     best = int(np.argmax(gap))
@@ -419,6 +419,6 @@ def _evade(tpt: TrajectoryPredictionTable, here: np.ndarray, heading_deg: float,
 
 def plan_heading_change(heading_deg: float, here: Sequence[float], target: Sequence[float]) -> float:
     """Steering increment (degrees) that points the robot at ``target``; 0 when already there."""
-    if math.dist(here, target) < 1e-9:
+    if dist(here, target) < 1e-9:
         return 0.0
-    return wrap_deg(math.degrees(math.atan2(target[1] - here[1], target[0] - here[0])) - heading_deg)
+    return wrap_deg(atan2_deg(target[1] - here[1], target[0] - here[0]) - heading_deg)

@@ -1,23 +1,26 @@
 """Vectorised ray casting against line segments and circles (numpy, no per-ray Python loop).
 
-Lengths in cm, angles in radians (world frame, counter-clockwise from +x).
+Lengths in cm; rays are given by unit direction vectors in the world frame.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from fuzzynav.portable_math import norm2
 
-def cast_rays(origin: np.ndarray, angles_rad: np.ndarray, segments: np.ndarray, circles: np.ndarray,
+
+def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, circles: np.ndarray,
               max_range: float) -> tuple[np.ndarray, np.ndarray]:
-    """Distance from ``origin`` along each ray to the first segment or circle, capped at ``max_range``.
+    """Distance from ``origin`` along each ray (``directions``: (N, 2) unit vectors) to the first segment
+    or circle, capped at ``max_range``.
 
     ``segments`` is (M, 4) rows ``x1, y1, x2, y2``; ``circles`` is (C, 3) rows ``cx, cy, r``. Returns the
     ranges (N,) and the index of what was hit (N,): ``-1`` nothing, ``0..M-1`` a segment, ``M..M+C-1`` a
     circle. A ray starting inside a circle has range 0. Segments and circles entirely beyond ``max_range``
     are dropped before casting (they cannot be hit), which keeps large worlds cheap.
     """
-    d = np.stack([np.cos(angles_rad), np.sin(angles_rad)], axis=1)  # (N, 2)
+    d = np.asarray(directions, dtype=float).reshape(-1, 2)
     n = len(d)
     best = np.full(n, float(max_range))
     hit = np.full(n, -1, dtype=np.intp)
@@ -25,7 +28,7 @@ def cast_rays(origin: np.ndarray, angles_rad: np.ndarray, segments: np.ndarray, 
     segments, circles = segments.reshape(-1, 4), circles.reshape(-1, 3)
     reach = max_range * (1.0 + 1e-9) + 1e-9  # a hair of slack: culling must never drop a hit at the range
     seg_ids = np.nonzero(_segments_within(segments, ox, oy, reach))[0]
-    circ_ids = np.nonzero(np.hypot(circles[:, 0] - ox, circles[:, 1] - oy) - circles[:, 2] <= reach)[0]
+    circ_ids = np.nonzero(norm2(circles[:, :2] - (ox, oy)) - circles[:, 2] <= reach)[0]
     all_segments = len(segments)
     segments, circles = segments[seg_ids], circles[circ_ids]
     if len(segments):
@@ -47,9 +50,9 @@ def cast_rays(origin: np.ndarray, angles_rad: np.ndarray, segments: np.ndarray, 
     if len(circles):
         cx = circles[:, 0] - ox
         cy = circles[:, 1] - oy
-        r2 = circles[:, 2] ** 2
+        r2 = circles[:, 2] * circles[:, 2]
         b = d[:, :1] * cx[None, :] + d[:, 1:] * cy[None, :]  # projection of centre on the ray
-        c = (cx**2 + cy**2 - r2)[None, :]
+        c = (cx * cx + cy * cy - r2)[None, :]
         disc = b * b - c
         with np.errstate(invalid="ignore"):
             t = b - np.sqrt(disc)
@@ -69,4 +72,5 @@ def _segments_within(segments: np.ndarray, ox: float, oy: float, max_range: floa
     ex, ey = segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1]
     ee = ex * ex + ey * ey
     s = np.clip(-(ax * ex + ay * ey) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
-    return np.hypot(ax + s * ex, ay + s * ey) <= max_range
+    px, py = ax + s * ex, ay + s * ey
+    return np.sqrt(px * px + py * py) <= max_range

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from fuzzynav.portable_math import sin_cos_deg, sin_cos_deg_array
+
 SECTOR_NAMES = ("left", "front", "right")
 
 
@@ -55,8 +57,8 @@ class Sonar:
         for name in SECTOR_NAMES:
             lo, hi = getattr(config, name)
             n = max(2, math.ceil((hi - lo) / config.arc_step_deg) + 1)
-            ang = np.radians(np.linspace(lo, hi, n))
-            arc = np.stack([np.cos(ang), np.sin(ang)], axis=1) * reach
+            sin, cos = sin_cos_deg_array(np.linspace(lo, hi, n))
+            arc = np.stack([cos, sin], axis=1) * reach
             self._templates.append(np.vstack([[0.0, 0.0], arc, [0.0, 0.0]]))
 
     def read(self, x: float, y: float, heading_deg: float, solid: shapely.Geometry,
@@ -65,9 +67,10 @@ class Sonar:
 
         ``solid`` is the static world (obstacles + walls); ``discs`` (K, 3) rows ``x, y, r`` are moving
         obstacles, used only when ``sees_dynamic`` is set."""
-        c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
-        rot = np.array([[c, s], [-s, c]])
-        wedges = shapely.polygons([t @ rot + (x, y) for t in self._templates])
+        s, c = sin_cos_deg(heading_deg)
+        # rotate the templates by the heading elementwise (a matrix product would go through BLAS)
+        wedges = shapely.polygons([np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y], axis=1)
+                                   for t in self._templates])
         reach = self._reach
         with np.errstate(divide="ignore", invalid="ignore"):  # GEOS on degenerate slivers; NaN is handled below
             target = shapely.clip_by_rect(solid, x - reach, y - reach, x + reach, y + reach)

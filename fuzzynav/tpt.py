@@ -13,12 +13,12 @@ samples see keep exactly the paper's rows. Units: cm, s, cm/s.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav.portable_math import atan2_deg_array, dot2, hypot, norm2
 from fuzzynav.tracking import Track
 
 
@@ -50,7 +50,7 @@ class TrajectoryPredictionTable:
     def obstacle_angles_deg(self) -> np.ndarray:
         """Moving angle φ of each obstacle, degrees [0, 360)."""
         v = self.obstacle_velocities.reshape(-1, 2)
-        return np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0
+        return atan2_deg_array(v[:, 1], v[:, 0]) % 360.0
 
     @property
     def any_collision(self) -> bool:
@@ -80,7 +80,7 @@ def predict_robot(position: Sequence[float], goal: Sequence[float], speed: float
     p = np.asarray(position, dtype=float)
     g = np.asarray(goal, dtype=float)
     d = g - p
-    dist = math.hypot(d[0], d[1])
+    dist = hypot(float(d[0]), float(d[1]))
     steps = np.arange(n + 1) * speed * dt
     travel = np.minimum(steps, dist)
     unit = d / dist if dist > 0 else np.zeros(2)
@@ -102,12 +102,12 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     obstacles = pos0[None, :, :] + vel[None, :, :] * k
     rel = obstacles - robot[:, None, :]  # (n+1, J, 2)
     limit = robot_radius + radii[None, :] + safety_margin
-    collide = np.linalg.norm(rel, axis=2) < limit
+    collide = norm2(rel) < limit
     if swept and n_traj >= 1 and j:
         d = rel[1:] - rel[:-1]  # relative motion over each step
-        dd = (d**2).sum(-1)
-        s = np.clip(-(rel[:-1] * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        between = np.linalg.norm(rel[:-1] + s[..., None] * d, axis=2) < limit
+        dd = dot2(d, d)
+        s = np.clip(-dot2(rel[:-1], d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        between = norm2(rel[:-1] + s[..., None] * d) < limit
         collide[1:] |= between & ~collide[:-1] & ~collide[1:]
     return TrajectoryPredictionTable(
         robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),

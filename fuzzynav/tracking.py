@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzynav.laser import LaserScan
+from fuzzynav.portable_math import atan2_deg, fsum_dot, fsum_mean, hypot, norm2
 
 
 @dataclass(frozen=True)
@@ -44,12 +45,12 @@ class Track:
     @property
     def speed(self) -> float:
         """Speed in cm/s."""
-        return math.hypot(self.vx, self.vy)
+        return hypot(self.vx, self.vy)
 
     @property
     def moving_angle_deg(self) -> float:
         """Moving angle φ in degrees [0, 360), counter-clockwise from +x."""
-        return math.degrees(math.atan2(self.vy, self.vx)) % 360.0
+        return atan2_deg(self.vy, self.vx) % 360.0
 
 
 @dataclass(frozen=True)
@@ -114,7 +115,7 @@ def segment(scan: LaserScan, gap_cm: float) -> list[np.ndarray]:
         return []
     pts = scan.xy
     to_next = np.concatenate([pts[1:], pts[:1]]) - pts  # to the next beam, wrapping around
-    linked = ret & np.concatenate([ret[1:], ret[:1]]) & (np.hypot(to_next[:, 0], to_next[:, 1]) <= gap_cm)
+    linked = ret & np.concatenate([ret[1:], ret[:1]]) & (norm2(to_next) <= gap_cm)
     if linked.all():
         return [np.arange(n)]
     # start a cluster at each returned beam not linked from its predecessor; rotate so index 0 starts one
@@ -132,18 +133,21 @@ def fit_disc(points: np.ndarray) -> tuple[float, float, float, float]:
     Solved in coordinates centred on the points' mean, where Kasa's normal equations reduce to a 2 x 2
     system for the centre offset (a, b): [Suu Suv; Suv Svv] (a, b) = ½ (Suz, Svz) with z = u² + v²; then
     r² = a² + b² + mean(z). Collinear points (no circle) give an infinite radius."""
-    mx, my = points.mean(axis=0)
+    # correctly rounded sums (math.fsum), not u @ v: BLAS's dot product depends on the CPU's kernel
+    mx, my = fsum_mean(points[:, 0]), fsum_mean(points[:, 1])
     u, v = points[:, 0] - mx, points[:, 1] - my
     z = u * u + v * v
-    suu, svv, suv = float(u @ u), float(v @ v), float(u @ v)
-    suz, svz = float(u @ z), float(v @ z)
+    suu, svv, suv = fsum_dot(u, u), fsum_dot(v, v), fsum_dot(u, v)
+    suz, svz = fsum_dot(u, z), fsum_dot(v, z)
     det = suu * svv - suv * suv
-    if not det > 1e-12 * (suu + svv) ** 2:
+    if not det > 1e-12 * (suu + svv) * (suu + svv):
         return float(mx), float(my), math.inf, math.inf
     a = (suz * svv - svz * suv) / (2.0 * det)
     b = (svz * suu - suz * suv) / (2.0 * det)
-    r = math.sqrt(a * a + b * b + float(z.mean()))
-    rms = float(np.sqrt(np.mean((np.hypot(u - a, v - b) - r) ** 2)))
+    r = math.sqrt(a * a + b * b + fsum_mean(z))
+    du, dv = u - a, v - b
+    residual = np.sqrt(du * du + dv * dv) - r
+    rms = math.sqrt(fsum_mean(residual * residual))
     return float(mx + a), float(my + b), r, rms
 
 
@@ -155,13 +159,13 @@ def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
         if len(beams) < config.min_points:
             continue
         pts = scan.xy[beams]
-        extent = np.hypot(*(pts.max(0) - pts.min(0)))
+        extent = float(norm2(pts.max(0) - pts.min(0)))
         if extent > 2.0 * config.max_radius_cm:
             continue
         cx, cy, radius, rms = fit_disc(pts)
         if radius > config.max_radius_cm or rms > config.max_fit_rms_cm:
             continue
-        if math.hypot(cx - ox, cy - oy) <= float(scan.ranges[beams].min()):  # concave side towards us: not a disc
+        if hypot(cx - ox, cy - oy) <= float(scan.ranges[beams].min()):  # concave side towards us: not a disc
             continue
         out.append(Detection(cx, cy, radius, beams))
     return out
@@ -182,7 +186,7 @@ def update(state: TrackerState, scan: LaserScan, time_s: float,
             dt = time_s - t.time
             px, py = t.x + t.vx * dt, t.y + t.vy * dt
             for j, d in enumerate(dets):
-                cost[i, j] = math.hypot(d.x - px, d.y - py)
+                cost[i, j] = hypot(d.x - px, d.y - py)
         # imported here: scipy.optimize takes ~0.25 s to import, which every process importing fuzzynav (a
         # sweep's launching process, the analysis' tests, a single run's start-up) would otherwise pay
         from scipy.optimize import linear_sum_assignment
@@ -206,7 +210,7 @@ def update(state: TrackerState, scan: LaserScan, time_s: float,
             new = _Tracked(next_id, d.x, d.y, 0.0, 0.0, d.radius, time_s, 1, 0)
             next_id += 1
         tracks.append(new)
-        if new.hits >= 2 and math.hypot(new.vx, new.vy) >= config.min_speed_cm_s:
+        if new.hits >= 2 and hypot(new.vx, new.vy) >= config.min_speed_cm_s:
             reported.append(Track(new.id, new.x, new.y, new.vx, new.vy, new.radius))
             moving_mask[d.beams] = True
     for i, t in enumerate(prev):

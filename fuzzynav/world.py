@@ -6,13 +6,13 @@ Lengths in cm. The walls are the edges of ``bounds``; the region outside them co
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Sequence
 
 import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, box
 
+from fuzzynav.portable_math import dist
 from fuzzynav.scenario import StaticObstacle
 
 _FRAME = 1.0e4  # thickness (cm) of the solid frame that stands for "outside the bounds"
@@ -48,6 +48,6 @@ class World:
 
     def static_contact(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
         """True if a disc of ``radius`` cm moving straight from ``p0`` to ``p1`` touches an obstacle or wall."""
-        path = Point(p1) if math.dist(p0, p1) < 1e-9 else LineString([p0, p1])
+        path = Point(p1) if dist(p0, p1) < 1e-9 else LineString([p0, p1])
         with np.errstate(divide="ignore", invalid="ignore"):
             return bool(shapely.dwithin(self.solid, path, radius - 1e-9))

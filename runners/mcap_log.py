@@ -25,6 +25,7 @@ import orjson
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from fuzzynav.episode import Episode, StepRecord
+from fuzzynav.portable_math import dist, sin_cos_deg
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 
@@ -129,8 +130,8 @@ def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) 
     if heading_deg == 0.0:
         orientation = _NO_ROTATION
     else:
-        half = math.radians(heading_deg) / 2.0
-        orientation = {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}
+        sin_half, cos_half = sin_cos_deg(heading_deg / 2.0)  # portable: log content must not depend on the CPU
+        orientation = {"x": 0.0, "y": 0.0, "z": sin_half, "w": cos_half}
     return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": float(z_m)}, "orientation": orientation}
 
 
@@ -329,7 +330,7 @@ class EpisodeLogWriter:
             self.log(t, LOG_WARNING, f"collision predicted with obstacle {p.obstacle_id} at step +{p.tc} "
                                      f"(tS={p.tS}, tG={p.tG}, waitTime={p.wait_time}, hWait={self.h_wait})")
             if p.strategy == "wait":
-                waiting = int(sum(1 for q in p.path if math.dist(q, p.path[-1]) < 1e-9))
+                waiting = int(sum(1 for q in p.path if dist(q, p.path[-1]) < 1e-9))
                 self.log(t, LOG_INFO, f"wait started: {waiting} step(s) at ({p.path[-1][0]:.0f}, "
                                       f"{p.path[-1][1]:.0f}) cm — {p.reason}")
             elif p.strategy == "detour":

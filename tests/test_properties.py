@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from fuzzynav.episode import Episode
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
+from fuzzynav.portable_math import sin_cos_deg_array
 from fuzzynav.raycast import cast_rays
 from fuzzynav.scenario import Circle, StaticObstacle, scenario_from_dict
 from fuzzynav.sonar import Sonar, SonarConfig
@@ -79,14 +80,15 @@ def test_sonar_preclip_changes_nothing(world, fx, fy, heading):
 def test_ray_cast_culling_changes_nothing(world, fx, fy, max_range):
     xmin, ymin, xmax, ymax = world.bounds
     origin = np.array([xmin + fx * (xmax - xmin), ymin + fy * (ymax - ymin)])
-    angles = np.arange(360) * (2 * np.pi / 360)
-    ranges, hit = cast_rays(origin, angles, world.segments, world.circles, max_range)
+    sin, cos = sin_cos_deg_array(np.arange(360.0))
+    directions = np.stack([cos, sin], axis=1)
+    ranges, hit = cast_rays(origin, directions, world.segments, world.circles, max_range)
     # brute force: every segment and circle on its own, the nearest wins (ties to the lowest index)
     best, best_hit = np.full(360, float(max_range)), np.full(360, -1)
     items = [(world.segments[i:i + 1], np.zeros((0, 3))) for i in range(len(world.segments))]
     items += [(np.zeros((0, 4)), world.circles[i:i + 1]) for i in range(len(world.circles))]
     for k, (seg, circ) in enumerate(items):
-        r, h = cast_rays(origin, angles, seg, circ, 1e12)
+        r, h = cast_rays(origin, directions, seg, circ, 1e12)
         closer = (h >= 0) & (r < best)
         best, best_hit = np.where(closer, r, best), np.where(closer, k, best_hit)
     np.testing.assert_array_equal(ranges, best)
