@@ -4,15 +4,22 @@
     python -m runners.dataset build paper_fig5          # record every episode, write the hashes
     python -m runners.dataset verify paper_fig5         # regenerate and compare; exit 1 on any difference
     python -m runners.dataset verify paper_fig5 planner.safety_margin_cm=12   # what a behaviour change breaks
+    python -m runners.dataset verify paper_fig5 --seeds 0:3 --detail           # every differing numeric field
 
-A dataset is ``datasets/<name>/manifest.yaml``: the sweep that produces it (scenarios × variants × seeds,
-plus overrides for all runs, as Hydra overrides of ``conf/config.yaml``) and, once built, for each
-episode the SHA-256 of its message content (every topic and field except the timing field
-``compute_time_us``; metadata excluded: it holds versions and the git commit), a short digest per
-topic and per step (so that a difference can be located without the original logs), and the SHA-256
-of the metrics table (compute-time columns excluded). ``keep_logs`` lists the seeds whose logs are
-committed in ``datasets/<name>/logs/``; ``verify`` compares with them message by message and names the
-first differing topic and step.
+A dataset is ``datasets/<name>/manifest.yaml`` (``--root DIR``: ``DIR/<name>/manifest.yaml``): the sweep that
+produces it (scenarios × variants × seeds, plus overrides for all runs, as Hydra overrides of
+``conf/config.yaml``) and, once built, for each episode the SHA-256 of its message content (every topic and
+field except the timing field ``compute_time_us``; metadata excluded: it holds versions and the git commit),
+a short digest per topic and per step (so that a difference can be located without the original logs), the
+behaviour record of :class:`runners.log_fields.BehaviourRecord` (digests of the decision/plan/outcome values
+and of all non-float values, the decision mode per step, the sum of each topic's floats), and the SHA-256 of
+the metrics table (compute-time columns excluded). ``keep_logs`` lists the seeds whose logs are committed in
+``datasets/<name>/logs/``.
+
+``verify`` says for each differing episode whether a decision, plan or outcome changed, only other discrete
+values (perception, predictions), or only floating-point values, with the largest absolute difference per
+topic and field: measured message by message against a committed log, else classified from the manifest's
+behaviour record (in manifests built before it existed, only a changed outcome or step count is classified).
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ import shutil
 import sys
 import tempfile
 from collections.abc import Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,11 +39,13 @@ import yaml
 
 from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
+from runners.log_diff import EpisodeDiff, diff_logs, diff_records
+from runners.log_fields import TIMING_FIELDS, BehaviourRecord
+from runners.verify_report import detail_lines, episode_line, summary_lines
 
 ROOT = Path(__file__).resolve().parents[1]
-DATASETS = ROOT / "datasets"
+DATASETS = ROOT / "datasets"  # the default place of datasets; ``--root`` (tests: a temporary directory) changes it
 CONF = ROOT / "conf"
-TIMING_FIELDS = ("compute_time_us",)
 
 
 class DatasetError(Exception):
@@ -43,14 +53,14 @@ class DatasetError(Exception):
 
 
 # -- the manifest -------------------------------------------------------------------------------------------
-def manifest_path(name: str) -> Path:
-    return DATASETS / name / "manifest.yaml"
+def manifest_path(name: str, root: Path = DATASETS) -> Path:
+    return root / name / "manifest.yaml"
 
 
-def load_manifest(name: str) -> dict[str, Any]:
-    path = manifest_path(name)
+def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
+    path = manifest_path(name, root)
     if not path.exists():
-        known = ", ".join(sorted(p.parent.name for p in DATASETS.glob("*/manifest.yaml"))) or "none"
+        known = ", ".join(sorted(p.parent.name for p in root.glob("*/manifest.yaml"))) or "none"
         raise DatasetError(f"{path}: no such dataset (known: {known})")
     try:
         data = yaml.safe_load(path.read_text())
@@ -96,18 +106,21 @@ def _canonical(message: dict[str, Any]) -> bytes:
 
 
 def content_digests(path: Path) -> dict[str, Any]:
-    """SHA-256 of the message content, plus 8-hex digests per topic and per log time (step)."""
+    """SHA-256 of the message content, 8-hex digests per topic and per log time (step), and the behaviour
+    record (:class:`runners.log_fields.BehaviourRecord`)."""
     whole = hashlib.sha256()
     topics: dict[str, Any] = {}
     steps: dict[int, Any] = {}
+    behaviour = BehaviourRecord()
     for topic, t, msg in iter_messages(path):
         data = _canonical(msg)
         line = topic.encode() + b"|" + str(t).encode() + b"|" + data + b"\n"
         whole.update(line)
         topics.setdefault(topic, hashlib.sha256()).update(line)
         steps.setdefault(t, hashlib.sha256()).update(line)
+        behaviour.add(topic, t, msg)
     return {"sha256": whole.hexdigest(), "topics": {k: v.hexdigest()[:8] for k, v in sorted(topics.items())},
-            "step_digests": [steps[t].hexdigest()[:8] for t in sorted(steps)]}
+            "step_digests": [steps[t].hexdigest()[:8] for t in sorted(steps)], **behaviour.result()}
 
 
 def metrics_digest(paths: Iterable[Path]) -> str:
@@ -156,11 +169,14 @@ def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: 
     return sorted(results, key=lambda r: r["file"])
 
 
-def build(name: str, n_jobs: int = -1) -> dict[str, Any]:
+EPISODE_FIELDS = ("outcome", "steps", "sha256", "decision_digest", "discrete_digest", "modes", "float_sums", "topics")
+
+
+def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:
     """Record the dataset and write the hashes into its manifest; keep the logs of the ``keep_logs`` seeds."""
-    manifest = load_manifest(name)
+    manifest = load_manifest(name, root)
     keep = set(manifest.get("keep_logs") or [])
-    log_dir = DATASETS / name / "logs"
+    log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
         results = record_all(manifest, Path(tmp), n_jobs, desc=f"build {name}")
         manifest["metrics_sha256"] = metrics_digest(sorted(Path(tmp).glob("*.mcap")))
@@ -171,29 +187,10 @@ def build(name: str, n_jobs: int = -1) -> dict[str, Any]:
             log_dir.mkdir(parents=True)
             for file in kept:
                 shutil.copy(Path(tmp) / file, log_dir / file)
-    manifest["episodes"] = {r["file"]: {"outcome": r["outcome"], "steps": r["steps"], "sha256": r["sha256"],
-                                        "topics": r["topics"], "step_digests": " ".join(r["step_digests"])}
-                            for r in results}
-    manifest_path(name).write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
+    manifest["episodes"] = {r["file"]: {**{k: r[k] for k in EPISODE_FIELDS},
+                                        "step_digests": " ".join(r["step_digests"])} for r in results}
+    manifest_path(name, root).write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
     return manifest
-
-
-def _first_difference(recorded: Path, fresh: Path) -> str:
-    """The first (topic, step) whose message differs between two logs of the same episode."""
-    old = [(t, topic, _canonical(m)) for topic, t, m in iter_messages(recorded)]
-    new = [(t, topic, _canonical(m)) for topic, t, m in iter_messages(fresh)]
-    for a, b in zip(old, new, strict=False):
-        if a != b:
-            return f"first difference: topic {a[1]} at step {a[0] // 1_000_000_000} ({_field_diff(a[2], b[2])})"
-    return f"first difference: the logs have {len(old)} and {len(new)} messages"
-
-
-def _field_diff(a: bytes, b: bytes) -> str:
-    x, y = json.loads(a), json.loads(b)
-    for key in sorted(set(x) | set(y)):
-        if x.get(key) != y.get(key):
-            return f"field {key}: recorded {str(x.get(key))[:60]}, now {str(y.get(key))[:60]}"
-    return "same fields"
 
 
 def _locate(expected: dict[str, Any], got: dict[str, Any]) -> str:
@@ -206,50 +203,87 @@ def _locate(expected: dict[str, Any], got: dict[str, Any]) -> str:
     return f"first differing step {step}; differing topics: {', '.join(topics) or '-'}"
 
 
-def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1,
-           seeds: tuple[int, int] | None = None) -> list[str]:
+def parse_seeds(text: str) -> tuple[int, int]:
+    """``FIRST:END`` of ``--seeds`` as (first, end); :class:`DatasetError` naming the option if malformed or
+    empty."""
+    try:
+        first, end = (int(x) for x in text.split(":"))
+    except ValueError:
+        raise DatasetError(f"--seeds: expected FIRST:END (two integers, END excluded), got {text!r}") from None
+    if first >= end:
+        raise DatasetError(f"--seeds {text}: selects no seed (FIRST must be below END)")
+    return first, end
+
+
+@dataclass
+class Verification:
+    """What ``verify`` found: ``problems`` as (episode file or "", one-line text), the classified difference of
+    each differing episode, and how many episodes were compared."""
+
+    problems: list[tuple[str, str]] = field(default_factory=list)
+    diffs: dict[str, EpisodeDiff] = field(default_factory=dict)
+    compared: int = 0
+
+
+def _select_seeds(manifest: dict[str, Any], seeds: tuple[int, int], path: Path) -> None:
+    """Restrict the manifest to the seeds in ``[first, end)``; an error if that leaves no episode."""
+    have = manifest["sweep"]["seeds"]
+    first, end = max(seeds[0], have[0]), min(seeds[1], have[1])
+    if first >= end:
+        raise DatasetError(f"--seeds {seeds[0]}:{seeds[1]}: selects no episode ({path} has seeds {have[0]}:{have[1]})")
+    wanted = {j["file"] for j in jobs(manifest) if first <= j["seed"] < end}
+    manifest["sweep"]["seeds"] = [first, end]
+    manifest["episodes"] = {f: e for f, e in manifest["episodes"].items() if f in wanted}
+
+
+def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seeds: tuple[int, int] | None = None,
+           root: Path = DATASETS) -> Verification:
     """Regenerate the dataset (optionally with extra overrides, or only the seeds in ``[first, end)``) and
-    list every difference (empty = ok). The metrics-table hash is checked on full verifications only."""
-    manifest = load_manifest(name)
+    classify every difference (no problems = ok). The metrics-table hash is checked on full verifications only."""
+    manifest = load_manifest(name, root)
+    path = manifest_path(name, root)
     if not manifest.get("episodes"):
-        raise DatasetError(f"{manifest_path(name)}: episodes: missing (run: python -m runners.dataset build {name})")
+        raise DatasetError(f"{path}: episodes: missing (run: python -m runners.dataset build {name})")
     if overrides:
         manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
     if seeds is not None:
-        wanted = {j["file"] for j in jobs(manifest) if seeds[0] <= j["seed"] < seeds[1]}
-        manifest["sweep"]["seeds"] = [max(seeds[0], manifest["sweep"]["seeds"][0]),
-                                      min(seeds[1], manifest["sweep"]["seeds"][1])]
-        manifest["episodes"] = {f: e for f, e in manifest["episodes"].items() if f in wanted}
-    problems = []
-    log_dir = DATASETS / name / "logs"
+        _select_seeds(manifest, seeds, path)
+    out = Verification(compared=len(manifest["episodes"]))
+    log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
         results = {r["file"]: r for r in record_all(manifest, Path(tmp), n_jobs, desc=f"verify {name}")}
         for file, expected in sorted(manifest["episodes"].items()):
             got = results.get(file)
             if got is None:
-                problems.append(f"{file}: not produced by the sweep")
+                out.problems.append((file, f"{file}: not produced by the sweep"))
                 continue
             if got["sha256"] == expected["sha256"]:
                 continue
-            where = (_first_difference(log_dir / file, Path(tmp) / file) if (log_dir / file).exists()
-                     else _locate(expected, got))
-            problems.append(f"{file}: content differs (outcome {expected['outcome']} -> {got['outcome']}, "
-                            f"steps {expected['steps']} -> {got['steps']}); {where}")
+            recorded = log_dir / file
+            if recorded.exists():  # the committed log: every message and field is compared
+                diff = diff_logs(recorded, Path(tmp) / file)
+                location = ("first difference: topic {} at step {}".format(*diff.first_message) if diff.first_message
+                            else "the messages are equal: only their encoding differs")
+            else:
+                diff = diff_records(expected, got)
+                location = _locate(expected, got)
+            out.diffs[file] = diff
+            out.problems.append((file, episode_line(file, expected, got, diff, location)))
         for file in sorted(set(results) - set(manifest["episodes"])):
-            problems.append(f"{file}: produced but not in the manifest")
-        if not problems and seeds is None:
+            out.problems.append((file, f"{file}: produced but not in the manifest"))
+        if not out.problems and seeds is None:
             digest = metrics_digest(sorted(Path(tmp).glob("*.mcap")))
             if digest != manifest.get("metrics_sha256"):
-                problems.append(f"metrics table differs: {manifest.get('metrics_sha256')} -> {digest}")
-    return problems
+                out.problems.append(("", f"metrics table differs: {manifest.get('metrics_sha256')} -> {digest}"))
+    return out
 
 
-def list_datasets() -> list[dict[str, Any]]:
+def list_datasets(root: Path = DATASETS) -> list[dict[str, Any]]:
     rows = []
-    for path in sorted(DATASETS.glob("*/manifest.yaml")):
+    for path in sorted(root.glob("*/manifest.yaml")):
         name = path.parent.name
         try:
-            m = load_manifest(name)
+            m = load_manifest(name, root)
         except DatasetError as err:
             rows.append({"name": name, "error": str(err)})
             continue
@@ -260,22 +294,39 @@ def list_datasets() -> list[dict[str, Any]]:
     return rows
 
 
+def _print_verification(name: str, result: Verification, detail: bool) -> None:
+    print(f"{name}: {len(result.problems)} difference(s):")
+    for file, text in result.problems:
+        print(f"  {text}")
+        if detail and file in result.diffs:
+            for line in detail_lines(result.diffs[file]):
+                print(f"      {line}")
+    if result.diffs:
+        for line in summary_lines(result.diffs, result.compared):
+            print(f"{name}: {line}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
-    sub.add_parser("list", help="datasets with episode counts and sizes")
+    lister = sub.add_parser("list", help="datasets with episode counts and sizes")
     b = sub.add_parser("build", help="record a dataset and write its hashes")
     b.add_argument("name")
     v = sub.add_parser("verify", help="regenerate and compare with the recorded hashes")
     v.add_argument("name")
     v.add_argument("overrides", nargs="*", help="extra Hydra overrides (to see what a behaviour change breaks)")
     v.add_argument("--seeds", help="only seeds FIRST:END (a quick partial check; skips the metrics hash)")
+    v.add_argument("--detail", action="store_true",
+                   help="under each differing episode, every differing numeric field with its largest |Δ|")
     for p in (b, v):
         p.add_argument("--jobs", type=int, default=-1, help="parallel workers (default: all cores)")
+    for p in (lister, b, v):
+        p.add_argument("--root", type=Path, default=DATASETS,
+                       help="directory holding the datasets (default: datasets/ of the repository)")
     args = parser.parse_args(argv)
     try:
         if args.command == "list":
-            for row in list_datasets():
+            for row in list_datasets(args.root):
                 if "error" in row:
                     print(f"{row['name']:<12} error: {row['error']}")
                     continue
@@ -283,25 +334,16 @@ def main(argv: list[str] | None = None) -> int:
                       f"committed logs: {row['committed_logs']} ({row['logs_MB']} MB)  {row['description']}")
             return 0
         if args.command == "build":
-            m = build(args.name, args.jobs)
-            print(f"built {args.name}: {len(m['episodes'])} episodes; hashes in {manifest_path(args.name)}")
+            m = build(args.name, args.jobs, args.root)
+            print(f"built {args.name}: {len(m['episodes'])} episodes; hashes in {manifest_path(args.name, args.root)}")
             return 0
-        seeds = None
-        if args.seeds:
-            try:
-                first, end = (int(x) for x in args.seeds.split(":"))
-            except ValueError:
-                print(f"error: --seeds: expected FIRST:END, got {args.seeds!r}", file=sys.stderr)
-                return 2
-            seeds = (first, end)
-        problems = verify(args.name, args.overrides, args.jobs, seeds)
+        seeds = parse_seeds(args.seeds) if args.seeds is not None else None
+        result = verify(args.name, args.overrides, args.jobs, seeds, args.root)
     except (DatasetError, LogError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    if problems:
-        print(f"{args.name}: {len(problems)} difference(s):")
-        for p in problems:
-            print(f"  {p}")
+    if result.problems:
+        _print_verification(args.name, result, args.detail)
         return 1
     what = f"seeds {args.seeds} of" if args.seeds else "all episodes and the metrics table of"
     print(f"{args.name}: {what} the dataset match")

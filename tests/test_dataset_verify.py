@@ -1,0 +1,286 @@
+"""`dataset verify` explains a difference: a changed decision/plan/outcome, other discrete values only, or
+floating-point values only, with the largest |Δ| per topic; and `--seeds` that selects nothing is an error.
+
+A two-episode dataset (paper_fig5 with h_wait 2, seeds 0-1, the log of seed 0 kept) is built in a temporary
+directory, so these tests hold whatever the committed datasets say."""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import orjson
+import pytest
+import yaml
+from mcap.reader import make_reader
+from mcap.writer import Writer
+
+from runners import dataset
+from runners.log_diff import SUM_FIELD, UNCLASSIFIED, diff_logs, diff_records
+from runners.log_fields import BEHAVIOUR, DISCRETE, FLOAT, SUMMED_TOPICS, compare, expand_runs, parse_sums
+from runners.verify_report import summary_lines
+
+TINY = {"name": "tiny", "description": "two short episodes for the verify tests", "version": 1,
+        "sweep": {"scenarios": ["paper_fig5"], "variants": ["planner=auto_h2"], "seeds": [0, 2], "overrides": []},
+        "keep_logs": [0]}
+LOGGED, UNLOGGED = "paper_fig5__planner-auto_h2__s0.mcap", "paper_fig5__planner-auto_h2__s1.mcap"
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory) -> Path:
+    """A datasets directory holding the built ``tiny`` dataset."""
+    path = tmp_path_factory.mktemp("datasets")
+    (path / "tiny").mkdir()
+    (path / "tiny" / "manifest.yaml").write_text(yaml.safe_dump(TINY, sort_keys=False))
+    dataset.build("tiny", n_jobs=2, root=path)
+    return path
+
+
+def run(capsys, *args: str) -> tuple[int, str, str]:
+    """``python -m runners.dataset ARGS`` in this process: exit code, stdout, stderr."""
+    code = dataset.main([*args, "--jobs", "2"] if args[0] != "list" else list(args))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def episode_line(out: str, file: str) -> str:
+    return next(ln for ln in out.splitlines() if ln.strip().startswith(f"{file}: "))
+
+
+# -- build -------------------------------------------------------------------------------------------------
+def test_build_writes_the_behaviour_record(root):
+    manifest = dataset.load_manifest("tiny", root)
+    assert sorted(p.name for p in (root / "tiny" / "logs").glob("*.mcap")) == [LOGGED]
+    for entry in manifest["episodes"].values():
+        assert re.fullmatch(r"[0-9a-f]{16}", entry["decision_digest"])
+        assert re.fullmatch(r"[0-9a-f]{16}", entry["discrete_digest"])
+        assert len(expand_runs(entry["modes"])) == entry["steps"]
+        assert set(expand_runs(entry["modes"])) <= {"direct", "fuzzy", "wait", "detour", "evade", "stop"}
+        assert list(parse_sums(entry["float_sums"])) == list(SUMMED_TOPICS)
+    # the two seeds plan differently (seed 0 waits, seed 1 detours): the digests tell decisions apart
+    a, b = manifest["episodes"][LOGGED], manifest["episodes"][UNLOGGED]
+    assert a["decision_digest"] != b["decision_digest"] and a["modes"] != b["modes"]
+
+
+# -- verify ------------------------------------------------------------------------------------------------
+def test_verify_matches_its_own_build(root, capsys):
+    code, out, _ = run(capsys, "verify", "tiny", "--root", str(root))
+    assert code == 0, out
+    assert out.strip() == "tiny: all episodes and the metrics table of the dataset match"
+
+
+def test_a_tiny_float_perturbation_is_float_only(root, capsys):
+    """Laser noise scaled by 1 + 1e-10 moves every track by ~1e-9 cm and changes no decision."""
+    code, out, _ = run(capsys, "verify", "tiny", "sensors.laser.noise_std_cm=1.0000000001", "--root", str(root),
+                       "--detail")
+    assert code == 1
+    logged = episode_line(out, LOGGED)  # measured message by message against the kept log
+    assert ": float-only; largest |Δ| per topic: " in logged and "first difference: topic /tracks at step" in logged
+    assert "/tracks tracks.x_cm: max |Δ| " in out  # --detail: one line per numeric field
+    unlogged = episode_line(out, UNLOGGED)  # classified from the manifest's digests and float sums
+    assert ": float-only; |Δ| of each topic's float sum: /t" in unlogged and "first differing step" in unlogged
+    summary = next(ln for ln in out.splitlines() if ln.startswith("tiny: 2 of 2 episodes differ: "))
+    m = re.search(r": 0 with a changed decision/plan/outcome, 2 float-only \(largest \|Δ\| (\S+) in /t", summary)
+    assert m, summary
+    assert 0 < float(m.group(1)) < 1e-6
+
+
+def test_a_behaviour_change_is_named(root, capsys):
+    """A larger safety margin changes seed 0's second wait into a detour and seed 1's detour plans."""
+    code, out, _ = run(capsys, "verify", "tiny", "planner.safety_margin_cm=12", "--root", str(root))
+    assert code == 1
+    logged = episode_line(out, LOGGED)
+    assert re.search(r": decision/plan/outcome changed at step \d+ /planner/decision \S+: recorded ", logged), logged
+    assert "first difference: topic" in logged
+    assert ": decision/plan/outcome changed; " in episode_line(out, UNLOGGED)
+    assert "tiny: 2 of 2 episodes differ: 2 with a changed decision/plan/outcome, 0 float-only" in out
+
+
+@pytest.mark.parametrize("seeds, problem", [
+    ("50:60", "--seeds 50:60: selects no episode"),
+    ("3:1", "--seeds 3:1: selects no seed"),
+    ("1:1", "--seeds 1:1: selects no seed"),
+    ("a:b", "--seeds: expected FIRST:END"),
+    ("1:2:3", "--seeds: expected FIRST:END"),
+])
+def test_seeds_that_select_nothing_are_an_error(root, capsys, seeds, problem):
+    code, out, err = run(capsys, "verify", "tiny", "--seeds", seeds, "--root", str(root))
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"error: {problem}"), err
+    if seeds == "50:60":
+        assert "has seeds 0:2" in err
+
+
+# -- the classification, on edited copies of the kept log (no simulation) -----------------------------------
+Edit = Callable[[str, int, dict[str, Any]], dict[str, Any] | None]
+
+
+def rewrite(src: Path, dst: Path, edit: Edit) -> None:
+    """Copy a log, passing every message through ``edit(topic, step_or_-1, message)`` (None drops it)."""
+    with open(src, "rb") as f, open(dst, "wb") as out:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        writer = Writer(out)
+        writer.start()
+        schemas = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        channels = {cid: writer.register_channel(c.topic, c.message_encoding, schemas[c.schema_id])
+                    for cid, c in summary.channels.items()}
+        for record in reader.iter_metadata():
+            writer.add_metadata(record.name, record.metadata)
+        for _schema, channel, message in reader.iter_messages(log_time_order=False):
+            msg = orjson.loads(message.data)
+            msg = edit(channel.topic, msg.get("step", -1) if isinstance(msg, dict) else -1, msg)
+            if msg is not None:
+                writer.add_message(channels[channel.id], message.log_time, orjson.dumps(msg), message.publish_time)
+        writer.finish()
+
+
+def _nudge_x(topic, step, msg):
+    if topic == "/robot/state" and step == 5:
+        msg["x_cm"] += 1e-9
+    return msg
+
+
+class _FirstTable:
+    """Edits the first prediction table only (a fresh instance per rewrite)."""
+
+    def __init__(self) -> None:
+        self.seen = False
+
+    def __call__(self, topic, step, msg):
+        if topic != "/tpt" or self.seen:
+            return msg
+        self.seen = True
+        return self.edit(msg)
+
+    def edit(self, msg):
+        raise NotImplementedError
+
+
+class _FlipACollisionFlag(_FirstTable):
+    def edit(self, msg):
+        msg["collide"][1][0] = not msg["collide"][1][0]
+        return msg
+
+
+class _DropATable(_FirstTable):
+    def edit(self, msg):
+        return None
+
+
+def _change_a_mode(topic, step, msg):
+    if topic == "/planner/decision" and step == 3:
+        msg["mode"] = "fuzzy"
+    return msg
+
+
+def _change_a_plan_length(topic, step, msg):
+    if topic == "/planner/decision" and msg["planning"] is not None:
+        msg["planning"]["path_cm"] = msg["planning"]["path_cm"][:-1]
+    return msg
+
+
+def _change_a_printed_number(topic, step, msg):
+    if topic == "/log" and msg["message"].startswith("wait started"):
+        msg["message"] = re.sub(r"\((\d+),", lambda m: f"({int(m.group(1)) + 1},", msg["message"], count=1)
+    return msg
+
+
+def recorded_entry(log: Path, like: dict[str, Any]) -> dict[str, Any]:
+    """What ``verify`` records of a regenerated episode (outcome and steps come from the run, here unchanged)."""
+    return {**dataset.content_digests(log), "outcome": like["outcome"], "steps": like["steps"]}
+
+
+EDITS = [  # edit, kind from the log, kind from the manifest record, (topic, field) of the first change or float
+    (_nudge_x, FLOAT, FLOAT, ("/robot/state", "x_cm")),
+    (_change_a_printed_number, FLOAT, FLOAT, ("/log", "message")),
+    (_FlipACollisionFlag, DISCRETE, DISCRETE, ("/tpt", "collide")),
+    (_DropATable, DISCRETE, DISCRETE, ("/tpt", "")),
+    (_change_a_mode, BEHAVIOUR, BEHAVIOUR, ("/planner/decision", "mode")),
+    (_change_a_plan_length, BEHAVIOUR, BEHAVIOUR, ("/planner/decision", "planning.path_cm")),
+]
+
+
+@pytest.mark.parametrize("edit, from_log, from_manifest, where", EDITS, ids=[e[0].__name__ for e in EDITS])
+def test_log_and_manifest_classify_an_edit_alike(root, tmp_path, edit, from_log, from_manifest, where):
+    recorded = root / "tiny" / "logs" / LOGGED
+    edited = tmp_path / LOGGED
+    rewrite(recorded, edited, edit() if isinstance(edit, type) else edit)
+    expected = dataset.load_manifest("tiny", root)["episodes"][LOGGED]
+    got = recorded_entry(edited, expected)
+    assert got["sha256"] != expected["sha256"]
+
+    by_log = diff_logs(recorded, edited)
+    assert by_log.kind == from_log
+    if from_log == FLOAT:
+        assert list(by_log.floats) == [where] and by_log.first is None
+    else:
+        assert (by_log.first.topic, by_log.first.field) == where
+        assert by_log.kind == BEHAVIOUR or not by_log.counts.get(BEHAVIOUR)
+    by_manifest = diff_records(expected, got)
+    assert by_manifest.kind == from_manifest
+
+
+def test_a_float_edit_is_measured_exactly(root, tmp_path):
+    recorded = root / "tiny" / "logs" / LOGGED
+    edited = tmp_path / LOGGED
+    rewrite(recorded, edited, _nudge_x)
+    delta = diff_logs(recorded, edited).floats[("/robot/state", "x_cm")]
+    assert delta.step == 5 and delta.count == 1 and math.isclose(delta.max_abs, 1e-9, rel_tol=1e-4)
+    expected = dataset.load_manifest("tiny", root)["episodes"][LOGGED]
+    summed = diff_records(expected, recorded_entry(edited, expected)).floats
+    assert list(summed) == [("/robot/state", SUM_FIELD)]
+    assert math.isclose(summed[("/robot/state", SUM_FIELD)].max_abs, 1e-9, rel_tol=0.1)  # the sum is ~1.5e5
+
+
+def test_unchanged_copy_has_no_difference(root, tmp_path):
+    recorded = root / "tiny" / "logs" / LOGGED
+    rewrite(recorded, tmp_path / LOGGED, lambda topic, step, msg: msg)
+    diff = diff_logs(recorded, tmp_path / LOGGED)
+    assert diff.first_message is None and not diff.floats and diff.kind == FLOAT
+
+
+# -- units of the classification --------------------------------------------------------------------------
+def collect(topic: str, a: Any, b: Any) -> tuple[list, list]:
+    discrete, floats = [], []
+    compare(topic, a, b, lambda p, x, y: discrete.append((p, x, y)), lambda p, d: floats.append((p, d)))
+    return discrete, floats
+
+
+def test_headings_and_quaternions_compare_as_what_they_mean():
+    _, floats = collect("/robot/state", {"heading_deg": 359.9999999}, {"heading_deg": 1e-7})
+    assert floats[0][0] == "heading_deg" and floats[0][1] == pytest.approx(2e-7)
+    q = {"x": 0.0, "y": 0.0, "z": 1e-9, "w": 1.0}
+    minus_q = {"x": -0.0, "y": -0.0, "z": -1e-9, "w": -1.0}
+    assert collect("/robot/pose", {"orientation": q}, {"orientation": minus_q}) == ([], [])
+    _, floats = collect("/robot/state", {"x_cm": 359.9999999}, {"x_cm": 1e-7})  # not a heading: no wrapping
+    assert floats[0][1] == pytest.approx(360.0)
+
+
+def test_types_decide_what_is_discrete():
+    discrete, floats = collect("/tracks", {"tracks": [{"id": 1, "x_cm": 1.0}]}, {"tracks": [{"id": 2, "x_cm": 1.5}]})
+    assert discrete == [("tracks.id", 1, 2)] and floats == [("tracks.x_cm", 0.5)]
+    discrete, _ = collect("/episode", {"steps": 3}, {"steps": 3.0})  # a field's type changed: not a rounding
+    assert discrete == [("steps", 3, 3.0)]
+    assert collect("/planner/decision", {"compute_time_us": 1.0}, {"compute_time_us": 9.0}) == ([], [])
+
+
+def test_old_manifests_classify_only_outcome_and_steps():
+    old = {"outcome": "goal", "steps": 40, "sha256": "0" * 64}
+    assert diff_records(old, {"outcome": "goal", "steps": 40}).kind == UNCLASSIFIED
+    assert diff_records(old, {"outcome": "goal", "steps": 41}).kind == BEHAVIOUR
+    diffs = {"a": diff_records(old, {"outcome": "goal", "steps": 40}),
+             "b": diff_records(old, {"outcome": "collision", "steps": 40})}
+    assert summary_lines(diffs, 5) == ["2 of 5 episodes differ: 1 with a changed decision/plan/outcome, "
+                                       "0 float-only, 1 unclassified (rebuild the manifest to classify them)"]
+
+
+def test_root_option_lists_only_that_directory(root, capsys, tmp_path):
+    shutil.copytree(root / "tiny", tmp_path / "tiny_copy")
+    code, out, _ = run(capsys, "list", "--root", str(tmp_path))
+    assert code == 0 and out.startswith("tiny_copy") and "2 episodes  built=True" in out
+    assert "committed logs: 1" in out
