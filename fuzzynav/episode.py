@@ -29,6 +29,7 @@ from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig,
 from fuzzynav.obstacle_motion import ObstacleMotion
 from fuzzynav.perception import PerceptionConfig, perceive
 from fuzzynav.planner import PlannerConfig
+from fuzzynav.portable_random import NormalStream
 from fuzzynav.scenario import Scenario
 from fuzzynav.sonar import Sonar, SonarConfig
 from fuzzynav.tracking import Track, TrackerState
@@ -111,7 +112,7 @@ class Episode:
         self.step_index = 0
         self.outcome: str | None = None
         self.contacts = 0
-        self._rng = np.random.default_rng(self.seed)
+        self._noise = NormalStream(np.random.default_rng(self.seed))
         self._tracker = TrackerState()
         self._plan: ActivePlan | None = None
         self._touching: set[str] = set()
@@ -130,9 +131,9 @@ class Episode:
         discs = np.column_stack([pos, self.motion.radii]) if len(pos) else np.zeros((0, 3))
         sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs)
         scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
-                              self._rng)
+                              self._noise)
         self._tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.motion.radii,
-                                       self._rng)
+                                       self._noise)
         goal = self.scenario.robot.goal
         obs = Observation(s, goal, sonar, seen.tracks, seen.static_points)
         started = time.perf_counter()

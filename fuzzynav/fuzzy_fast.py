@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzynav.fuzzy_spec import ControllerSpec, Variable, sample_membership
+from fuzzynav.portable_math import sequential_sum
 
 _CHUNK = 1024  # batch rows per block (bounds memory at ~ chunk x grid floats per array)
 
@@ -179,8 +180,8 @@ class FastEvaluator:
         y = y_t.T
         # the polyline integral over the plain grid (trapezoid rule as precomputed weights)
         # elementwise products summed down the grid in a fixed order (a matrix product would go through BLAS)
-        total_area = (out.weights[0][:, None] * y_t).sum(axis=0)
-        total_moment = (out.weights[1][:, None] * y_t).sum(axis=0)
+        total_area = sequential_sum((out.weights[0][:, None] * y_t).T)
+        total_moment = sequential_sum((out.weights[1][:, None] * y_t).T)
         # scikit-fuzzy adds the points where each term crosses its cut level; split those grid segments
         xs, segs = _cut_points(out, cuts)  # (N, K) positions, segment index (-1 = none)
         order = np.argsort(np.where(segs >= 0, xs, np.inf), axis=1, kind="stable")
@@ -199,8 +200,8 @@ class FastEvaluator:
             ya = np.where(prev_same, np.roll(ys, 1, axis=1), y[rows, seg_c])
             xb, yb = grid[seg_c + 1], y[rows, seg_c + 1]
             triangle = np.where(valid, 0.5 * (ys * (xb - xa) - ya * (xb - xs) - yb * (xs - xa)), 0.0)
-            total_area += triangle.sum(1)
-            total_moment += (triangle * (xa + xs + xb)).sum(1) / 3.0
+            total_area += sequential_sum(triangle)
+            total_moment += sequential_sum(triangle * (xa + xs + xb)) / 3.0
         ok = total_area > 0
         result = np.full(n, out.fallback)
         result[ok] = total_moment[ok] / total_area[ok]
@@ -227,7 +228,7 @@ class FastEvaluator:
     def _defuzz_scalar(out: _Output, act: list[float]) -> float:
         cuts = [max([act[r] for r in rules]) if rules else 0.0 for rules in out.term_rules]
         y = np.minimum(np.array(cuts)[:, None], out.mfs).max(axis=0)
-        area, moment = math.fsum((out.weights[0] * y).tolist()), math.fsum((out.weights[1] * y).tolist())
+        area, moment = sequential_sum(out.weights * y).tolist()  # not weights @ y: BLAS's order depends on the CPU
         grid, h = out.grid_list, out.step
         points = []  # (x, segment, term) where a term crosses its cut level, as scikit-fuzzy adds them
         for t, level in enumerate(cuts):

@@ -12,7 +12,7 @@ from functools import cached_property
 import numpy as np
 
 from fuzzynav.portable_math import sin_cos_deg, sin_cos_deg_array
-from fuzzynav.portable_random import normal
+from fuzzynav.portable_random import NormalStream
 from fuzzynav.raycast import cast_rays
 
 
@@ -72,7 +72,7 @@ class LaserScan:
 
 
 def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: np.ndarray,
-         static_circles: np.ndarray, discs: np.ndarray, rng: np.random.Generator | None = None) -> LaserScan:
+         static_circles: np.ndarray, discs: np.ndarray, noise: NormalStream | None = None) -> LaserScan:
     """Cast all beams from (x, y) cm against the static world and moving discs (K, 3: x, y, r in cm)."""
     # beam directions: the relative ones rotated by the heading (one sin/cos per frame, not one per beam)
     s, c = sin_cos_deg(heading_deg)
@@ -82,7 +82,7 @@ def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: 
     ranges, hit = cast_rays(np.array([x, y]), directions, segments, circles, config.range_cm)
     n_static = len(segments) + len(static_circles)
     labels = np.where(hit < 0, -1, np.where(hit < n_static, 0, hit - n_static + 1))
-    if config.noise_std_cm > 0 and rng is not None:
-        noisy = ranges + normal(rng, 0.0, config.noise_std_cm, len(ranges))
+    if config.noise_std_cm > 0 and noise is not None:
+        noisy = ranges + noise.draw(0.0, config.noise_std_cm, len(ranges))
         ranges = np.where(hit >= 0, np.clip(noisy, 0.0, np.nextafter(config.range_cm, 0)), ranges)
     return LaserScan(ranges=ranges, directions=directions, labels=labels, origin=(x, y), range_cm=config.range_cm)

@@ -15,7 +15,7 @@ import numpy as np
 from fuzzynav import tracking
 from fuzzynav.laser import LaserScan
 from fuzzynav.portable_math import hypot
-from fuzzynav.portable_random import normal
+from fuzzynav.portable_random import NormalStream
 from fuzzynav.tracking import Track, TrackerConfig, TrackerState
 
 MODES = ("laser", "ground_truth")
@@ -49,7 +49,7 @@ class Perceived:
 
 def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, time_s: float,
              truth_positions: np.ndarray, truth_velocities: np.ndarray, truth_radii: np.ndarray,
-             rng: np.random.Generator) -> tuple[TrackerState, Perceived]:
+             noise: NormalStream) -> tuple[TrackerState, Perceived]:
     """Perceive the moving obstacles in this frame (see the module docstring)."""
     if config.mode == "laser":
         state, tracks, moving = tracking.update(state, scan, time_s, config.tracker)
@@ -64,9 +64,9 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
         if not v.any():
             continue  # a stopped obstacle is not a moving obstacle
         if config.position_noise_std_cm > 0:
-            p = p + normal(rng, 0.0, config.position_noise_std_cm, 2)
+            p = p + noise.draw(0.0, config.position_noise_std_cm, 2)
         if config.velocity_noise_std_cm_s > 0:
-            v = v + normal(rng, 0.0, config.velocity_noise_std_cm_s, 2)
+            v = v + noise.draw(0.0, config.velocity_noise_std_cm_s, 2)
         tracks.append(Track(k + 1, float(p[0]), float(p[1]), float(v[0]), float(v[1]), float(truth_radii[k])))
     moving = scan.returned & (scan.labels > 0)
     return state, Perceived(tuple(tracks), moving, static_points(scan, moving))

@@ -161,6 +161,13 @@ def fsum_dot(a: np.ndarray, b: np.ndarray) -> float:
     return math.fsum((a * b).tolist())
 
 
+def sequential_sum(a: np.ndarray) -> np.ndarray:
+    """Sums along the last axis, added strictly left to right (``np.add.accumulate``: each partial sum needs
+    the previous one, so no SIMD width or BLAS kernel can change the order). Faster than :func:`math.fsum`
+    on long rows; error at most about n·2⁻⁵³ relative for non-negative terms."""
+    return np.add.accumulate(a, axis=-1)[..., -1]
+
+
 def fsum_mean(a: np.ndarray) -> float:
     """Mean of a non-empty 1-D array, from its correctly rounded sum."""
     return math.fsum(a.tolist()) / len(a)

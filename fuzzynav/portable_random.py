@@ -18,11 +18,36 @@ def uniform(rng: np.random.Generator, low: float, high: float) -> float:
     return low + (high - low) * float(rng.random())
 
 
-def normal(rng: np.random.Generator, mean: float, std: float, size: int) -> np.ndarray:
-    """``size`` draws from N(mean, std²) (Box–Muller: each pair of uniforms gives two normals)."""
+def standard_normal(rng: np.random.Generator, size: int) -> np.ndarray:
+    """``size`` draws from N(0, 1) (Box–Muller: each pair of uniforms gives two normals)."""
     pairs = (size + 1) // 2
     u = rng.random((2, pairs))
     radius = np.sqrt(-2.0 * log_array(1.0 - u[0]))  # 1 - u is in (0, 1]: the logarithm is finite
     s, c = sin_cos_deg_array(360.0 * u[1])
-    z = np.concatenate([radius * c, radius * s])[:size]
-    return mean + std * z
+    return np.concatenate([radius * c, radius * s])[:size]
+
+
+class NormalStream:
+    """Normal draws from one generator, made :attr:`BLOCK` at a time: a few hundred values per call would
+    cost numpy's per-call overhead several times over (the laser draws one value per beam every step). The
+    n-th value drawn is the same whatever sizes the values are requested in."""
+
+    BLOCK = 8192
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self._block = np.empty(0)
+        self._used = 0
+
+    def draw(self, mean: float, std: float, size: int) -> np.ndarray:
+        """The next ``size`` draws from N(mean, std²)."""
+        out = np.empty(size)
+        filled = 0
+        while filled < size:
+            if self._used == len(self._block):
+                self._block, self._used = standard_normal(self.rng, self.BLOCK), 0
+            k = min(size - filled, len(self._block) - self._used)
+            out[filled:filled + k] = self._block[self._used:self._used + k]
+            filled += k
+            self._used += k
+        return mean + std * out

@@ -61,16 +61,20 @@ class Sonar:
             arc = np.stack([cos, sin], axis=1) * reach
             self._templates.append(np.vstack([[0.0, 0.0], arc, [0.0, 0.0]]))
 
+    def wedges(self, x: float, y: float, heading_deg: float) -> np.ndarray:
+        """The three sector wedges (shapely polygons, world frame, cm) of a robot at (x, y) with ``heading_deg``."""
+        s, c = sin_cos_deg(heading_deg)
+        # rotate the templates by the heading elementwise (a matrix product would go through BLAS)
+        return shapely.polygons([np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y], axis=1)
+                                 for t in self._templates])
+
     def read(self, x: float, y: float, heading_deg: float, solid: shapely.Geometry,
              discs: np.ndarray | None = None) -> tuple[float, float, float]:
         """Readings (left, front, right) in cm for a robot at (x, y) cm with ``heading_deg``.
 
         ``solid`` is the static world (obstacles + walls); ``discs`` (K, 3) rows ``x, y, r`` are moving
         obstacles, used only when ``sees_dynamic`` is set."""
-        s, c = sin_cos_deg(heading_deg)
-        # rotate the templates by the heading elementwise (a matrix product would go through BLAS)
-        wedges = shapely.polygons([np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y], axis=1)
-                                   for t in self._templates])
+        wedges = self.wedges(x, y, heading_deg)
         reach = self._reach
         with np.errstate(divide="ignore", invalid="ignore"):  # GEOS on degenerate slivers; NaN is handled below
             target = shapely.clip_by_rect(solid, x - reach, y - reach, x + reach, y + reach)

@@ -35,3 +35,14 @@ def table1() -> ControllerSpec:
 @pytest.fixture(scope="session")
 def listing() -> ControllerSpec:
     return load_controller("listing")
+
+
+def pytest_terminal_summary(terminalreporter) -> None:
+    """Show which CPU configurations the datasets were verified under (tests/test_cpu_independence.py), so a
+    CI log proves they ran."""
+    lines = [value for report in terminalreporter.stats.get("passed", [])
+             for name, value in getattr(report, "user_properties", []) if name == "verified_under"]
+    if lines:
+        terminalreporter.section("portable numerics: datasets verified under other CPU configurations")
+        for line in lines:
+            terminalreporter.write_line(line)

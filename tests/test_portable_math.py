@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fuzzynav import portable_math as pm
-from fuzzynav.portable_random import normal, uniform
+from fuzzynav.portable_random import NormalStream, standard_normal, uniform
 
 ROOT = Path(__file__).resolve().parents[1]
 ANGLES = st.floats(-1e4, 1e4, allow_nan=False)
@@ -94,13 +94,22 @@ def test_fsum_dot_is_correctly_rounded_and_order_free(values):
 
 
 def test_normal_draws_have_the_right_moments_and_repeat_exactly():
-    z = normal(np.random.default_rng(3), 2.0, 0.5, 200_001)
+    z = 2.0 + 0.5 * standard_normal(np.random.default_rng(3), 200_001)
     assert len(z) == 200_001
     assert abs(z.mean() - 2.0) < 0.005 and abs(z.std() - 0.5) < 0.005
     assert abs(np.mean(np.abs(z - 2.0) > 1.0) - 0.0455) < 0.003  # two-sigma tail mass of a Gaussian
-    np.testing.assert_array_equal(z, normal(np.random.default_rng(3), 2.0, 0.5, 200_001))
+    np.testing.assert_array_equal(z, 2.0 + 0.5 * standard_normal(np.random.default_rng(3), 200_001))
     u = [uniform(np.random.default_rng(4), -3.0, 5.0) for _ in range(3)]
     assert all(-3.0 <= v < 5.0 for v in u) and u[0] == u[1] == u[2]
+
+
+@given(st.lists(st.integers(0, 5000), max_size=12))
+@settings(max_examples=25, deadline=None)
+def test_normal_stream_gives_the_same_values_whatever_the_request_sizes(sizes):
+    chunked = NormalStream(np.random.default_rng(9))
+    got = np.concatenate([chunked.draw(0.0, 1.0, n) for n in sizes] + [np.zeros(0)])
+    whole = NormalStream(np.random.default_rng(9)).draw(0.0, 1.0, sum(sizes))
+    np.testing.assert_array_equal(got, whole)
 
 
 # -- the rule: nothing on the simulation path computes with a CPU-dependent routine ---------------------

@@ -58,9 +58,7 @@ def test_sonar_readings_in_range(world, fx, fy, heading):
 
 def _sonar_unclipped(sonar: Sonar, x: float, y: float, heading: float, solid) -> np.ndarray:
     """The sonar without its rectangle pre-clip: each wedge intersected with the whole world."""
-    c, s = math.cos(math.radians(heading)), math.sin(math.radians(heading))
-    wedges = shapely.polygons([t @ np.array([[c, s], [-s, c]]) + (x, y) for t in sonar._templates])
-    dist = shapely.distance(shapely.intersection(wedges, solid), shapely.Point(x, y))
+    dist = shapely.distance(shapely.intersection(sonar.wedges(x, y, heading), solid), shapely.Point(x, y))
     return np.where(np.isnan(dist), 130.0, np.clip(dist - 20.0, 0.0, 130.0))
 
 

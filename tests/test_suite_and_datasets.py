@@ -48,7 +48,12 @@ def test_every_scenario_runs_under_every_strategy(scenario):
 
 @pytest.mark.parametrize("h_wait, strategy", [(2, "detour"), (4, "wait")])
 def test_paper_fig5_reproduces_table2(h_wait, strategy):
-    cfg = composed("paper_fig5", planner={"h_wait": h_wait})
+    """The paper's worked example is noise-free: with an exact laser the first table is Table 2. (With the
+    default 1 cm range noise the first velocity estimate, hence the table, depends on the seed: 12 of 20
+    seeds give Table 2, the others a collision also at step 9 or one step earlier or later.)"""
+    sensors = yaml.safe_load((CONF / "sensors" / "default.yaml").read_text())
+    sensors["laser"]["noise_std_cm"] = 0.0
+    cfg = composed("paper_fig5", planner={"h_wait": h_wait}, sensors=sensors)
     ep = Episode(load_scenario(cfg), EVALUATOR, episode_config(cfg), seed=0)
     first = next(r for r in ep.run() if r.decision.tpt is not None)
     tpt = first.decision.tpt

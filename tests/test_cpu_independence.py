@@ -1,0 +1,87 @@
+"""Log content does not depend on the CPU: the recorded datasets verify in child processes that run other
+OpenBLAS kernels and numpy with its optional SIMD dispatch switched off (README "Numerics").
+
+The machine's own kernel is covered by tests/test_suite_and_datasets.py. Here every configuration verifies
+paper_fig5 seed 0 (all seven variants, compared message by message with the committed logs) and suite_v1
+seed 0 (all scenarios x strategies, compared by digest). The terminal summary lists what ran.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+# kernels that run on every CPU of the architecture (the oldest ones OpenBLAS knows)
+PORTABLE_KERNELS = {"x86_64": ("Prescott", "Nehalem"), "AMD64": ("Prescott", "Nehalem"),
+                    "aarch64": ("ARMV8", "CORTEXA57"), "arm64": ("ARMV8", "CORTEXA57")}
+SUBSETS = (("paper_fig5", "0:1"), ("suite_v1", "0:1"))
+
+
+def numpy_dispatch_groups() -> list[str]:
+    """numpy's optional (run-time dispatched) CPU feature groups that this machine has, e.g. X86_V3 (AVX2,
+    FMA3) and X86_V4 / AVX512_* (AVX-512)."""
+    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+    return [name for name in __cpu_dispatch__ if __cpu_features__.get(name)]
+
+
+def _configurations() -> list[tuple[str, dict[str, str]]]:
+    kernels = PORTABLE_KERNELS.get(platform.machine(), ())
+    configs = [(f"OPENBLAS_CORETYPE={k}", {"OPENBLAS_CORETYPE": k}) for k in kernels]
+    groups = numpy_dispatch_groups()
+    configs.append((f"NPY_DISABLE_CPU_FEATURES={' '.join(groups) or '(none to disable)'}",
+                    {"NPY_DISABLE_CPU_FEATURES": " ".join(groups)}))
+    return configs
+
+
+def _child_env(extra: dict[str, str]) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OPENBLAS_", "NPY_"))}
+    env.update(extra)
+    return env
+
+
+def _check_the_setting_took_effect(label: str, env: dict[str, str]) -> str:
+    """Ask the child which BLAS kernel runs and which numpy groups are on, so the test cannot pass by an
+    environment variable being ignored."""
+    probe = textwrap.dedent("""
+        import ctypes, glob, os
+        import numpy as np
+        from numpy._core._multiarray_umath import __cpu_features__
+        name = "unknown"
+        for lib in glob.glob(os.path.join(os.path.dirname(np.__file__), "..", "numpy.libs", "*openblas*")):
+            so = ctypes.CDLL(lib)  # the library numpy already loaded: same handle, same kernel
+            for symbol in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename"):
+                if hasattr(so, symbol):
+                    getattr(so, symbol).restype = ctypes.c_char_p
+                    name = getattr(so, symbol)().decode()
+        still_on = [g for g in os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split() if __cpu_features__.get(g)]
+        print(name, " ".join(still_on))
+    """)
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    corename, _, still_on = out.stdout.strip().partition(" ")
+    assert not still_on, f"{label}: numpy still dispatches to {still_on}"
+    wanted = env.get("OPENBLAS_CORETYPE")
+    if wanted and corename != "unknown":
+        assert corename.lower() == wanted.lower(), f"{label}: OpenBLAS runs kernel {corename}, not {wanted}"
+    return corename
+
+
+@pytest.mark.parametrize(("label", "extra"), _configurations(), ids=[c[0] for c in _configurations()])
+def test_datasets_verify_under_another_cpu_configuration(label, extra, record_property):
+    env = _child_env(extra)
+    corename = _check_the_setting_took_effect(label, env)
+    for name, seeds in SUBSETS:
+        out = subprocess.run([sys.executable, "-m", "runners.dataset", "verify", name, "--seeds", seeds], cwd=ROOT,
+                             env=env, capture_output=True, text=True, timeout=900)
+        assert out.returncode == 0, f"{label}: {name} --seeds {seeds}\n{out.stdout[-3000:]}{out.stderr[-2000:]}"
+        # shown in the terminal summary by conftest.pytest_terminal_summary
+        record_property("verified_under", f"{label} (OpenBLAS kernel {corename}): {name} --seeds {seeds}: "
+                       f"{out.stdout.strip().splitlines()[0] if out.stdout.strip() else 'match'}")
