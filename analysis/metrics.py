@@ -1,12 +1,14 @@
 """Per-episode metrics computed from a log alone (definitions in the README, units in the column names).
 
 ``metrics_table(paths)`` gives one row per readable, finished episode plus a list of the logs left out
-(unreadable, truncated, or outcome ``error``/``interrupted``) with the reason.
+(unreadable, truncated, or outcome ``error``/``interrupted``) with the reason. ``analyse_logs(paths)`` adds
+each episode's group (:mod:`analysis.run_parameters`): what the report and the sweep's summary pool.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -19,9 +21,11 @@ import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, find_logs, read_logs
+from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 
-PARAMETERS = ("scenario", "strategy", "h_wait", "seed", "controller", "perception")
+PARAMETERS = EPISODE_PARAMETERS
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
+RUN_PARAMETERS = "run_parameters"  # transport column: the log's parameters as JSON (dropped from the tables)
 
 
 @dataclass(frozen=True)
@@ -131,8 +135,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
         if len(reached):
             t_goal = float((reached[0] + 1) * log.dt)
     row["time_to_goal_s"] = t_goal
-    collided = row["collisions_static"] + row["collisions_dynamic"] > 0
-    row["success"] = bool(log.outcome == "goal" and not collided and not math.isnan(t_goal))
+    row["success"] = is_success(log.outcome, row["collisions_static"] + row["collisions_dynamic"], t_goal)
     straight = float(np.linalg.norm(np.array(log.goal) - pos[0])) if log.goal is not None and len(pos) else math.nan
     row["path_efficiency"] = straight / row["path_length_cm"] if row["success"] and row["path_length_cm"] > 0 \
         else math.nan
@@ -202,26 +205,50 @@ def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
 
 
 def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:
-    """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with the reason."""
+    """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with their outcome
+    (``unreadable`` when there is none) and the reason. Each row and left-out log whose metadata could be read
+    carries its run parameters as JSON text in ``RUN_PARAMETERS``: identical texts (episodes of one
+    configuration) are one object, so a worker sends each configuration once per chunk."""
     rows, excluded = [], []
+    texts: dict[str, str] = {}
+
+    def parameters(log: EpisodeLog) -> str:
+        text = json.dumps(parameters_of(log.meta, log.config), default=str)
+        return texts.setdefault(text, text)
+
+    def seed(log: EpisodeLog) -> int | None:
+        try:
+            return int(log.meta["seed"])
+        except (KeyError, ValueError):
+            return None
+
     for path in paths:
         try:
             log = load_episode(path)
         except LogError as err:
-            excluded.append({"log": str(path), "reason": str(err)})
+            excluded.append({"log": str(path), "outcome": "unreadable", "reason": str(err)})
             continue
         if not log.complete:
-            excluded.append({"log": str(path), "reason": "truncated: the file ends before the MCAP summary "
+            excluded.append({"log": str(path), "outcome": log.outcome, RUN_PARAMETERS: parameters(log),
+                             "seed": seed(log), "reason": "truncated: the file ends before the MCAP summary "
                              f"(killed run or damaged copy; {log.steps} steps readable, outcome {log.outcome})"})
             continue
         if log.outcome in EXCLUDED_OUTCOMES:
             why = {"incomplete": "truncated: no /episode outcome (killed run?)",
                    "error": f"episode raised: {(log.episode or {}).get('reason', '')}",
                    "interrupted": "episode interrupted"}[log.outcome]
-            excluded.append({"log": str(path), "reason": why})
+            excluded.append({"log": str(path), "outcome": log.outcome, RUN_PARAMETERS: parameters(log),
+                             "seed": seed(log), "reason": why})
             continue
-        rows.append(episode_metrics(log, options))
+        row = episode_metrics(log, options)
+        row[RUN_PARAMETERS] = parameters(log)
+        rows.append(row)
     return rows, excluded
+
+
+def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int) -> tuple[list[dict], list[dict]]:
+    parts = read_logs(functools.partial(_metrics_rows, options=options), find_logs(paths), jobs)
+    return [r for rows, _ in parts for r in rows], [e for _, excluded in parts for e in excluded]
 
 
 def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1
@@ -230,7 +257,48 @@ def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = N
 
     ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes when there are many
     (:func:`analysis.logs.read_logs`); the result is the same as with ``jobs=1``."""
-    parts = read_logs(functools.partial(_metrics_rows, options=options), find_logs(paths), jobs)
-    rows = [r for part_rows, _ in parts for r in part_rows]
-    excluded = [e for _, part_excluded in parts for e in part_excluded]
-    return pd.DataFrame(rows), pd.DataFrame(excluded, columns=["log", "reason"])
+    rows, excluded = _read(paths, options, jobs)
+    table = pd.DataFrame(rows)
+    return table.drop(columns=[RUN_PARAMETERS], errors="ignore"), pd.DataFrame(excluded, columns=["log", "reason"])
+
+
+@dataclass
+class Analysis:
+    """Episodes of a set of logs with their groups: ``episodes`` has the metrics, each group dimension's value
+    (full key), ``scenario_label``, ``variant`` and ``setting`` (see :class:`Grouping`), rows in the groups'
+    natural order then by seed; ``excluded`` the logs left out (log, outcome, reason, and their labels when
+    the metadata was readable); ``runs`` one parameter dict per episode row."""
+
+    episodes: pd.DataFrame
+    excluded: pd.DataFrame
+    grouping: Grouping
+    runs: list[dict[str, Any]]
+
+
+def analyse_logs(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1,
+                 split_provenance: bool = False) -> Analysis:
+    """Metrics of every usable log and the group of each episode. The grouping is found over every log whose
+    metadata is readable (left-out ones too, so that the summary can count them in their group)."""
+    rows, excluded = _read(paths, options, jobs)
+    distinct = {text: json.loads(text) for text in {r[RUN_PARAMETERS] for r in rows + excluded if RUN_PARAMETERS in r}}
+    grouping = find_grouping(list(distinct.values()), split_provenance)
+    labels = {text: grouping.columns(run) for text, run in distinct.items()}
+    order = {text: rank for rank, text in enumerate(sorted(distinct, key=lambda t: grouping.sort_key(distinct[t])))}
+    rows.sort(key=lambda r: (order[r[RUN_PARAMETERS]], r["seed"] if r["seed"] is not None else -1, r["log"]))
+    runs = [distinct[r[RUN_PARAMETERS]] for r in rows]
+    episodes = pd.DataFrame([{**{k: v for k, v in r.items() if k != RUN_PARAMETERS}, **labels[r[RUN_PARAMETERS]]}
+                             for r in rows])
+    left_out = pd.DataFrame([{"log": e["log"], "outcome": e["outcome"], **_left_out_labels(e, distinct, labels),
+                              "reason": e["reason"]} for e in excluded],
+                            columns=["log", "outcome", *EPISODE_PARAMETERS, "scenario_label", "variant", "reason"])
+    return Analysis(episodes, left_out, grouping, runs)
+
+
+def _left_out_labels(entry: dict, distinct: dict[str, dict], labels: dict[str, dict]) -> dict[str, Any]:
+    """Shown parameters and group labels of a left-out log (empty when its metadata was unreadable)."""
+    text = entry.get(RUN_PARAMETERS)
+    if text is None:
+        return {}
+    run = distinct[text]
+    return {**{k: run.get(k) for k in EPISODE_PARAMETERS if k != "seed"}, "seed": entry.get("seed"),
+            "scenario_label": labels[text]["scenario_label"], "variant": labels[text]["variant"]}

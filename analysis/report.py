@@ -1,10 +1,11 @@
 """Reports from logs: ``python -m analysis.report <sweep dir or .mcap files...> [--out DIR]``.
 
 Writes ``report.md`` and ``report.html`` with PNG plots beside them, ``episodes.csv`` (one row per
-episode, every metric), ``groups.csv`` (mean and 95 % bootstrap interval of every metric per scenario ×
-strategy × h_wait) and ``paired.csv`` (paired differences between strategies on the same scenario and
-seed). Logs that cannot be used (unreadable, truncated, outcome ``error``) are listed with the reason and
-left out of the statistics. Everything is computed from the logs alone.
+episode, every metric, its group's labels), ``groups.csv`` (mean and 95 % bootstrap interval of every metric
+per group) and ``paired.csv`` (paired differences between variants on the same scenario and seed). A group is
+every combination of the run parameters whose values differ among the logs (:mod:`analysis.run_parameters`):
+two settings of any parameter are never pooled. Logs that cannot be used (unreadable, truncated, outcome
+``error``) are listed with the reason and left out of the statistics. Everything is computed from the logs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import plots
-from analysis.metrics import MetricOptions, metrics_table
+from analysis.metrics import Analysis, MetricOptions, analyse_logs
+from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
@@ -32,12 +34,7 @@ MAIN_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance
 PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "turn_count"]
 BOX_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps",
                "detour_extra_length_cm", "tpt_ade_cm"]
-GROUP = ["scenario", "strategy", "h_wait"]
-
-
-def variant(strategy: str, h_wait) -> str:
-    """``auto(h=2)`` for the strategy that reads h_wait, else the strategy name."""
-    return f"auto(h={int(h_wait)})" if strategy == "auto" and not pd.isna(h_wait) else str(strategy)
+PAIR_KEY = "seed"  # episodes of one scenario group with the same seed face the same world and obstacles
 
 
 def _fmt(mean: float, lo: float, hi: float, digits: int = 1) -> str:
@@ -48,39 +45,56 @@ def _fmt(mean: float, lo: float, hi: float, digits: int = 1) -> str:
     return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
 
-def group_table(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(main table for the report, long table of every metric per group with interval bounds)."""
+def _groups(df: pd.DataFrame):
+    """(scenario label, variant) groups in the rows' order (the natural order :func:`analyse_logs` sorted)."""
+    return df.groupby(["scenario_label", "variant"], sort=False)
+
+
+def group_table(df: pd.DataFrame, grouping: Grouping) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(main table for the report, long table of every metric per group with interval bounds). A group is one
+    scenario label and one variant: every run parameter that differs among the logs is in one or the other."""
+    constant = [*SHOWN, *(k for k in grouping.dimensions if k not in SHOWN), "scenario_label", "variant"]
     main_rows, long_rows = [], []
-    for (scenario, strategy, h_wait), g in df.groupby(GROUP, dropna=False, sort=True):
+    for (scenario, variant), g in _groups(df):
         k, n = int(g["success"].sum()), len(g)
         p, lo, hi = wilson(k, n)
-        row = {"scenario": scenario, "strategy": variant(strategy, h_wait), "episodes": n,
+        row = {"scenario": scenario, "variant": variant, "episodes": n,
                "success rate [95% Wilson]": f"{p:.2f} [{lo:.2f}, {hi:.2f}]"}
-        long_rows.append({"scenario": scenario, "strategy": strategy, "h_wait": h_wait, "metric": "success",
-                          "n": n, "mean": p, "ci_low": lo, "ci_high": hi, "interval": "wilson"})
+        keys = {c: g[c].iloc[0] for c in constant}
+        long_rows.append({**keys, "metric": "success", "n": n, "mean": p, "ci_low": lo, "ci_high": hi,
+                          "interval": "wilson"})
         for metric in METRICS:
             mean, mlo, mhi = bootstrap_mean(g[metric])
-            long_rows.append({"scenario": scenario, "strategy": strategy, "h_wait": h_wait, "metric": metric,
-                              "n": int(g[metric].notna().sum()), "mean": mean, "ci_low": mlo, "ci_high": mhi,
-                              "interval": "bootstrap"})
+            long_rows.append({**keys, "metric": metric, "n": int(g[metric].notna().sum()), "mean": mean,
+                              "ci_low": mlo, "ci_high": mhi, "interval": "bootstrap"})
             if metric in MAIN_METRICS:
                 row[metric] = _fmt(mean, mlo, mhi)
         main_rows.append(row)
     return pd.DataFrame(main_rows), pd.DataFrame(long_rows)
 
 
-def paired_table(df: pd.DataFrame) -> pd.DataFrame:
-    """Mean paired difference (A − B) with a 95 % bootstrap interval between strategies — wait vs detour,
-    and each of them vs every auto(h) — run on the same scenario and seed (and controller and perception)."""
-    keys = ["scenario", "seed", "controller", "perception"]
+def _factors(df: pd.DataFrame, grouping: Grouping) -> dict[str, tuple]:
+    """Per variant: its strategy (with h_wait where the label shows it) and each other differing parameter."""
+    return {row["variant"]: ((row["strategy"], format_value(row["h_wait"]) if row["strategy"] in
+                              grouping.h_wait_shown else ""), *(format_value(row[k]) for k in grouping.variant_keys))
+            for _, row in df.drop_duplicates("variant").iterrows()}
+
+
+def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
+    """Mean paired difference (A − B) with a 95 % bootstrap interval between variants that differ in one
+    factor only — the strategy (wait vs detour, each of them vs every auto(h); auto against auto is in the
+    plots against h_wait) or one other differing parameter — run on the same scenario group and seed.
+    Strategy ``none`` (the ablation) is not compared. Episodes repeated on a seed within a group are averaged."""
+    factors = _factors(df, grouping)
     rows = []
-    for scenario, sub in df.groupby("scenario"):
-        variants = sorted(v for v in sub["variant"].unique() if v != "none")
-        for a, b in itertools.combinations(variants, 2):
-            if a.startswith("auto") and b.startswith("auto"):
-                continue  # h_wait is compared in the plots against h_wait
-            left = sub[sub["variant"] == a].set_index(keys)
-            right = sub[sub["variant"] == b].set_index(keys)
+    for scenario, sub in df[df["strategy"] != "none"].groupby("scenario_label", sort=False):
+        per_seed = {v: g.groupby(PAIR_KEY)[PAIRED_METRICS].mean() for v, g in sub.groupby("variant", sort=False)}
+        for a, b in itertools.combinations(per_seed, 2):
+            changed = [i for i, (x, y) in enumerate(zip(factors[a], factors[b], strict=True)) if x != y]
+            both_auto = factors[a][0][0] == factors[b][0][0] == "auto"
+            if len(changed) != 1 or (changed == [0] and both_auto):
+                continue
+            left, right = per_seed[a], per_seed[b]
             common = left.index.intersection(right.index)
             if len(common) == 0:
                 continue
@@ -93,16 +107,45 @@ def paired_table(df: pd.DataFrame) -> pd.DataFrame:
                                        "excludes_zero"])
 
 
+def parameter_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
+    """Each shown run parameter and each group dimension: its label name and its values with episode counts."""
+    rows = []
+    for key in [*SHOWN, *(k for k in grouping.dimensions if k not in SHOWN)]:
+        counts = df[key].map(format_value).value_counts(sort=False)
+        if len(counts) == 1:
+            role = "same in every episode"
+        elif key == "scenario" or key in grouping.scenario_keys:
+            role = "scenario"
+        else:
+            role = "variant"
+        rows.append({"parameter": key, "label": grouping.short.get(key, key), "groups by": role,
+                     "values (episodes)": ", ".join(f"{v} ({n})" for v, n in counts.items())})
+    return pd.DataFrame(rows)
+
+
+def warnings(df: pd.DataFrame, analysis: Analysis) -> list[str]:
+    """Things that can make pooled numbers wrong: logs from different code, an episode counted twice."""
+    out = []
+    warning = provenance_warning(analysis.grouping, analysis.runs)
+    if warning:
+        out.append(warning)
+    repeats = df.duplicated(["scenario_label", "variant", "seed"]).sum()
+    if repeats:
+        out.append(f"warning: {repeats} episode(s) repeat a seed already in their group (the same logs given twice, "
+                   "or two runs of one configuration); each is counted in the group statistics.")
+    return out
+
+
 def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
     """Statements computed from the numbers (no hand-written prose)."""
     out = []
-    for scenario, sub in df.groupby("scenario"):
-        rates = sub.groupby("variant")["success"].mean()
+    for scenario, sub in df.groupby("scenario_label", sort=False):
+        rates = sub.groupby("variant", sort=False)["success"].mean()
         best_rate = rates.max()
-        best = sorted(rates[rates == best_rate].index)
+        best = [v for v in rates.index if rates[v] == best_rate]
         out.append(f"{scenario}: highest success rate {best_rate:.2f} with {', '.join(best)} "
-                   f"(lowest {rates.min():.2f} with {', '.join(sorted(rates[rates == rates.min()].index))}).")
-        ttg = sub[sub["variant"].isin(best)].groupby("variant")["time_to_goal_s"].mean().dropna()
+                   f"(lowest {rates.min():.2f} with {', '.join(v for v in rates.index if rates[v] == rates.min())}).")
+        ttg = sub[sub["variant"].isin(best)].groupby("variant", sort=False)["time_to_goal_s"].mean().dropna()
         if not ttg.empty:
             fastest = ttg.idxmin()
             line = (f"{scenario}: among those, the shortest mean time-to-goal is {ttg.min():.1f} s with {fastest}")
@@ -115,7 +158,7 @@ def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
                     continue
                 sign = 1 if r["A"] == fastest else -1
                 diff, lo, hi = sign * r["mean A−B"], sign * r["ci_low"], sign * r["ci_high"]
-                lo, hi = min(lo, hi), max(lo, hi)
+                lo, hi = min(lo, hi) + 0.0, max(lo, hi) + 0.0  # + 0.0: no "-0.0"
                 verdict = "the interval excludes zero" if r["excludes_zero"] else "the interval includes zero"
                 significant.append(f"vs {other}: {diff:+.1f} s [{lo:+.1f}, {hi:+.1f}], {verdict}")
             out.append(line + ("; paired on seeds " + "; ".join(significant) if significant else "") + ".")
@@ -173,12 +216,17 @@ class Report:
 
 
 def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions | None = None,
-                 jobs: int = 1) -> Report:
+                 jobs: int = 1, analysis: Analysis | None = None, split_provenance: bool = False) -> Report:
     """Compute everything and write the report files into ``out``; returns the report content. ``jobs``:
-    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`)."""
+    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`).
+    ``analysis``: the logs already analysed (the sweep shares it with its summary); ``split_provenance``:
+    logs from different code versions form separate groups instead of being pooled with a warning."""
     out.mkdir(parents=True, exist_ok=True)
     sources = [str(p) for p in paths]
-    df, excluded = metrics_table(sources, options, jobs=jobs)
+    analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance)
+    df, grouping = analysis.episodes, analysis.grouping
+    excluded = analysis.excluded[["log", "outcome", "scenario_label", "variant", "reason"]].rename(
+        columns={"scenario_label": "scenario"})
     report = Report("fuzzynav report")
     report.add("p", f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out.")
     if df.empty:
@@ -186,12 +234,17 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         report.add("table", excluded)
         _write(report, out, df, pd.DataFrame(), pd.DataFrame())
         return report
-    df["variant"] = [variant(s, h) for s, h in zip(df["strategy"], df["h_wait"], strict=True)]
-    main, long = group_table(df)
-    paired = paired_table(df)
+    main, long = group_table(df, grouping)
+    paired = paired_table(df, grouping)
     report.add("h2", "What the data says")
-    report.add("list", findings(df, paired))
-    report.add("h2", "Outcomes per scenario × strategy × h_wait")
+    report.add("list", warnings(df, analysis) + findings(df, paired))
+    report.add("h2", "Run parameters")
+    others = (f"here {', '.join(grouping.dimensions)}, named in labels by the end of the key"
+              if grouping.dimensions else "here none differs")
+    report.add("p", "Episodes are grouped by scenario, strategy and h_wait, and by every other run parameter whose "
+                    f"value differs among these logs ({others}); seeds are pooled.")
+    report.add("table", parameter_table(df, grouping))
+    report.add("h2", "Outcomes per scenario and variant")
     report.add("p", "Success = goal reached with no contact before the step limit; 95 % Wilson interval. Other "
                     "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
     report.add("table", main)
@@ -206,22 +259,24 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     report.add("p", "Contacts recomputed from the logged geometry agree with the simulator's flags in "
                     f"{len(df) - len(disagree)} of {len(df)} episodes.")
     if not disagree.empty:
-        report.add("table", disagree[["log", "collisions_static", "collisions_logged_static", "collisions_dynamic",
-                                      "collisions_logged_dynamic"]])
+        report.add("table", disagree[["log", "scenario_label", "variant", "collisions_static",
+                                      "collisions_logged_static", "collisions_dynamic", "collisions_logged_dynamic"]
+                                     ].rename(columns={"scenario_label": "scenario"}))
     report.add("h2", "Metrics against h_wait")
-    if (df.groupby("scenario")["variant"].nunique() >= 2).any():
-        report.add("p", "Mean and 95 % bootstrap interval per h_wait for auto; strategies that do not read h_wait "
-                        "as dashed lines with their interval as a band.")
+    if (df.groupby("scenario_label")["variant"].nunique() >= 2).any():
+        report.add("p", "Mean and 95 % bootstrap interval per h_wait for auto (one line per setting of the other "
+                        "differing parameters); strategies that do not read h_wait as horizontal lines with their "
+                        "interval as a band.")
         for metric in ["success", *METRICS]:
             report.add("img", plots.metric_vs_h_wait(df, metric, out))
     else:
         report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
                         "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
-    report.add("h2", "Distributions per strategy")
+    report.add("h2", "Distributions per variant")
     for metric in BOX_METRICS:
         report.add("img", plots.box_by_strategy(df, metric, out))
     report.add("h2", "Trajectories")
-    for scenario in sorted(df["scenario"].unique()):
+    for scenario in pd.unique(df["scenario_label"]):
         report.add("img", plots.trajectories(df, scenario, out))
     report.add("h2", "Logs left out")
     report.add("table", excluded)
@@ -245,6 +300,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--turn-threshold-deg", type=float, default=5.0, help="heading change counted as a turn")
     parser.add_argument("--jobs", type=int, default=-1,
                         help="worker processes reading the logs (default -1: every core; 1: this process only)")
+    parser.add_argument("--split-provenance", action="store_true",
+                        help="logs written by different code (fuzzynav version, git commit, library versions) form "
+                             "separate groups (default: pooled, with a warning)")
     args = parser.parse_args(argv)
     missing = [p for p in args.paths if not Path(p).exists()]
     if missing:
@@ -252,7 +310,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     first = Path(args.paths[0])
     out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
-    build_report(args.paths, out, MetricOptions(turn_threshold_deg=args.turn_threshold_deg), jobs=args.jobs)
+    build_report(args.paths, out, MetricOptions(turn_threshold_deg=args.turn_threshold_deg), jobs=args.jobs,
+                 split_provenance=args.split_provenance)
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
     return 0
 

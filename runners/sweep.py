@@ -5,8 +5,10 @@
     python -m runners.sweep sweep=quick planner.safety_margin_cm=5,15    # plus any Hydra override
 
 Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>__h<h_wait>__...__s<seed>.mcap`` with Hydra's
-``.hydra/`` snapshots per job. At the end it reads the logs back, writes ``summary.csv``, prints a table of
-outcomes per scenario, strategy and h_wait, and writes the analysis report into ``<sweep dir>/report/``.
+``.hydra/`` snapshots per job. At the end it reads the logs back once (:func:`analysis.metrics.analyse_logs`),
+writes ``summary.csv``, prints a table of outcomes per group — scenario, strategy, h_wait and every other run
+parameter the sweep varied (:mod:`analysis.run_parameters`) — and writes the analysis report from the same
+numbers into ``<sweep dir>/report/``.
 """
 
 from __future__ import annotations
@@ -24,10 +26,12 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 from tqdm import tqdm
 
-from analysis.logs import LogError, episode_summary, find_logs, is_complete, read_logs
+from analysis.logs import find_logs, is_complete
 
-if TYPE_CHECKING:  # pandas is imported where the summary is written: the sweep's workers load this module
-    import pandas as pd
+if TYPE_CHECKING:  # pandas and the analysis are imported where the summary is written: the sweep's workers
+    import pandas as pd  # load this module
+
+    from analysis.metrics import Analysis
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 
@@ -173,59 +177,76 @@ class SweepProgress(Callback):
             kept = sum(1 for p, t in before.items() if p.exists() and p.stat().st_mtime == t)
             total = len(find_logs([sweep_dir]))
             print(f"resume: {kept} complete episode(s) kept, {total - kept} run (incomplete, missing or changed)")
-        write_summary(sweep_dir, jobs=-1)  # on the launcher's worker pool, still running
+        from analysis.metrics import analyse_logs
         from analysis.report import build_report
 
-        build_report([sweep_dir], sweep_dir / "report", jobs=-1)
+        analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
+        write_summary(sweep_dir, analysis=analysis)
+        build_report([sweep_dir], sweep_dir / "report", analysis=analysis)
         print(f"report: {sweep_dir / 'report' / 'report.html'} (and report.md)")
 
 
-def _summary_rows(paths: list[Path]) -> tuple[list[dict], list[dict]]:
-    """Summary rows of the readable logs among ``paths``, and the unreadable ones with the reason."""
-    rows, bad = [], []
-    for path in paths:
-        try:
-            rows.append(episode_summary(path))
-        except LogError as err:
-            bad.append({"log": str(path), "outcome": "unreadable", "reason": str(err)})
-    return rows, bad
+SUMMARY_COLUMNS = ["outcome", "success", "steps", "time_to_goal_s", "collisions_static", "collisions_dynamic"]
 
 
-def summarise(sweep_dir: Path, jobs: int = 1) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Per-episode rows read back from the logs (in ``jobs`` processes when there are many), and outcomes per
-    scenario × strategy × h_wait."""
+def summarise(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = None
+              ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Per-episode rows read back from the logs (in ``jobs`` processes when there are many; or from
+    ``analysis``, the same logs already analysed) and outcomes per group (scenario label × variant).
+
+    Success is the metrics' ``success`` column (:func:`analysis.run_parameters.is_success`): the summary and
+    the report cannot disagree. Logs left out of the statistics (unreadable, truncated, outcome ``error`` or
+    ``interrupted``) are rows with their outcome and reason, and ``left_out`` in their group's row."""
     import pandas as pd
 
-    parts = read_logs(_summary_rows, find_logs([sweep_dir]), jobs)
-    rows = [r for part_rows, _ in parts for r in part_rows]
-    bad = [b for _, part_bad in parts for b in part_bad]
-    episodes = pd.DataFrame(rows + bad)
-    if not rows:
-        return episodes, pd.DataFrame()
-    ok = pd.DataFrame(rows)
-    ok["success"] = ok["outcome"].eq("goal") & ok["contacts"].fillna(1).eq(0)
-    table = ok.groupby(["scenario", "strategy", "h_wait"], dropna=False).agg(
-        episodes=("outcome", "size"), success_rate=("success", "mean"),
+    from analysis.metrics import analyse_logs
+
+    analysis = analysis or analyse_logs([sweep_dir], jobs=jobs)
+    ok, bad = analysis.episodes, analysis.excluded
+    dims = [k for k in analysis.grouping.dimensions if k not in ("controller", "perception")]
+    columns = ["log", "scenario", "strategy", "h_wait", "controller", "perception", *dims, "scenario_label",
+               "variant", "seed", *SUMMARY_COLUMNS, "reason"]
+    parts = [frame.reindex(columns=columns) for frame in (ok, bad) if not frame.empty]
+    if not parts:
+        return pd.DataFrame(columns=columns), pd.DataFrame()
+    episodes = pd.concat(parts, ignore_index=True)
+    keys = ["scenario_label", "variant"]
+    analysed = ok.reindex(columns=[*keys, "outcome", "steps"]).assign(
+        success=ok["success"].astype(float) if "success" in ok else math.nan, left_out=0)
+    left_out = bad.dropna(subset=["variant"]).reindex(columns=keys).assign(left_out=1)  # readable metadata
+    rows = pd.concat([frame for frame in (analysed, left_out) if not frame.empty], ignore_index=True)
+    rows = rows.reindex(columns=[*keys, "outcome", "steps", "success", "left_out"]).astype(
+        {"steps": float, "success": float})  # numbers even when every log of a group was left out
+    table = rows.groupby(keys, sort=False).agg(
+        episodes=("outcome", "count"), success_rate=("success", "mean"),
         goal=("outcome", lambda s: int((s == "goal").sum())),
         collision=("outcome", lambda s: int((s == "collision").sum())),
         timeout=("outcome", lambda s: int((s == "timeout").sum())),
-        other=("outcome", lambda s: int((~s.isin(["goal", "collision", "timeout"])).sum())),
-        mean_steps=("steps", "mean")).reset_index()
-    return episodes, table
+        left_out=("left_out", "sum"), mean_steps=("steps", "mean")).reset_index()
+    return episodes, table.rename(columns={"scenario_label": "scenario"})
 
 
-def write_summary(sweep_dir: Path, jobs: int = 1) -> pd.DataFrame:
-    """Write ``summary.csv`` (one row per episode) and print the outcome table."""
+def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = None) -> pd.DataFrame:
+    """Write ``summary.csv`` (one row per episode log) and print the outcome table."""
     import pandas as pd
 
-    episodes, table = summarise(sweep_dir, jobs)
+    from analysis.metrics import analyse_logs
+    from analysis.run_parameters import provenance_warning
+
+    analysis = analysis or analyse_logs([sweep_dir], jobs=jobs)
+    episodes, table = summarise(sweep_dir, analysis=analysis)
     if episodes.empty:
         print(f"no logs found in {sweep_dir}")
         return table
     episodes.to_csv(sweep_dir / "summary.csv", index=False)
-    with pd.option_context("display.width", 160, "display.max_rows", 500):
-        print(table.to_string(index=False, float_format=lambda x: f"{x:.2f}" if not math.isnan(x) else "-"))
-    print(f"{len(episodes)} episode logs in {sweep_dir}; rows in {sweep_dir / 'summary.csv'}")
+    with pd.option_context("display.width", 200, "display.max_rows", 500, "display.max_colwidth", 80):
+        print(table.to_string(index=False, na_rep="-", float_format=lambda x: f"{x:.2f}" if not math.isnan(x) else "-"))
+    unreadable = int((episodes["outcome"] == "unreadable").sum())
+    print(f"{len(episodes)} episode logs in {sweep_dir}" + (f" ({unreadable} unreadable)" if unreadable else "")
+          + f"; rows in {sweep_dir / 'summary.csv'}")
+    warning = provenance_warning(analysis.grouping, analysis.runs)
+    if warning:
+        print(warning)
     return table
 
 

@@ -1,0 +1,342 @@
+"""Groups are defined by every run parameter that differs among the logs (issue 13, item 4: reports never
+pool two settings), with one definition of success shared by the sweep's summary and the metrics."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import matplotlib.pyplot as plt
+import pandas as pd
+import pytest
+import yaml
+
+from analysis import plots
+from analysis.metrics import analyse_logs, metrics_table
+from analysis.report import build_report
+from analysis.run_parameters import (
+    differing_parameters,
+    find_grouping,
+    format_value,
+    is_success,
+    parameters_of,
+    provenance_warning,
+    short_names,
+)
+from runners.sweep import summarise
+from tests.conftest import ROOT
+from tests.handmade import write_log
+
+BASE = {"scenario": {"name": "head_on", "max_steps": 150, "obstacles": [{"id": "walker", "speed": 20}]},
+        "controller": {"name": "table1", "rules": ["a -> b", "c -> d"]},
+        "planner": {"strategy": "auto", "h_wait": 2, "safety_margin_cm": 10.0, "successor_speeds": [10, 25, 40]},
+        "sensors": {"sonar": {"range_cm": 130.0}, "laser": {"range_cm": 250.0}},
+        "perception": {"mode": "laser"}, "seed": 0, "episodes": 5, "dt": 1.0, "resume": False}
+PROVENANCE = {"fuzzynav_version": "0.2.0", "git_commit": "ea0c422f7455e44b123699f1c6d71426d28936fa",
+              "numpy_version": "2.4.6"}
+
+
+def meta(edit=None, seed: int = 0, **extra) -> dict[str, str]:
+    """A log's ``fuzzynav.run`` metadata as runners.run writes it: ``edit(config)`` changes the config."""
+    config = yaml.safe_load(yaml.safe_dump(BASE))
+    config["seed"] = seed
+    if edit:
+        edit(config)
+    out = {"config": yaml.safe_dump(config, sort_keys=False), "seed": str(seed),
+           "scenario": config["scenario"]["name"], "strategy": config["planner"]["strategy"],
+           "h_wait": str(config["planner"]["h_wait"]), "controller": config["controller"]["name"],
+           "perception": config["perception"]["mode"], "scenario_yaml": f"seed {seed}", "config_hash": f"h{seed}",
+           **PROVENANCE}
+    out.update(extra)
+    return out
+
+
+def setter(path: str, value):
+    def edit(config):
+        *parents, leaf = path.split(".")
+        node = config
+        for p in parents:
+            node = node[p]
+        node[leaf] = value
+    return edit
+
+
+def runs(*metas):
+    return [parameters_of(m) for m in metas]
+
+
+# -- the differing-parameter function on hand-made metadata ------------------------------------------------
+def test_a_parameter_no_list_names_is_a_dimension_and_bookkeeping_is_not():
+    logs = runs(*(meta(setter("planner.safety_margin_cm", m), seed=s) for m in (5.0, 30.0) for s in (0, 1, 2)))
+    assert differing_parameters(logs) == ["planner.safety_margin_cm"]  # not seed, config_hash, scenario_yaml
+    grouping = find_grouping(logs)
+    assert grouping.variant_keys == ("planner.safety_margin_cm",) and grouping.scenario_keys == ()
+    assert {grouping.variant_label(r) for r in logs} == {"auto(h=2) · safety_margin_cm=5",
+                                                         "auto(h=2) · safety_margin_cm=30"}
+    episodes_and_resume = runs(meta(setter("episodes", 1)), meta(setter("resume", True)), meta(seed=7))
+    assert differing_parameters(episodes_and_resume) == []
+    assert find_grouping(episodes_and_resume).variant_label(episodes_and_resume[0]) == "auto(h=2)"
+
+
+def test_scenario_and_controller_keys_implied_by_their_name_are_not_repeated():
+    def other_scenario(config):
+        config["scenario"] = {"name": "crossing_right", "max_steps": 200, "obstacles": [{"id": "c", "speed": 30}]}
+
+    def listing(config):
+        config["controller"] = {"name": "listing", "rules": ["x -> y"]}
+
+    logs = runs(meta(), meta(other_scenario), meta(listing))
+    assert differing_parameters(logs) == ["scenario", "controller"]
+    grouping = find_grouping(logs)
+    assert grouping.variant_label(logs[2]) == "auto(h=2) · controller=listing"
+    assert grouping.scenario_label(logs[1]) == "crossing_right"
+
+
+def test_same_scenario_name_with_other_parameters_splits_the_scenario():
+    def mixed(n):
+        def edit(config):
+            config["scenario"] = {"name": "random_mixed", "generator": "random_mixed",
+                                  "params": {"n_dynamic": n, "speed": [10, 30]}}
+        return edit
+
+    logs = runs(meta(mixed(3)), meta(mixed(5)), meta(mixed(5), seed=1))
+    grouping = find_grouping(logs)
+    assert grouping.scenario_keys == ("scenario.params.n_dynamic",) and grouping.variant_keys == ()
+    assert [grouping.scenario_label(r) for r in logs] == ["random_mixed · n_dynamic=3"] + [
+        "random_mixed · n_dynamic=5"] * 2
+    assert grouping.variant_label(logs[0]) == "auto(h=2)"
+
+
+def test_an_edited_controller_under_the_same_name_is_a_dimension_with_a_short_unique_value():
+    logs = runs(meta(), meta(setter("controller.rules", ["a -> b", "c -> e"])))
+    grouping = find_grouping(logs)
+    assert grouping.variant_keys == ("controller.rules",)
+    labels = {grouping.variant_label(r) for r in logs}
+    assert len(labels) == 2 and all(label.startswith("auto(h=2) · rules=") and len(label) < 40 for label in labels)
+
+
+def test_a_key_missing_from_some_logs_differs_and_shows_as_unset():
+    def older(config):
+        del config["planner"]["successor_speeds"]
+
+    logs = runs(meta(), meta(older))
+    grouping = find_grouping(logs)
+    assert grouping.variant_keys == ("planner.successor_speeds",)
+    assert [grouping.variant_label(r) for r in logs] == ["auto(h=2) · successor_speeds=[10,25,40]",
+                                                         "auto(h=2) · successor_speeds=unset"]
+
+
+def test_a_log_without_config_differs_in_config_only():
+    logs = runs(meta(), meta(setter("planner.safety_margin_cm", 5.0)), meta(config=""))
+    assert differing_parameters(logs) == ["config", "planner.safety_margin_cm"]
+
+
+def test_provenance_is_pooled_with_a_warning_unless_split():
+    logs = runs(meta(), meta(seed=1, git_commit="1234567890abcdef1234567890abcdef12345678-dirty"))
+    assert differing_parameters(logs) == ["git_commit"]
+    pooled = find_grouping(logs)
+    assert pooled.dimensions == () and pooled.pooled_provenance == ("git_commit",)
+    warning = provenance_warning(pooled, logs)
+    assert warning is not None and "git_commit" in warning and "(1 episodes)" in warning
+    split = find_grouping(logs, split_provenance=True)
+    assert split.variant_keys == ("git_commit",) and provenance_warning(split, logs) is None
+    assert len({split.variant_label(r) for r in logs}) == 2
+
+
+def test_h_wait_shows_for_other_strategies_only_when_it_differs():
+    def wait(h):
+        def edit(config):
+            config["planner"].update(strategy="wait", h_wait=h)
+        return edit
+
+    logs = runs(meta(wait(2)), meta(wait(2), seed=1), meta())
+    assert find_grouping(logs).variant_label(logs[0]) == "wait"
+    logs = runs(meta(wait(1)), meta(wait(3)), meta())
+    assert [find_grouping(logs).variant_label(r) for r in logs] == ["wait(h=1)", "wait(h=3)", "auto(h=2)"]
+
+
+def test_short_names_are_unambiguous_suffixes():
+    assert short_names(["planner.safety_margin_cm", "sensors.sonar.range_cm", "sensors.laser.range_cm",
+                        "controller.fallback.v", "planner.strategy_x"]) == {
+        "planner.safety_margin_cm": "safety_margin_cm", "sensors.sonar.range_cm": "sonar.range_cm",
+        "sensors.laser.range_cm": "laser.range_cm", "controller.fallback.v": "fallback.v",
+        "planner.strategy_x": "strategy_x"}
+    assert short_names(["scenario.params.seed"]) == {"scenario.params.seed": "params.seed"}  # not "seed"
+
+
+def test_values_format_short_and_groups_sort_by_number():
+    assert [format_value(v) for v in (5.0, 0.25, 3, True, None, "laser")] == ["5", "0.25", "3", "true", "unset",
+                                                                              "laser"]
+    logs = runs(*(meta(setter("planner.safety_margin_cm", m)) for m in (20.0, 5.0, 10.0)))
+    grouping = find_grouping(logs)
+    ordered = sorted(logs, key=grouping.sort_key)
+    assert [r["planner.safety_margin_cm"] for r in ordered] == [5.0, 10.0, 20.0]  # not "10" < "20" < "5"
+
+
+def test_success_needs_goal_no_contact_and_a_finite_time_to_goal():
+    assert is_success("goal", 0, 12.0)
+    assert not is_success("goal", 1, 12.0)
+    assert not is_success("goal", 0, math.nan)  # the positions never reach the goal: not shown to succeed
+    assert not is_success("goal", None, 12.0) and not is_success("goal", math.nan, 12.0)  # unknown contacts
+    assert not is_success("timeout", 0, 12.0) and not is_success("collision", 0, 3.0)
+
+
+# -- hand-made logs: analysis, summary and report ------------------------------------------------------------
+def margin_logs(tmp_path):
+    """Six logs of one configuration but the safety margin (5 or 30 cm): the same path, a moving obstacle
+    passing 30 cm from the robot's surface with margin 5 and 80 cm with margin 30 (in the regression this
+    issue reports, both pooled into one group whose clearance was the mean of the two)."""
+    poses = [(0.0, 0.0, 0.0), (50.0, 0.0, 0.0), (100.0, 0.0, 0.0)]
+    for margin, gap in ((5.0, 30.0), (30.0, 80.0)):
+        y = 20 + 10 + gap  # robot radius 20, obstacle radius 10
+        for seed in range(3):
+            m = meta(setter("planner.safety_margin_cm", margin), seed=seed)
+            write_log(tmp_path / f"m{int(margin)}_s{seed}.mcap", poses, goal=(100.0, 0.0),
+                      obstacles=[[("o", 0, y, 50, y, 10)], [("o", 50, y, 100, y, 10)]], meta=m)
+
+
+def test_two_margins_are_two_groups_in_every_table(tmp_path, monkeypatch):
+    monkeypatch.setattr(plots, "_save", lambda fig, path: plt.close(fig) or path)  # tables only: no PNGs
+    margin_logs(tmp_path)
+    analysis = analyse_logs([tmp_path])
+    df = analysis.episodes
+    assert list(pd.unique(df["variant"])) == ["auto(h=2) · safety_margin_cm=5", "auto(h=2) · safety_margin_cm=30"]
+    clearance = df.groupby("planner.safety_margin_cm")["min_clearance_dynamic_cm"].mean()
+    assert clearance[5.0] == pytest.approx(30.0) and clearance[30.0] == pytest.approx(80.0)
+
+    build_report([tmp_path], tmp_path / "rep", analysis=analysis)
+    groups = pd.read_csv(tmp_path / "rep" / "groups.csv")
+    clearance_rows = groups[groups["metric"] == "min_clearance_dynamic_cm"]
+    assert sorted(zip(clearance_rows["planner.safety_margin_cm"], clearance_rows["mean"], strict=True)) == [
+        (5.0, pytest.approx(30.0)), (30.0, pytest.approx(80.0))]
+    episodes = pd.read_csv(tmp_path / "rep" / "episodes.csv")
+    assert sorted(episodes["planner.safety_margin_cm"]) == [5.0] * 3 + [30.0] * 3
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "| head_on    | auto(h=2) · safety_margin_cm=5  |          3 |" in md
+    assert "| head_on    | auto(h=2) · safety_margin_cm=30 |          3 |" in md
+    paired = pd.read_csv(tmp_path / "rep" / "paired.csv")
+    pair = paired[paired["metric"] == "min_clearance_dynamic_cm"].iloc[0]
+    assert (pair["A"], pair["B"], pair["pairs"]) == ("auto(h=2) · safety_margin_cm=5",
+                                                      "auto(h=2) · safety_margin_cm=30", 3)
+    assert pair["mean A−B"] == pytest.approx(-50.0)
+
+    _, table = summarise(tmp_path)
+    assert list(table["variant"]) == ["auto(h=2) · safety_margin_cm=5", "auto(h=2) · safety_margin_cm=30"]
+    assert list(table["episodes"]) == [3, 3]
+
+
+def test_summary_and_metrics_agree_on_success(tmp_path):
+    """Logs where the two former definitions disagreed: a goal outcome with a contact seen only in the geometry
+    (the simulator's flags and /episode say none), and a goal outcome whose positions never reach the goal."""
+    box = [(200, 30), (300, 30), (300, 100), (200, 100)]
+    touch = [(100, 0, 0), (150, 0, 0), (200, 15, 0), (230, 0, 0), (400, 0, 0)]
+    write_log(tmp_path / "unflagged_touch.mcap", touch, statics=[box], goal=(400.0, 0.0))
+    write_log(tmp_path / "flagged_touch.mcap", touch, statics=[box], goal=(400.0, 0.0),
+              contacts_static=[False, True, True, False])
+    write_log(tmp_path / "short_of_goal.mcap", [(0, 0, 0), (50, 0, 0)], goal=(400.0, 0.0))
+    write_log(tmp_path / "clean.mcap", [(0, 0, 0), (50, 0, 0)], goal=(50.0, 0.0))
+    write_log(tmp_path / "slow.mcap", [(0, 0, 0), (50, 0, 0)], goal=(400.0, 0.0), outcome="timeout")
+    write_log(tmp_path / "raised.mcap", [(0, 0, 0), (50, 0, 0)], outcome="error")
+    metrics, _ = metrics_table([tmp_path])
+    episodes, table = summarise(tmp_path)
+    by_log = dict(zip(metrics["log"].str.rsplit("/", n=1).str[-1], metrics["success"], strict=True))
+    assert by_log == {"unflagged_touch.mcap": False, "flagged_touch.mcap": False, "short_of_goal.mcap": False,
+                      "clean.mcap": True, "slow.mcap": False}
+    summary = episodes.dropna(subset=["success"]).set_index("log")["success"].astype(bool)
+    assert summary.to_dict() == metrics.set_index("log")["success"].to_dict()
+    assert table["success_rate"].iloc[0] == pytest.approx(1 / 5) and table["left_out"].iloc[0] == 1
+    assert episodes.loc[episodes["log"].str.endswith("raised.mcap"), "outcome"].item() == "error"
+
+
+# -- the real sweep command -----------------------------------------------------------------------------------
+MARGINS = ("5", "30")
+
+
+@pytest.fixture(scope="module")
+def margin_sweep(tmp_path_factory):
+    """A sweep over a parameter that no list in the code names: head_on, auto and wait, two margins, one seed."""
+    out = tmp_path_factory.mktemp("margins")
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", "scenario=head_on",
+                          "planner=auto,wait", f"planner.safety_margin_cm={','.join(MARGINS)}", "episodes=1",
+                          f"hydra.sweep.dir={out}", "hydra.launcher.n_jobs=2"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    return out, res.stdout
+
+
+def labels(strategy: str) -> set[str]:
+    return {f"{strategy} · safety_margin_cm={m}" for m in MARGINS}
+
+
+VARIANTS = {f"auto(h=2) · safety_margin_cm={m}" for m in MARGINS} | labels("wait")
+
+
+def test_sweep_summary_and_report_tables_have_one_row_per_margin(margin_sweep):
+    out, stdout = margin_sweep
+    summary = pd.read_csv(out / "summary.csv")
+    assert len(summary) == 4 and set(summary["variant"]) == VARIANTS
+    assert sorted(summary["planner.safety_margin_cm"]) == [5.0, 5.0, 30.0, 30.0]
+    printed = [line for line in stdout.splitlines() if line.strip().startswith("head_on")]
+    assert len(printed) == 4 and all(sum(v in line for v in VARIANTS) == 1 for line in printed)
+
+    rep = out / "report"
+    groups = pd.read_csv(rep / "groups.csv")
+    success = groups[groups["metric"] == "success"]
+    assert len(success) == 4 and set(success["variant"]) == VARIANTS
+    assert sorted(success["planner.safety_margin_cm"]) == [5.0, 5.0, 30.0, 30.0]
+    episodes = pd.read_csv(rep / "episodes.csv")
+    assert set(episodes["variant"]) == VARIANTS
+    merged = summary.merge(episodes, on="log", suffixes=("_summary", "_report"))
+    assert len(merged) == 4 and (merged["success_summary"] == merged["success_report"]).all()
+    md = (rep / "report.md").read_text()
+    for variant in VARIANTS:
+        assert f"| head_on    | {variant}" in md
+    paired = pd.read_csv(rep / "paired.csv")
+    pairs = set(zip(paired["A"], paired["B"], strict=True))
+    assert ("auto(h=2) · safety_margin_cm=5", "auto(h=2) · safety_margin_cm=30") in pairs
+    assert ("wait · safety_margin_cm=5", "wait · safety_margin_cm=30") in pairs
+    assert ("auto(h=2) · safety_margin_cm=5", "wait · safety_margin_cm=30") not in pairs  # two factors at once
+
+
+def test_sweep_plots_have_one_series_per_margin(margin_sweep, tmp_path, monkeypatch):
+    """The report rebuilt from the sweep's logs, looking at every figure instead of saving it (rendering the
+    PNGs again would only cost time: the sweep's are checked to be the same files)."""
+    out, _ = margin_sweep
+    seen: dict[str, dict[str, list[str]]] = {}
+
+    def spy(fig, path):
+        ax = fig.axes[0]
+        seen[path.name] = {"legend": [t.get_text() for legend in fig.legends for t in legend.get_texts()],
+                           "ticks": [t.get_text() for t in ax.get_xticklabels()],
+                           "colors": [tuple(line.get_color()) for line in ax.get_lines() if line.get_label() in
+                                      VARIANTS]}
+        plt.close(fig)
+        return path
+
+    monkeypatch.setattr(plots, "_save", spy)
+    build_report([out], tmp_path / "rep")
+    assert set(seen) == {p.name for p in (out / "report").glob("*.png")}  # the same figures as the sweep's
+    episodes = pd.read_csv(tmp_path / "rep" / "episodes.csv")
+    series = {f"auto · safety_margin_cm={m}" for m in MARGINS} | labels("wait")
+    drawn = 0
+    for name, figure in seen.items():
+        if name.startswith("box_"):
+            assert figure["ticks"] == sorted(VARIANTS, key=_natural), name
+        elif name.startswith("trajectories_"):
+            assert set(figure["legend"]) == VARIANTS, name
+            assert len(set(figure["colors"])) == len(MARGINS)  # a colour per margin, a line style per strategy
+        else:
+            metric = name.removeprefix("h_wait_").removesuffix(".png")
+            legend = figure["legend"]
+            assert len(legend) == len(set(legend)) and set(legend) <= series, name
+            if episodes.groupby("variant")[metric].count().min() > 0:  # a value in every group: every series
+                assert set(legend) == series, name
+                drawn += 1
+    assert drawn >= 10
+
+
+def _natural(variant: str) -> tuple:
+    """Groups' order: auto before wait, margins by number."""
+    strategy, margin = variant.split(" · safety_margin_cm=")
+    return (not strategy.startswith("auto"), float(margin))
