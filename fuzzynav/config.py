@@ -1,7 +1,9 @@
 """Build the frozen config dataclasses from plain nested mappings (as composed by Hydra).
 
 ``episode_config_from_dict({"planner": {"strategy": "wait"}, "dt": 1.0})`` fills everything else with
-defaults. An unknown key or a wrong type raises ``ValueError`` naming the dotted field.
+defaults. An unknown key, a non-string key, a wrong type or a list of the wrong length raises ``ValueError``
+naming the dotted field; the values are then checked by the dataclasses themselves, and every number of the
+tree against its documented range (:func:`fuzzynav.checks.check_config_fields`, :mod:`fuzzynav.limits`).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import typing
 from collections.abc import Mapping
 from typing import Any
 
+from fuzzynav.checks import check_key, field_name
 from fuzzynav.episode import EpisodeConfig
 
 
@@ -23,7 +26,8 @@ def from_dict(cls: type, data: Mapping[str, Any] | None, path: str = "") -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs = {}
     for key, value in data.items():
-        where = f"{path}.{key}" if path else str(key)
+        check_key(key, path)
+        where = field_name(path, key)
         if key not in fields:
             raise ValueError(f"{where}: unknown key (allowed: {', '.join(fields)})")
         hint = hints[key]
@@ -35,7 +39,8 @@ def from_dict(cls: type, data: Mapping[str, Any] | None, path: str = "") -> Any:
         return cls(**kwargs)
     except ValueError as err:
         msg = str(err)
-        raise ValueError(msg if ":" in msg.split()[0] else f"{path}: {msg}") from None
+        named = bool(msg) and ":" in msg.split()[0]  # the dataclasses' messages start with the field
+        raise ValueError(msg if named else f"{path or cls.__name__}: {msg or type(err).__name__}") from None
 
 
 def _coerce(hint: Any, value: Any, where: str) -> Any:
@@ -44,6 +49,8 @@ def _coerce(hint: Any, value: Any, where: str) -> Any:
         if not isinstance(value, list | tuple):
             raise ValueError(f"{where}: expected a list, got {value!r}")
         args = typing.get_args(hint)
+        if args and Ellipsis not in args and len(value) != len(args):
+            raise ValueError(f"{where}: expected a list of {len(args)} items, got {len(value)}")
         item = args[0] if args else float
         return tuple(_coerce(item, v, f"{where}[{i}]") for i, v in enumerate(value))
     if hint is bool:

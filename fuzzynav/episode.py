@@ -21,6 +21,7 @@ import numpy as np
 
 from fuzzynav import laser as laser_mod
 from fuzzynav import portable_math
+from fuzzynav.checks import check_config_fields
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
@@ -54,6 +55,7 @@ class EpisodeConfig:
     def __post_init__(self) -> None:
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise ValueError(f"dt: must be a positive number of seconds, got {self.dt}")
+        check_config_fields(self)  # every number of the tree: finite and in its documented range (fuzzynav.limits)
 
 
 @dataclass(frozen=True)

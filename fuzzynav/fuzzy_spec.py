@@ -37,6 +37,15 @@ term are accumulated with the maximum (Mamdani min/max, centroid defuzzification
 
 Every error raises :class:`ControllerSpecError` naming the field, e.g.
 ``inputs.left.terms.near.params: breakpoints must be non-decreasing``.
+
+Valid ranges (sizes in :mod:`fuzzynav.limits`): every number finite with |x| <= 1e6; the ``dtheta``
+output's universe within [-180, 180] degrees and the ``v`` output's within [0, 1000] cm/s (a speed universe
+below 0 would never move the robot); at most 10,000 grid steps per universe, 32 terms per variable, 16
+variables, 1,000 rules; a gauss sigma at least the variable's ``resolution`` (a narrower bell falls between
+the grid points and never fires); every term non-zero somewhere on its universe's grid (otherwise it can
+never fire or has no area); ``name`` a safe file-name part, variable and term names identifiers (the rules
+must be able to name them). Whether the speed universe fits the robot's limits is
+:func:`check_fits_robot`.
 """
 
 from __future__ import annotations
@@ -50,6 +59,8 @@ from typing import Any
 
 import numpy as np
 
+from fuzzynav import limits
+from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text
 from fuzzynav.portable_math import exp_array
 
 SOURCES = ("left", "front", "right", "angle")
@@ -141,54 +152,81 @@ class ControllerSpec:
         return parse_controller(data)
 
 
+#: the universe each output role must lie within (its unit: degrees, cm/s)
+ROLE_UNIVERSE = {"dtheta": (-limits.MAX_STEER_DEG, limits.MAX_STEER_DEG), "v": (0.0, limits.MAX_SPEED_CM_S)}
+_IDENTIFIER = re.compile(r"[A-Za-z_]\w{0,63}", re.ASCII)  # what a rule can name (see _CLAUSE)
+
+
 def _number(value: Any, field: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ControllerSpecError(f"{field}: expected a number, got {value!r}")
+        raise ControllerSpecError(f"{field}: expected a number, got {_short(value)}")
     x = float(value)
     if not math.isfinite(x):
         raise ControllerSpecError(f"{field}: must be finite, got {value!r}")
+    if abs(x) > limits.MAX_CONTROLLER_ABS:
+        raise ControllerSpecError(f"{field}: {value!r} is out of range (|x| <= {limits.MAX_CONTROLLER_ABS:g})")
     return x
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
 
 
 def _mapping(value: Any, field: str) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
-        raise ControllerSpecError(f"{field}: expected a mapping, got {type(value).__name__}")
+        raise ControllerSpecError(f"{field or 'controller'}: expected a mapping, got {type(value).__name__}")
+    for key in value:
+        check_key(key, field, ControllerSpecError)
     return value
+
+
+def _identifier(name: str, field: str) -> str:
+    if not _IDENTIFIER.fullmatch(name):
+        raise ControllerSpecError(f"{field}: {_short(name)} is not a valid name (a letter or _, then letters, "
+                                  "digits or _, at most 64 characters: rules must be able to name it)")
+    return name
 
 
 def _check_keys(data: Mapping[str, Any], allowed: set[str], required: set[str], field: str) -> None:
     for key in data:
         if key not in allowed:
             prefix = f"{field}." if field else ""
-            raise ControllerSpecError(f"{prefix}{key}: unknown key (allowed: {', '.join(sorted(allowed))})")
+            raise ControllerSpecError(f"{prefix}{key_text(key)}: unknown key (allowed: {', '.join(sorted(allowed))})")
     for key in sorted(required):
         if key not in data:
             prefix = f"{field}." if field else ""
             raise ControllerSpecError(f"{prefix}{key}: missing")
 
 
-def _parse_term(name: str, data: Any, field: str, universe: tuple[float, float], is_input: bool) -> Term:
+def _parse_term(name: str, data: Any, field: str, universe: tuple[float, float], resolution: float,
+                grid: np.ndarray, is_input: bool) -> Term:
     data = _mapping(data, field)
     _check_keys(data, {"mf", "params"}, {"mf", "params"}, field)
     mf = data["mf"]
-    if mf not in MF_PARAM_COUNT:
-        raise ControllerSpecError(f"{field}.mf: unknown membership function {mf!r} "
+    if not isinstance(mf, str) or mf not in MF_PARAM_COUNT:
+        raise ControllerSpecError(f"{field}.mf: unknown membership function {_short(mf)} "
                                   f"(known: {', '.join(MF_PARAM_COUNT)})")
     if mf == "crisp" and not is_input:
         raise ControllerSpecError(f"{field}.mf: crisp terms are for inputs only")
     raw = data["params"]
     if not isinstance(raw, list | tuple):
         raise ControllerSpecError(f"{field}.params: expected a list of numbers")
+    if len(raw) != MF_PARAM_COUNT[mf]:
+        raise ControllerSpecError(f"{field}.params: {mf} takes {MF_PARAM_COUNT[mf]} numbers, got {len(raw)}")
     params = tuple(_number(p, f"{field}.params[{i}]") for i, p in enumerate(raw))
-    if len(params) != MF_PARAM_COUNT[mf]:
-        raise ControllerSpecError(f"{field}.params: {mf} takes {MF_PARAM_COUNT[mf]} numbers, got {len(params)}")
     if mf in ("trap", "tri", "crisp") and any(b < a for a, b in itertools.pairwise(params)):
         raise ControllerSpecError(f"{field}.params: breakpoints must be non-decreasing, got {list(params)}")
-    if mf == "gauss" and params[1] <= 0:
-        raise ControllerSpecError(f"{field}.params: gauss sigma must be > 0, got {params[1]}")
+    if mf == "gauss" and params[1] < resolution:
+        raise ControllerSpecError(f"{field}.params: gauss sigma must be at least the resolution {resolution:g} "
+                                  f"(a narrower bell falls between the grid points), got {params[1]:g}")
     if mf == "crisp" and params[0] == params[1]:
         raise ControllerSpecError(f"{field}.params: crisp interval is empty")
-    return Term(name=name, mf=mf, params=params)
+    term = Term(name=name, mf=mf, params=params)
+    if not sample_membership(term, grid, universe[1]).max() > 0:  # also catches a NaN from the sampling
+        raise ControllerSpecError(f"{field}.params: the term is zero everywhere on the universe {list(universe)} "
+                                  "(sampled on its grid): it can never fire")
+    return term
 
 
 def _parse_variable(name: str, data: Any, field: str, is_input: bool) -> Variable:
@@ -201,31 +239,42 @@ def _parse_variable(name: str, data: Any, field: str, is_input: bool) -> Variabl
     lo, hi = (_number(u, f"{field}.universe[{i}]") for i, u in enumerate(uni))
     if not lo < hi:
         raise ControllerSpecError(f"{field}.universe: min must be < max, got [{lo}, {hi}]")
+    role = None if is_input else data.get("role", name)
+    if isinstance(role, str) and role in ROLE_UNIVERSE:
+        r_lo, r_hi = ROLE_UNIVERSE[role]
+        if not r_lo <= lo < hi <= r_hi:
+            unit = "degrees" if role == "dtheta" else "cm/s"
+            raise ControllerSpecError(f"{field}.universe: the {role} output must lie within [{r_lo:g}, {r_hi:g}] "
+                                      f"{unit}, got [{lo:g}, {hi:g}]")
     res = _number(data.get("resolution", 1.0), f"{field}.resolution")
     steps = (hi - lo) / res if res > 0 else -1
     if res <= 0 or abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
-        raise ControllerSpecError(f"{field}.resolution: must be > 0 and divide the universe width {hi - lo}")
-    if round(steps) > 100_000:
-        raise ControllerSpecError(f"{field}.resolution: too fine ({round(steps)} steps; at most 100000)")
+        raise ControllerSpecError(f"{field}.resolution: must be > 0 and divide the universe width {hi - lo:g}")
+    if round(steps) > limits.MAX_UNIVERSE_STEPS:
+        raise ControllerSpecError(f"{field}.resolution: too fine ({round(steps):,} steps; the limit is "
+                                  f"{limits.MAX_UNIVERSE_STEPS:,})")
     terms_raw = _mapping(data["terms"], f"{field}.terms")
     if not terms_raw:
         raise ControllerSpecError(f"{field}.terms: at least one term is needed")
-    terms = tuple(_parse_term(str(t), d, f"{field}.terms.{t}", (lo, hi), is_input) for t, d in terms_raw.items())
+    check_count(len(terms_raw), f"{field}.terms", limits.MAX_TERMS, ControllerSpecError, "terms")
+    grid = np.linspace(lo, hi, round(steps) + 1)  # as Variable.grid
+    terms = tuple(_parse_term(_identifier(t, f"{field}.terms.{key_text(t)}"), d, f"{field}.terms.{t}", (lo, hi), res,
+                              grid, is_input) for t, d in terms_raw.items())
     kinds = {t.mf == "crisp" for t in terms}
     if len(kinds) > 1:
         raise ControllerSpecError(f"{field}.terms: crisp and fuzzy terms cannot be mixed in one variable")
-    source, scale, role = None, 1.0, None
+    source, scale = None, 1.0
     if is_input:
         source = data["source"]
-        if source not in SOURCES:
-            raise ControllerSpecError(f"{field}.source: unknown source {source!r} (known: {', '.join(SOURCES)})")
+        if not isinstance(source, str) or source not in SOURCES:
+            raise ControllerSpecError(f"{field}.source: unknown source {_short(source)} "
+                                      f"(known: {', '.join(SOURCES)})")
         scale = _number(data.get("scale", 1.0), f"{field}.scale")
-        if scale <= 0:
-            raise ControllerSpecError(f"{field}.scale: must be > 0")
-    else:
-        role = data.get("role", name)
-        if role not in ROLES:
-            raise ControllerSpecError(f"{field}.role: unknown role {role!r} (known: {', '.join(ROLES)})")
+        if not scale >= 1.0 / limits.MAX_CONTROLLER_ABS:
+            raise ControllerSpecError(f"{field}.scale: must be in [{1.0 / limits.MAX_CONTROLLER_ABS:g}, "
+                                      f"{limits.MAX_CONTROLLER_ABS:g}], got {scale:g}")
+    elif not isinstance(role, str) or role not in ROLES:
+        raise ControllerSpecError(f"{field}.role: unknown role {_short(role)} (known: {', '.join(ROLES)})")
     return Variable(name=name, universe=(lo, hi), resolution=res, terms=terms, source=source, scale=scale,
                     role=role)
 
@@ -238,7 +287,7 @@ def _parse_clauses(text: str, sep: str, field: str) -> tuple[tuple[str, str], ..
     for part in text.split(sep):
         m = _CLAUSE.match(part)
         if not m:
-            raise ControllerSpecError(f"{field}: cannot read {part.strip()!r} (expected var=term)")
+            raise ControllerSpecError(f"{field}: cannot read {_short(part.strip())} (expected var=term)")
         clauses.append((m.group(1), m.group(2)))
     return tuple(clauses)
 
@@ -249,7 +298,7 @@ def parse_rule(text: str, variables: Mapping[str, Variable], inputs: set[str], o
     if not isinstance(text, str):
         raise ControllerSpecError(f"{field}: expected a string")
     if text.count("->") != 1:
-        raise ControllerSpecError(f"{field}: expected exactly one '->' in {text!r}")
+        raise ControllerSpecError(f"{field}: expected exactly one '->' in {_short(text)}")
     left, right = text.split("->")
     ante = _parse_clauses(left, "&", field)
     cons = _parse_clauses(right, ",", field)
@@ -257,24 +306,29 @@ def parse_rule(text: str, variables: Mapping[str, Variable], inputs: set[str], o
         seen = set()
         for var, term in group:
             if var not in names:
-                raise ControllerSpecError(f"{field}: unknown {what} variable {var!r} in {text!r}")
+                raise ControllerSpecError(f"{field}: unknown {what} variable {var!r} in {_short(text)}")
             if var in seen:
-                raise ControllerSpecError(f"{field}: variable {var!r} appears twice in {text!r}")
+                raise ControllerSpecError(f"{field}: variable {var!r} appears twice in {_short(text)}")
             seen.add(var)
             if term not in {t.name for t in variables[var].terms}:
-                raise ControllerSpecError(f"{field}: unknown term {term!r} of variable {var!r} in {text!r}")
+                raise ControllerSpecError(f"{field}: unknown term {term!r} of variable {var!r} in {_short(text)}")
     return Rule(antecedent=ante, consequent=cons, text=text.strip())
 
 
 def parse_controller(data: Mapping[str, Any]) -> ControllerSpec:
     """Validate and convert a controller definition mapping (see the module docstring)."""
-    data = _mapping(data, "controller")
+    data = _mapping(data, "")
     _check_keys(data, {"name", "description", "inputs", "outputs", "rules", "fallback"},
                 {"inputs", "outputs", "rules"}, "")
-    inputs = tuple(_parse_variable(str(n), d, f"inputs.{n}", True)
-                   for n, d in _mapping(data["inputs"], "inputs").items())
-    outputs = tuple(_parse_variable(str(n), d, f"outputs.{n}", False)
-                    for n, d in _mapping(data["outputs"], "outputs").items())
+    name = check_name(data.get("name", "controller"), "name", ControllerSpecError)
+    check_text(data.get("description", ""), "description", ControllerSpecError)
+    inputs_raw, outputs_raw = _mapping(data["inputs"], "inputs"), _mapping(data["outputs"], "outputs")
+    check_count(len(inputs_raw) + len(outputs_raw), "inputs/outputs", limits.MAX_CONTROLLER_VARIABLES,
+                ControllerSpecError, "variables")
+    inputs = tuple(_parse_variable(_identifier(n, f"inputs.{key_text(n)}"), d, f"inputs.{n}", True)
+                   for n, d in inputs_raw.items())
+    outputs = tuple(_parse_variable(_identifier(n, f"outputs.{key_text(n)}"), d, f"outputs.{n}", False)
+                    for n, d in outputs_raw.items())
     if not inputs:
         raise ControllerSpecError("inputs: at least one input variable is needed")
     names = [v.name for v in (*inputs, *outputs)]
@@ -290,6 +344,7 @@ def parse_controller(data: Mapping[str, Any]) -> ControllerSpec:
     rules_raw = data["rules"]
     if not isinstance(rules_raw, list | tuple) or not rules_raw:
         raise ControllerSpecError("rules: at least one rule is needed")
+    check_count(len(rules_raw), "rules", limits.MAX_RULES, ControllerSpecError, "rules")
     rules = tuple(parse_rule(r, variables, {v.name for v in inputs}, {v.name for v in outputs}, f"rules[{i}]")
                   for i, r in enumerate(rules_raw))
     fb = _mapping(data.get("fallback", {}), "fallback")
@@ -301,8 +356,18 @@ def parse_controller(data: Mapping[str, Any]) -> ControllerSpec:
     for value, var, key in ((fb_dtheta, dtheta_var, "dtheta"), (fb_v, v_var, "v")):
         if not var.universe[0] <= value <= var.universe[1]:
             raise ControllerSpecError(f"fallback.{key}: {value} is outside the universe {list(var.universe)}")
-    return ControllerSpec(name=str(data.get("name", "controller")), inputs=inputs, outputs=outputs, rules=rules,
+    return ControllerSpec(name=name, inputs=inputs, outputs=outputs, rules=rules,
                           fallback_dtheta=fb_dtheta, fallback_v=fb_v)
+
+
+def check_fits_robot(spec: ControllerSpec, v_min: float, v_max: float) -> None:
+    """The speed output must reach the robot's speed range ``[v_min, v_max]`` (cm/s): the robot clamps every
+    commanded speed into it, so a universe entirely below or above it would silently command one speed."""
+    var = spec.output_for("v")
+    lo, hi = var.universe
+    if hi < v_min or lo > v_max:
+        raise ControllerSpecError(f"outputs.{var.name}.universe: [{lo:g}, {hi:g}] cm/s lies outside the robot's "
+                                  f"speed range [{v_min:g}, {v_max:g}] cm/s (robot.v_min, robot.v_max)")
 
 
 def sample_membership(term: Term, grid: np.ndarray, universe_max: float) -> np.ndarray:

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from fuzzynav import limits
+from fuzzynav.checks import check_count, check_key, check_name, key_text
 from fuzzynav.portable_math import dist, sin_cos_deg
 from fuzzynav.portable_random import uniform
 from fuzzynav.scenario import ScenarioError, scenario_from_dict
@@ -21,16 +23,40 @@ ROBOT_RADIUS = 20.0
 CLEAR_CM = 60.0  # free space kept around start and goal, beyond the robot radius
 
 
+#: upper limits of the count parameters (fuzzynav.limits): the generator's work grows with them
+_COUNT_LIMITS = {"n_static": (limits.MAX_STATIC_OBSTACLES, "obstacles"),
+                 "n_dynamic": (limits.MAX_DYNAMIC_OBSTACLES, "obstacles"), "max_steps": (limits.MAX_STEPS, "steps")}
+
+
 def _param(params: Mapping[str, Any], key: str, default: Any, kind: type) -> Any:
+    """Parameter ``key``: a ``[min, max]`` pair (``kind`` tuple), a count (int) or a length (float); finite,
+    non-negative, |x| <= 1e9, counts at most their limit."""
     value = params.get(key, default)
     if kind is tuple:
-        if not (isinstance(value, list | tuple) and len(value) == 2 and all(isinstance(v, int | float) for v in value)
-                and 0 <= value[0] <= value[1]):
-            raise ScenarioError(f"params.{key}: expected [min, max] with 0 <= min <= max, got {value!r}")
+        if not (isinstance(value, list | tuple) and len(value) == 2
+                and all(_is_number(v) and 0 <= v <= limits.MAX_COORD_CM for v in value) and value[0] <= value[1]):
+            raise ScenarioError(f"params.{key}: expected [min, max] with 0 <= min <= max <= "
+                                f"{limits.MAX_COORD_CM:g}, got {_short(value)}")
         return float(value[0]), float(value[1])
-    if isinstance(value, bool) or not isinstance(value, int | float) or value < 0:
-        raise ScenarioError(f"params.{key}: expected a non-negative number, got {value!r}")
+    if not _is_number(value) or not 0 <= value <= limits.MAX_COORD_CM:
+        raise ScenarioError(f"params.{key}: expected a non-negative number (<= {limits.MAX_COORD_CM:g}), "
+                            f"got {_short(value)}")
+    if kind is int:
+        if value != int(value):
+            raise ScenarioError(f"params.{key}: expected an integer, got {value!r}")
+        limit, what = _COUNT_LIMITS[key]
+        check_count(int(value), f"params.{key}", limit, ScenarioError, what)
     return kind(value)
+
+
+def _is_number(value: Any) -> bool:
+    """A real, finite number (NaN fails every comparison, so it must be refused before them)."""
+    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
 
 
 def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed") -> dict[str, Any]:
@@ -38,8 +64,9 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
     start-goal line at random places and times. Returns the scenario as plain data (YAML form)."""
     known = {"width", "height", "n_static", "static_size", "n_dynamic", "speed", "dynamic_radius", "max_steps"}
     for key in params:
+        check_key(key, "params", ScenarioError)
         if key not in known:
-            raise ScenarioError(f"params.{key}: unknown parameter (known: {', '.join(sorted(known))})")
+            raise ScenarioError(f"params.{key_text(key)}: unknown parameter (known: {', '.join(sorted(known))})")
     w = _param(params, "width", 1200, float)
     h = _param(params, "height", 800, float)
     n_static = _param(params, "n_static", 5, int)
@@ -105,13 +132,16 @@ GENERATORS: dict[str, Callable[[Mapping[str, Any], int, str], dict[str, Any]]] =
 def generate(data: Mapping[str, Any], seed: int):
     """Expand a scenario entry ``{generator: NAME, params: {...}, name: ...}`` into a validated Scenario."""
     kind = data.get("generator")
-    if kind not in GENERATORS:
-        raise ScenarioError(f"generator: unknown generator {kind!r} (known: {', '.join(GENERATORS)})")
+    if not isinstance(kind, str) or kind not in GENERATORS:
+        raise ScenarioError(f"generator: unknown generator {_short(kind)} (known: {', '.join(GENERATORS)})")
     for key in data:
+        check_key(key, "", ScenarioError)
         if key not in ("generator", "params", "name", "description"):
-            raise ScenarioError(f"{key}: unknown key for a generated scenario (allowed: generator, params, name)")
+            raise ScenarioError(f"{key_text(key)}: unknown key for a generated scenario (allowed: generator, "
+                                "params, name, description)")
     params = data.get("params") or {}
     if not isinstance(params, Mapping):
         raise ScenarioError("params: expected a mapping")
-    plain = GENERATORS[kind](params, seed, str(data.get("name", kind)))
+    name = check_name(data.get("name", kind), "name", ScenarioError)
+    plain = GENERATORS[kind](params, seed, name)
     return scenario_from_dict(plain), plain

@@ -16,7 +16,9 @@ All lengths are in cm, speeds in cm/s, headings in degrees counter-clockwise fro
 
 :func:`scenario_from_dict` validates plain data and raises one :class:`ScenarioError` per problem, its
 message starting with the field, e.g. ``static_obstacles[2].polygon: self-intersecting``. Constructing
-:class:`Scenario` directly runs the same geometric checks.
+:class:`Scenario` directly runs the same geometric checks, size limits and name checks. Every number is
+finite with |x| <= 1e9; ``name`` and obstacle ids are safe file-name parts; counts (obstacles, vertices,
+waypoints, max_steps) are bounded by :mod:`fuzzynav.limits`.
 """
 
 from __future__ import annotations
@@ -29,6 +31,9 @@ from typing import Any
 import shapely
 from shapely.geometry import Point, Polygon, box
 from shapely.validation import explain_validity
+
+from fuzzynav import limits
+from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text
 
 Vec2 = tuple[float, float]
 
@@ -115,8 +120,8 @@ def _finite(value: Any, path: str) -> float:
     x = float(value)
     if not math.isfinite(x):
         raise ScenarioError(f"{path}: must be finite, got {value!r}")
-    if abs(x) > 1e9:
-        raise ScenarioError(f"{path}: {value!r} is out of range (|x| <= 1e9 cm)")
+    if abs(x) > limits.MAX_COORD_CM:
+        raise ScenarioError(f"{path}: {value!r} is out of range (|x| <= {limits.MAX_COORD_CM:g} cm)")
     return x
 
 
@@ -133,12 +138,22 @@ def _vec2(value: Any, path: str) -> Vec2:
     return (_finite(value[0], f"{path}[0]"), _finite(value[1], f"{path}[1]"))
 
 
-def _points(value: Any, path: str, minimum: int) -> tuple[Vec2, ...]:
-    if not isinstance(value, Sequence) or isinstance(value, str):
-        raise ScenarioError(f"{path}: expected a list of [x, y] points, got {value!r}")
+def _points(value: Any, path: str, minimum: int, maximum: int) -> tuple[Vec2, ...]:
+    if not _is_list(value):
+        raise ScenarioError(f"{path}: expected a list of [x, y] points, got {_short(value)}")
     if len(value) < minimum:
         raise ScenarioError(f"{path}: needs at least {minimum} point(s), got {len(value)}")
+    check_count(len(value), path, maximum, ScenarioError, "points")  # before converting them: bounded work
     return tuple(_vec2(p, f"{path}[{i}]") for i, p in enumerate(value))
+
+
+def _is_list(value: Any) -> bool:
+    return isinstance(value, Sequence) and not isinstance(value, str | bytes)
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
 
 
 def _mapping(value: Any, path: str) -> Mapping[str, Any]:
@@ -150,8 +165,9 @@ def _mapping(value: Any, path: str) -> Mapping[str, Any]:
 def _keys(data: Mapping[str, Any], allowed: set[str], required: set[str], path: str) -> None:
     prefix = f"{path}." if path else ""
     for key in data:
+        check_key(key, path, ScenarioError)
         if key not in allowed:
-            raise ScenarioError(f"{prefix}{key}: unknown key (allowed: {', '.join(sorted(allowed))})")
+            raise ScenarioError(f"{prefix}{key_text(key)}: unknown key (allowed: {', '.join(sorted(allowed))})")
     for key in sorted(required):
         if key not in data or data[key] is None:
             raise ScenarioError(f"{prefix}{key}: missing")
@@ -172,7 +188,7 @@ def _static(data: Any, path: str) -> StaticObstacle:
     if len(has) != 1:
         raise ScenarioError(f"{path}: give exactly one of polygon or circle")
     if has[0] == "polygon":
-        return StaticObstacle(polygon=_points(data["polygon"], f"{path}.polygon", 3))
+        return StaticObstacle(polygon=_points(data["polygon"], f"{path}.polygon", 3, limits.MAX_POLYGON_VERTICES))
     c = _mapping(data["circle"], f"{path}.circle")
     _keys(c, {"center", "radius"}, {"center", "radius"}, f"{path}.circle")
     return StaticObstacle(circle=Circle(center=_vec2(c["center"], f"{path}.circle.center"),
@@ -184,7 +200,8 @@ def _dynamic(data: Any, path: str) -> DynamicObstacle:
     _keys(data, {"id", "radius", "start", "velocity", "waypoints", "speed", "loop"}, {"id", "radius"}, path)
     oid = data["id"]
     if isinstance(oid, bool) or not isinstance(oid, str | int) or str(oid) == "":
-        raise ScenarioError(f"{path}.id: expected a non-empty string or integer, got {oid!r}")
+        raise ScenarioError(f"{path}.id: expected a non-empty string or integer, got {_short(oid)}")
+    check_name(str(oid), f"{path}.id", ScenarioError)
     radius = _positive(data["radius"], f"{path}.radius")
     has_cv = data.get("start") is not None or data.get("velocity") is not None
     has_wp = data.get("waypoints") is not None
@@ -198,7 +215,7 @@ def _dynamic(data: Any, path: str) -> DynamicObstacle:
             raise ScenarioError(f"{path}: speed and loop go with waypoints, not with start + velocity")
         return DynamicObstacle(id=str(oid), radius=radius, start=_vec2(data["start"], f"{path}.start"),
                                velocity=_vec2(data["velocity"], f"{path}.velocity"))
-    waypoints = _points(data["waypoints"], f"{path}.waypoints", 1)
+    waypoints = _points(data["waypoints"], f"{path}.waypoints", 1, limits.MAX_WAYPOINTS)
     if data.get("speed") is None:
         raise ScenarioError(f"{path}.speed: missing")
     speed = _positive(data["speed"], f"{path}.speed")
@@ -213,21 +230,26 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
     data = _mapping(data, "scenario")
     _keys(data, {"name", "description", "bounds", "robot", "static_obstacles", "dynamic_obstacles",
                  "max_steps", "goal_tolerance"}, {"bounds", "robot"}, "")
+    name = check_name(data.get("name", "unnamed"), "name", ScenarioError)
+    description = check_text(data.get("description", ""), "description", ScenarioError)
     b = data["bounds"]
-    if not isinstance(b, Sequence) or isinstance(b, str) or len(b) != 4:
-        raise ScenarioError(f"bounds: expected [xmin, ymin, xmax, ymax], got {b!r}")
+    if not _is_list(b) or len(b) != 4:
+        raise ScenarioError(f"bounds: expected [xmin, ymin, xmax, ymax], got {_short(b)}")
     bounds = tuple(_finite(v, f"bounds[{i}]") for i, v in enumerate(b))
     statics = data.get("static_obstacles") or []
     dynamics = data.get("dynamic_obstacles") or []
-    for key, value in (("static_obstacles", statics), ("dynamic_obstacles", dynamics)):
-        if not isinstance(value, Sequence) or isinstance(value, str):
+    for key, value, limit in (("static_obstacles", statics, limits.MAX_STATIC_OBSTACLES),
+                              ("dynamic_obstacles", dynamics, limits.MAX_DYNAMIC_OBSTACLES)):
+        if not _is_list(value):
             raise ScenarioError(f"{key}: expected a list")
+        check_count(len(value), key, limit, ScenarioError, "obstacles")
     max_steps = data.get("max_steps", 300)
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
-        raise ScenarioError(f"max_steps: expected a positive integer, got {max_steps!r}")
+        raise ScenarioError(f"max_steps: expected a positive integer, got {_short(max_steps)}")
+    check_count(max_steps, "max_steps", limits.MAX_STEPS, ScenarioError, "steps")
     tol = data.get("goal_tolerance")
     return Scenario(
-        name=str(data.get("name", "unnamed")), description=str(data.get("description", "")),
+        name=name, description=description,
         bounds=bounds, robot=_robot(data["robot"]),  # type: ignore[arg-type]
         static_obstacles=tuple(_static(o, f"static_obstacles[{i}]") for i, o in enumerate(statics)),
         dynamic_obstacles=tuple(_dynamic(o, f"dynamic_obstacles[{i}]") for i, o in enumerate(dynamics)),
@@ -237,8 +259,57 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
 # -- geometric validation ---------------------------------------------------------------------------------
 
 
+def validate_limits(s: Scenario) -> None:
+    """Names, sizes and numbers of a constructed scenario (what :func:`scenario_from_dict` checks while parsing,
+    for scenarios built in code): safe names, bounded counts, every number finite with |x| <= 1e9."""
+    check_name(s.name, "name", ScenarioError)
+    check_text(s.description, "description", ScenarioError)
+    if isinstance(s.max_steps, bool) or not isinstance(s.max_steps, int) or s.max_steps < 1:
+        raise ScenarioError(f"max_steps: expected a positive integer, got {_short(s.max_steps)}")
+    check_count(s.max_steps, "max_steps", limits.MAX_STEPS, ScenarioError, "steps")
+    check_count(len(s.static_obstacles), "static_obstacles", limits.MAX_STATIC_OBSTACLES, ScenarioError, "obstacles")
+    check_count(len(s.dynamic_obstacles), "dynamic_obstacles", limits.MAX_DYNAMIC_OBSTACLES, ScenarioError,
+                "obstacles")
+    numbers: list[tuple[str, Any]] = [(f"bounds[{i}]", v) for i, v in enumerate(s.bounds)]
+    numbers += [("robot.start", s.robot.start), ("robot.goal", s.robot.goal), ("robot.heading", s.robot.heading),
+                ("robot.radius", s.robot.radius), ("goal_tolerance", s.goal_tolerance)]
+    vertices = 0
+    for i, obs in enumerate(s.static_obstacles):
+        if obs.polygon is not None:
+            check_count(len(obs.polygon), f"static_obstacles[{i}].polygon", limits.MAX_POLYGON_VERTICES,
+                        ScenarioError, "points")
+            vertices += len(obs.polygon)
+            numbers.append((f"static_obstacles[{i}].polygon", obs.polygon))
+        if obs.circle is not None:
+            numbers += [(f"static_obstacles[{i}].circle.center", obs.circle.center),
+                        (f"static_obstacles[{i}].circle.radius", obs.circle.radius)]
+    check_count(vertices, "static_obstacles", limits.MAX_TOTAL_VERTICES, ScenarioError, "polygon vertices")
+    for i, dyn in enumerate(s.dynamic_obstacles):
+        path = f"dynamic_obstacles[{i}]"
+        check_name(dyn.id, f"{path}.id", ScenarioError)
+        if dyn.waypoints is not None:
+            check_count(len(dyn.waypoints), f"{path}.waypoints", limits.MAX_WAYPOINTS, ScenarioError, "points")
+        numbers += [(f"{path}.{key}", getattr(dyn, key)) for key in ("radius", "start", "velocity", "waypoints",
+                                                                      "speed")]
+    for path, value in numbers:
+        _check_finite_tree(value, path)
+
+
+def _check_finite_tree(value: Any, path: str) -> None:
+    """Every number in ``value`` (a number, a point or a list of points; None allowed) finite, |x| <= 1e9."""
+    if value is None:
+        return
+    if isinstance(value, tuple | list):
+        for i, item in enumerate(value):
+            _check_finite_tree(item, f"{path}[{i}]")
+        return
+    _finite(value, path)
+
+
 def validate_geometry(s: Scenario) -> None:
-    """Check the relations between the parts of a scenario; raise :class:`ScenarioError` on the first."""
+    """Check the limits (:func:`validate_limits`), then the relations between the parts of a scenario; raise
+    :class:`ScenarioError` on the first problem."""
+    validate_limits(s)
     xmin, ymin, xmax, ymax = s.bounds
     if not (xmin < xmax and ymin < ymax):
         raise ScenarioError(f"bounds: need xmin < xmax and ymin < ymax, got {list(s.bounds)}")

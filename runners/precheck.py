@@ -1,10 +1,18 @@
-"""Compose the configuration once before Hydra runs, so a bad override or config file is one clear line.
+"""Check the configuration once before Hydra runs, so a bad override or config file is one clear line.
 
 Hydra reports composition errors on several lines; researchers launching thousands of episodes want
 ``error: config: planner.h_wiat: Key 'h_wiat' not in 'PlannerConfigSchema'`` and a non-zero exit before
-anything starts. For a sweep, every value of a swept override is composed once (the other swept keys at their
-first value), one per type for numbers, as numbers of one type compose alike. With ``--debug`` or
-``HYDRA_FULL_ERROR=1`` the check is skipped and Hydra's full report is shown.
+anything starts. Three stages, each stopping at the first problem:
+
+1. the scenario and controller files the overrides select are checked as data (:mod:`runners.data_files`:
+   size, tags, aliases, interpolations) before Hydra's YAML loader sees them, since that loader can hang;
+2. the config is composed (Hydra: unknown keys, wrong types);
+3. the composed config is loaded and validated like a job does (:func:`runners.run_inputs.load_run`: ranges,
+   the controller, the scenario for the first seed, the launcher's ``n_jobs``).
+
+For a sweep, every value of a swept override is composed once (the other swept keys at their first value), one
+per type for numbers, as numbers of one type compose alike. With ``--debug`` or ``HYDRA_FULL_ERROR=1`` the
+check is skipped and Hydra's full report is shown.
 """
 
 from __future__ import annotations
@@ -15,12 +23,15 @@ import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import yaml
 from hydra import compose, initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
-from hydra.core.override_parser.types import ValueType
+from hydra.core.override_parser.types import ChoiceSweep, Glob, Override, ValueType
 from omegaconf import DictConfig
 
 from runners import schema
+from runners.data_files import DataFileError, check_data_file
+from runners.run_inputs import DATA_GROUPS, ConfigFileError, load_run
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 
@@ -72,6 +83,88 @@ def _one_line(err: BaseException) -> str:
     return f"config: {texts[0].splitlines()[0]}"
 
 
+def _search_dirs(parsed: Sequence[Override]) -> list[Path]:
+    """Config directories in Hydra's order: ``conf/``, then the ``file://`` entries of ``hydra.searchpath``."""
+    dirs = [CONF]
+    for o in parsed:
+        if o.get_key_element() == "hydra.searchpath" and isinstance(o.value(), list):
+            dirs += [Path(str(p)[len("file://"):]) for p in o.value() if str(p).startswith("file://")]
+    return dirs
+
+
+def _options(value: object, group: str, dirs: Sequence[Path]) -> set[str]:
+    """Option names of a group override's value: one, a choice sweep, or a glob over the existing files."""
+    if isinstance(value, str):
+        return {value}
+    if isinstance(value, ChoiceSweep):
+        return {str(v) for v in value.list}
+    if isinstance(value, Glob):
+        names = {p.stem for d in dirs if (d / group).is_dir() for p in (d / group).glob("*.yaml")}
+        return set(value.filter(sorted(names)))
+    return set()
+
+
+def selected_data_files(overrides: Sequence[str]) -> list[Path]:
+    """The scenario and controller files these overrides select (the defaults of ``conf/config.yaml``, the
+    command line, and the ``hydra.sweeper.params`` of a ``sweep=`` preset), each as Hydra would find it: in
+    the first config directory that has it."""
+    parser = OverridesParser.create()
+    parsed = parser.parse_overrides(list(overrides))
+    dirs = _search_dirs(parsed)
+    wanted: dict[str, set[str]] = {group: set() for group in DATA_GROUPS}
+    with contextlib.suppress(Exception):  # the shipped defaults; a broken config.yaml is Hydra's to report
+        for item in yaml.safe_load((CONF / "config.yaml").read_text()).get("defaults", []):
+            if isinstance(item, dict):
+                for group, name in item.items():
+                    if group in wanted and isinstance(name, str):
+                        wanted[group].add(name)
+    presets = [o.value() for o in parsed if o.get_key_element() == "sweep" and isinstance(o.value(), str)]
+    for preset in presets:
+        path = next((d / "sweep" / f"{preset}.yaml" for d in dirs if (d / "sweep" / f"{preset}.yaml").is_file()),
+                    None)
+        with contextlib.suppress(Exception):  # a missing or broken preset is Hydra's to report
+            params = (yaml.safe_load(path.read_text()) or {})["hydra"]["sweeper"]["params"]  # type: ignore[union-attr]
+            for group in DATA_GROUPS:
+                if group in params:
+                    parsed = [*parsed, *parser.parse_overrides([f"{group}={params[group]}"])]
+    for o in parsed:
+        group = o.get_key_element().lstrip("+")
+        if group in wanted:
+            wanted[group] |= _options(o.value(), group, dirs)
+    files = []
+    for group, names in wanted.items():
+        for name in sorted(names):
+            found = next((d / group / f"{name}.yaml" for d in dirs if (d / group / f"{name}.yaml").exists()), None)
+            if found is not None:
+                files.append(found)
+    return files
+
+
+def check_selected_files(overrides: Sequence[str]) -> str | None:
+    """Stage 1: the first problem of the selected scenario and controller files as data, or None."""
+    try:
+        files = selected_data_files(overrides)
+    except Exception:  # overrides that do not parse: composing them reports it
+        return None
+    for path in files:
+        try:
+            check_data_file(path)
+        except DataFileError as err:
+            return str(err)
+    return None
+
+
+def check_composed(cfg: DictConfig) -> str | None:
+    """Stage 3: load and validate a composed config (with Hydra's node) as a job would, or say why not."""
+    try:
+        load_run(cfg, cfg.hydra.runtime if "hydra" in cfg else None, all_seeds=False)
+    except ConfigFileError as err:
+        return str(err)
+    except ValueError as err:
+        return f"config: {err}"
+    return None
+
+
 def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = None) -> str | None:
     """One-line description of why these command-line overrides cannot be composed, or None.
 
@@ -101,13 +194,19 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
             trials.append([*base, *firsts[:i], value, *firsts[i + 1:]])
     with contextlib.suppress(Exception):  # an override that does not parse: composing it below reports it
         trials = representative_jobs(trials)  # one value of each kind per key is enough
+    problem = check_selected_files(overrides)
+    if problem:
+        return problem
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         for k, overrides in enumerate(trials):
             try:
-                cfg = compose("config", overrides=overrides, return_hydra_config=k == 0 and on_config is not None)
+                cfg = compose("config", overrides=overrides, return_hydra_config=True)
             except Exception as err:
                 return _one_line(err)
+            problem = check_composed(cfg)
+            if problem:
+                return problem
             if k == 0 and on_config is not None:
                 on_config(cfg)
     return None

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import json
 import os
 import signal
 import sys
@@ -27,73 +26,21 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
-from fuzzynav.generators import generate
-from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
+from fuzzynav.scenario import Scenario
 from runners import schema
 from runners.mcap_log import EpisodeLogWriter, run_metadata
 
+# input loading and validation live in runners.run_inputs; these names are imported from here by the dataset,
+# bench and replay runners and the tests
+from runners.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
+
+__all__ = ["ConfigFileError", "episode_config", "load_evaluator", "load_scenario", "log_name", "run_episode",
+           "run_job"]
+
 schema.register()
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # absolute: works from any working directory
-
-_EVALUATORS: dict[str, FastEvaluator] = {}  # one evaluator per controller definition and worker process
-
-
-class ConfigFileError(Exception):
-    """A scenario or controller file is invalid; the message names the file and the field."""
-
-
-def episode_config(cfg: dict[str, Any]) -> EpisodeConfig:
-    """The library's EpisodeConfig from the composed run config (plain data)."""
-    sensors = cfg.get("sensors") or {}
-    return episode_config_from_dict({
-        "dt": cfg.get("dt", 1.0), "robot": cfg.get("robot") or {}, "sonar": sensors.get("sonar") or {},
-        "laser": sensors.get("laser") or {}, "perception": cfg.get("perception") or {},
-        "planner": cfg.get("planner") or {}, "navigator": cfg.get("navigator") or {},
-        "terminate_on_collision": cfg.get("terminate_on_collision", True)})
-
-
-def _source(group: str) -> str:
-    """Best description of the file a config group option came from."""
-    try:
-        hc = HydraConfig.get()
-    except ValueError:
-        return group
-    choice = hc.runtime.choices.get(group)
-    if choice is None:
-        return group
-    for src in hc.runtime.config_sources:
-        if src.provider == "schema" or not src.path:
-            continue
-        candidate = Path(src.path.replace("file://", "")) / group / f"{choice}.yaml"
-        if candidate.exists():
-            return str(candidate)
-    return f"{group}={choice}"
-
-
-def load_scenario(cfg: dict[str, Any], seed: int = 0) -> Scenario:
-    """The scenario of the config; a generated one (``generator:`` key) is expanded with ``seed``."""
-    data = cfg["scenario"] or {}
-    try:
-        if isinstance(data, dict) and "generator" in data:
-            return generate(data, seed)[0]
-        return scenario_from_dict(data)
-    except ScenarioError as err:
-        raise ConfigFileError(f"{_source('scenario')}: {err}") from None
-
-
-def load_evaluator(cfg: dict[str, Any]) -> FastEvaluator:
-    """One evaluator per controller definition and worker process (built once, reused by every episode)."""
-    key = json.dumps(cfg["controller"], sort_keys=True, default=str)
-    if key not in _EVALUATORS:
-        try:
-            _EVALUATORS[key] = FastEvaluator(ControllerSpec.from_dict(cfg["controller"] or {}))
-        except ControllerSpecError as err:
-            raise ConfigFileError(f"{_source('controller')}: {err}") from None
-    return _EVALUATORS[key]
 
 
 def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
@@ -103,6 +50,15 @@ def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
     perception = (cfg.get("perception") or {}).get("mode", "laser")
     return (f"{scenario}__{planner.get('strategy', 'auto')}__h{planner.get('h_wait', 2)}__{controller}"
             f"__{perception}__s{seed}.mcap")
+
+
+def log_path(out_dir: Path, scenario: str, cfg: dict[str, Any], seed: int) -> Path:
+    """The log file of an episode, always directly inside ``out_dir``. The names it is made of are validated
+    where they are parsed (safe file-name parts); this is the last guard against a name that escapes."""
+    path = out_dir / log_name(scenario, cfg, seed)
+    if path.parent != out_dir or path.name.startswith(".") or len(path.name.encode()) > 255:
+        raise ConfigFileError(f"log file name {path.name[:80]!r}: not a plain file name inside {out_dir}")
+    return path
 
 
 @functools.lru_cache(maxsize=64)
@@ -216,20 +172,18 @@ def _stop_if_requested() -> None:
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory. With
     ``resume=true`` an episode whose complete log with the same config hash is already there is kept."""
-    plain: dict[str, Any] = OmegaConf.to_container(cfg, resolve=True)  # type: ignore[assignment]
-    evaluator = load_evaluator(plain)
-    ep_cfg = episode_config(plain)
-    seeds = [int(plain.get("seed", 0)) + k for k in range(int(plain.get("episodes", 1)))]
-    scenarios = {seed: load_scenario(plain, seed) for seed in seeds}  # all validated before any log is written
-    out_dir = Path(HydraConfig.get().runtime.output_dir)
+    runtime = HydraConfig.get().runtime
+    inputs = load_run(cfg, runtime)  # everything validated (every seed's scenario) before any log is written
+    plain, evaluator, ep_cfg, seeds = inputs.plain, inputs.evaluator, inputs.episode_config, inputs.seeds
+    out_dir = Path(runtime.output_dir)
     config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
     results = []
     previous = _install_stop_handlers()
     try:
         for seed in seeds:
             _stop_if_requested()
-            scenario = scenarios[seed]
-            path = out_dir / log_name(scenario.name, plain, seed)
+            scenario = inputs.scenarios[seed]
+            path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
             kept = completed_summary(path, digest) if plain.get("resume") else None
             if kept is not None:

@@ -1,0 +1,113 @@
+"""The checks every input goes through, with the limits of :mod:`fuzzynav.limits`: one function per kind of
+value, each raising ``error(f"{field}: {problem}")`` — one line, starting with the dotted field.
+
+Used by the scenario and controller parsers (with their own error classes) and, through
+:func:`check_config_fields`, by :class:`fuzzynav.episode.EpisodeConfig` for every numeric field of the run
+configuration (so NaN or inf cannot pass a ``< 0`` test anywhere).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from typing import Any
+
+from fuzzynav import limits
+from fuzzynav.limits import Range
+
+#: EpisodeConfig attributes whose command-line name differs (they live in the ``sensors`` group)
+_SECTIONS = {"sonar": "sensors.sonar", "laser": "sensors.laser"}
+
+
+def check_number(value: Any, field: str, rng: Range | None = None, error: type[Exception] = ValueError) -> float:
+    """``value`` as a float: a real number (not bool), finite, inside ``rng`` (and an integer if it says so)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise error(f"{field}: expected {'an integer' if rng and rng.integer else 'a number'}, got {_show(value)}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise error(f"{field}: must be finite, got {value!r}")
+    if rng is not None:
+        if rng.integer and not isinstance(value, int):
+            raise error(f"{field}: expected an integer, got {value!r}")
+        if not rng.contains(value):
+            raise error(f"{field}: must be in {rng.text()}, got {value!r}")
+    return float(value)
+
+
+def check_finite_range(value: Any, field: str, lo: float, hi: float, error: type[Exception] = ValueError,
+                       unit: str = "") -> float:
+    """:func:`check_number` with a closed interval ``[lo, hi]``."""
+    return check_number(value, field, Range(lo, hi, unit), error)
+
+
+def check_count(n: int, field: str, limit: int, error: type[Exception] = ValueError, what: str = "items") -> None:
+    """At most ``limit`` items (a size limit of :mod:`fuzzynav.limits`)."""
+    if n > limit:
+        raise error(f"{field}: {n:,} {what}, more than the limit of {limit:,}")
+
+
+def check_name(value: Any, field: str, error: type[Exception] = ValueError) -> str:
+    """A name that becomes part of a file name: :data:`fuzzynav.limits.NAME_PATTERN` (letters, digits, ``_-.``,
+    at most 64 characters, not starting with ``.``)."""
+    if not isinstance(value, str):
+        raise error(f"{field}: expected a name (string), got {_show(value)}")
+    if not limits.NAME_PATTERN.fullmatch(value):
+        raise error(f"{field}: {_show(value)} is not a valid name (letters, digits, _ - . only, at most "
+                    f"{limits.NAME_MAX_CHARS} characters, not starting with '.')")
+    return value
+
+
+def check_text(value: Any, field: str, error: type[Exception] = ValueError) -> str:
+    """A free-text string of at most :data:`fuzzynav.limits.MAX_TEXT_CHARS` characters, without NUL."""
+    if not isinstance(value, str):
+        raise error(f"{field}: expected a string, got {_show(value)}")
+    check_count(len(value), field, limits.MAX_TEXT_CHARS, error, "characters")
+    if "\x00" in value:
+        raise error(f"{field}: contains a NUL character")
+    return value
+
+
+def check_key(key: Any, field: str, error: type[Exception] = ValueError) -> str:
+    """A mapping key must be a string. YAML 1.1 reads unquoted ``on``/``off``/``yes``/``no`` as booleans."""
+    if isinstance(key, str):
+        return key
+    hint = " (YAML reads unquoted on/off/yes/no/true/false as booleans: quote the key)" if isinstance(key, bool) \
+        else ""
+    raise error(f"{field or 'top level'}: key {_show(key)} is not a string{hint}")
+
+
+_PLAIN_KEY = re.compile(r"[A-Za-z0-9_.-]{1,64}", re.ASCII)
+
+
+def key_text(key: Any) -> str:
+    """A user's mapping key as it appears in a field path: as is when plain, else quoted and cut, so that a key
+    holding a newline or 10,000 characters cannot break the one-line message."""
+    return key if isinstance(key, str) and _PLAIN_KEY.fullmatch(key) else _show(key)
+
+
+def _show(value: Any) -> str:
+    """``repr`` cut to 60 characters, so that one line stays one readable line."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
+
+
+def field_name(prefix: str, attribute: str) -> str:
+    """The dotted command-line name of a config attribute (``laser`` of EpisodeConfig is ``sensors.laser``)."""
+    name = key_text(attribute)
+    return f"{prefix}.{name}" if prefix else _SECTIONS.get(name, name)
+
+
+def check_config_fields(config: Any, prefix: str = "") -> None:
+    """Check every numeric field of a config dataclass tree against :data:`fuzzynav.limits.FIELD_RANGES`
+    (finite always; the documented range where one is listed; sequences item by item and in length)."""
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        field = field_name(prefix, f.name)
+        if dataclasses.is_dataclass(value):
+            check_config_fields(value, field)
+        elif isinstance(value, tuple):
+            check_count(len(value), field, limits.FIELD_MAX_ITEMS.get(field, 1_000))
+            for i, item in enumerate(value):
+                check_number(item, f"{field}[{i}]", limits.FIELD_RANGES.get(field))
+        elif isinstance(value, int | float) and not isinstance(value, bool):
+            check_number(value, field, limits.FIELD_RANGES.get(field))

@@ -1,0 +1,168 @@
+"""Scenario and controller files are data: checked as text before any YAML loader builds them.
+
+Hydra parses the files it composes with a full YAML loader and OmegaConf then expands every alias into a
+tree and resolves ``${...}`` interpolations (including ``${oc.env:...}``). A hostile or broken file could
+therefore hang the run (alias "billion laughs", a 100 MB file), read the environment, or name a log file
+outside the output directory. :func:`check_data_text` refuses, with one line naming the file (and the line or
+the field):
+
+- files over :data:`fuzzynav.limits.MAX_DATA_FILE_BYTES`, or not UTF-8;
+- YAML tags (``!!python/...``, ``!!binary``, ``!custom``): a data file needs none;
+- nesting deeper than :data:`~fuzzynav.limits.MAX_YAML_DEPTH`, recursive aliases, more than
+  :data:`~fuzzynav.limits.MAX_YAML_NODES` nodes once aliases are expanded (aliases themselves are fine:
+  ``conf/controller/listing.yaml`` shares its sensor terms with one);
+- interpolations: any ``${`` in a key or value.
+
+The scanner and composer are libyaml's (C) when available: linear in the file size, no objects built.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from fuzzynav import limits
+from fuzzynav.checks import key_text
+
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_OPEN = (yaml.BlockMappingStartToken, yaml.BlockSequenceStartToken, yaml.FlowMappingStartToken,
+         yaml.FlowSequenceStartToken)
+_CLOSE = (yaml.BlockEndToken, yaml.FlowMappingEndToken, yaml.FlowSequenceEndToken)
+
+
+class DataFileError(ValueError):
+    """A data file is not plain, bounded data; the message starts with the file (and line or field)."""
+
+
+def check_data_file(path: Path) -> None:
+    """Check a scenario or controller file on disk (size first: a huge file is never read)."""
+    try:
+        size = path.stat().st_size
+        if not path.is_file():
+            raise DataFileError(f"{path}: not a regular file")
+        if size > limits.MAX_DATA_FILE_BYTES:
+            raise DataFileError(f"{path}: {size:,} bytes, more than the limit of {limits.MAX_DATA_FILE_BYTES:,} "
+                                "for a scenario or controller file")
+        raw = path.read_bytes()
+    except OSError as err:
+        raise DataFileError(f"{path}: cannot read: {err.strerror or err}") from None
+    check_data_text(raw, str(path))
+
+
+def check_data_text(raw: bytes | str, source: str) -> None:
+    """Check the text of a data file named ``source`` (see the module docstring)."""
+    size = len(raw.encode() if isinstance(raw, str) else raw)
+    if size > limits.MAX_DATA_FILE_BYTES:
+        raise DataFileError(f"{source}: {size:,} bytes, more than the limit of {limits.MAX_DATA_FILE_BYTES:,} "
+                            "for a scenario or controller file")
+    if isinstance(raw, bytes):
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise DataFileError(f"{source}: not UTF-8 text (byte {err.start})") from None
+    else:
+        text = raw
+    try:
+        _Events(source).check(yaml.parse(text, Loader=_LOADER))
+    except yaml.MarkedYAMLError as err:
+        raise DataFileError(f"{source}{_yaml_error(err)}") from None
+    except yaml.YAMLError as err:
+        raise DataFileError(f"{source}: YAML error: {str(err).splitlines()[0]}") from None
+
+
+def _yaml_error(err: yaml.MarkedYAMLError) -> str:
+    """``:line:column: YAML error: …`` at the construct that is broken (an unclosed ``[`` is reported where it
+    opens, as Hydra's loader does), with the position where the parser noticed it."""
+    first = err.context_mark or err.problem_mark
+    where = f":{first.line + 1}:{first.column + 1}" if first else ""
+    text = "; ".join(str(t) for t in (err.context, err.problem) if t)
+    seen = err.problem_mark
+    if seen and err.context_mark and (seen.line, seen.column) != (first.line, first.column):
+        text += f" (line {seen.line + 1}, column {seen.column + 1})"
+    return f"{where}: YAML error: {text}"
+
+
+class _Frame:
+    """An open sequence or mapping: its field, its node count so far, its anchor, the key being filled."""
+
+    __slots__ = ("anchor", "field", "index", "is_map", "key", "size", "want_key")
+
+    def __init__(self, field: str, is_map: bool, anchor: str | None) -> None:
+        self.field, self.is_map, self.anchor = field, is_map, anchor
+        self.size, self.index, self.want_key, self.key = 1, 0, True, "?"
+
+
+class _Events:
+    """One pass over the parser's events (libyaml: no Python objects built but the events): no tags, one
+    document, bounded nesting, no ``${``, and the node count with every alias expanded (an anchor's size is
+    known when its node ends, so an alias costs one addition: "billion laughs" is counted, not built)."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.stack: list[_Frame] = [_Frame("", False, None)]
+        self.anchors: dict[str, int] = {}
+        self.documents = 0
+
+    def fail(self, event: yaml.Event, field: str, problem: str) -> None:
+        line = f":{event.start_mark.line + 1}" if event.start_mark else ""
+        field = field if len(field) <= 80 else f"...{field[-77:]}"  # one readable line
+        raise DataFileError(f"{self.source}{line}: {field or 'top level'}: {problem}")
+
+    def field(self) -> str:
+        """The field of the node that starts now (a key of a mapping counts as the mapping's field)."""
+        parent = self.stack[-1]
+        if parent.is_map:
+            if parent.want_key:
+                return parent.field
+            return f"{parent.field}.{parent.key}" if parent.field else parent.key
+        return f"{parent.field}[{parent.index}]" if len(self.stack) > 1 else ""
+
+    def add(self, event: yaml.Event, size: int, scalar: str | None = None) -> None:
+        parent = self.stack[-1]
+        if parent.is_map and parent.want_key:
+            parent.key = key_text(scalar) if scalar is not None else "?"
+        parent.want_key = not parent.want_key
+        parent.index += 1
+        parent.size += size
+        if parent.size > limits.MAX_YAML_NODES:
+            self.fail(event, parent.field, f"more than {limits.MAX_YAML_NODES:,} YAML nodes once aliases are "
+                                           "expanded (the limit)")
+
+    def check(self, events) -> None:
+        for event in events:
+            if isinstance(event, yaml.DocumentStartEvent):
+                self.documents += 1
+                if self.documents > 1:
+                    self.fail(event, "", "more than one YAML document")
+            elif isinstance(event, yaml.ScalarEvent | yaml.SequenceStartEvent | yaml.MappingStartEvent):
+                field = self.field()
+                if event.tag is not None:
+                    self.fail(event, field, f"YAML tag {event.tag!r} is not allowed: scenario and controller "
+                                            "files are data")
+                if isinstance(event, yaml.ScalarEvent):
+                    if "${" in event.value:
+                        self.fail(event, field, f"interpolation {_short(event.value)} is not allowed: scenario "
+                                                "and controller files are data")
+                    if event.anchor is not None:
+                        self.anchors[event.anchor] = 1
+                    self.add(event, 1, event.value)
+                    continue
+                if len(self.stack) > limits.MAX_YAML_DEPTH:
+                    self.fail(event, field, f"nested deeper than the limit of {limits.MAX_YAML_DEPTH} levels")
+                self.stack.append(_Frame(field, isinstance(event, yaml.MappingStartEvent), event.anchor))
+            elif isinstance(event, yaml.SequenceEndEvent | yaml.MappingEndEvent):
+                frame = self.stack.pop()
+                if frame.anchor is not None:
+                    self.anchors[frame.anchor] = frame.size
+                self.add(event, frame.size)
+            elif isinstance(event, yaml.AliasEvent):
+                field = self.field()
+                if event.anchor not in self.anchors:
+                    opened = any(f.anchor == event.anchor for f in self.stack)
+                    self.fail(event, field, "recursive alias" if opened else f"undefined alias *{event.anchor}")
+                self.add(event, self.anchors[event.anchor])
+
+
+def _short(text: str) -> str:
+    return repr(text) if len(text) <= 60 else f"{text[:57]!r}..."
