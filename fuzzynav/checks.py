@@ -23,7 +23,7 @@ _SECTIONS = {"sonar": "sensors.sonar", "laser": "sensors.laser"}
 def check_number(value: Any, field: str, rng: Range | None = None, error: type[Exception] = ValueError) -> float:
     """``value`` as a float: a real number (not bool), finite, inside ``rng`` (and an integer if it says so)."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise error(f"{field}: expected {'an integer' if rng and rng.integer else 'a number'}, got {_show(value)}")
+        raise error(f"{field}: expected {'an integer' if rng and rng.integer else 'a number'}, got {show(value)}")
     if isinstance(value, float) and not math.isfinite(value):
         raise error(f"{field}: must be finite, got {value!r}")
     if rng is not None:
@@ -50,9 +50,9 @@ def check_name(value: Any, field: str, error: type[Exception] = ValueError) -> s
     """A name that becomes part of a file name: :data:`fuzzynav.limits.NAME_PATTERN` (letters, digits, ``_-.``,
     at most 64 characters, not starting with ``.``)."""
     if not isinstance(value, str):
-        raise error(f"{field}: expected a name (string), got {_show(value)}")
+        raise error(f"{field}: expected a name (string), got {show(value)}")
     if not limits.NAME_PATTERN.fullmatch(value):
-        raise error(f"{field}: {_show(value)} is not a valid name (letters, digits, _ - . only, at most "
+        raise error(f"{field}: {show(value)} is not a valid name (letters, digits, _ - . only, at most "
                     f"{limits.NAME_MAX_CHARS} characters, not starting with '.')")
     return value
 
@@ -60,7 +60,7 @@ def check_name(value: Any, field: str, error: type[Exception] = ValueError) -> s
 def check_text(value: Any, field: str, error: type[Exception] = ValueError) -> str:
     """A free-text string of at most :data:`fuzzynav.limits.MAX_TEXT_CHARS` characters, without NUL."""
     if not isinstance(value, str):
-        raise error(f"{field}: expected a string, got {_show(value)}")
+        raise error(f"{field}: expected a string, got {show(value)}")
     check_count(len(value), field, limits.MAX_TEXT_CHARS, error, "characters")
     if "\x00" in value:
         raise error(f"{field}: contains a NUL character")
@@ -73,7 +73,7 @@ def check_key(key: Any, field: str, error: type[Exception] = ValueError) -> str:
         return key
     hint = " (YAML reads unquoted on/off/yes/no/true/false as booleans: quote the key)" if isinstance(key, bool) \
         else ""
-    raise error(f"{field or 'top level'}: key {_show(key)} is not a string{hint}")
+    raise error(f"{field or 'top level'}: key {show(key)} is not a string{hint}")
 
 
 _PLAIN_KEY = re.compile(r"[A-Za-z0-9_.-]{1,64}", re.ASCII)
@@ -82,11 +82,28 @@ _PLAIN_KEY = re.compile(r"[A-Za-z0-9_.-]{1,64}", re.ASCII)
 def key_text(key: Any) -> str:
     """A user's mapping key as it appears in a field path: as is when plain, else quoted and cut, so that a key
     holding a newline or 10,000 characters cannot break the one-line message."""
-    return key if isinstance(key, str) and _PLAIN_KEY.fullmatch(key) else _show(key)
+    return key if isinstance(key, str) and _PLAIN_KEY.fullmatch(key) else show(key)
 
 
-def _show(value: Any) -> str:
-    """``repr`` cut to 60 characters, so that one line stays one readable line."""
+def kind_of(value: Any) -> str:
+    """What a YAML value is, in YAML's words (``null``, not ``NoneType``)."""
+    if value is None:
+        return "null (an empty value)"
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (a boolean)"
+    if isinstance(value, int | float):
+        return f"{show(value)} (a number)"
+    if isinstance(value, str):
+        return f"{show(value)} (a string)"
+    if isinstance(value, list | tuple):
+        return "a list"
+    if isinstance(value, dict):
+        return "a mapping"
+    return type(value).__name__
+
+
+def show(value: Any) -> str:
+    """``repr`` cut to 60 characters (a user's value in a message: one line stays one readable line)."""
     text = repr(value)
     return text if len(text) <= 60 else f"{text[:57]}..."
 
@@ -97,14 +114,32 @@ def field_name(prefix: str, attribute: str) -> str:
     return f"{prefix}.{name}" if prefix else _SECTIONS.get(name, name)
 
 
+def check_sonar_sectors(sonar: Any, field: str) -> None:
+    """The sonar builds its three wedges as one array of polygons, so the left, front and right sectors must
+    be sampled with the same number of arc points: equally wide, to the arc step (``fuzzynav.sonar.Sonar``)."""
+    points = [max(2, math.ceil((hi - lo) / sonar.arc_step_deg) + 1) for lo, hi in (sonar.left, sonar.front,
+                                                                                 sonar.right)]
+    if len(set(points)) > 1:
+        widths = ", ".join(f"{hi - lo:g}" for lo, hi in (sonar.left, sonar.front, sonar.right))
+        raise ValueError(f"{field}: the left, front and right sectors must be equally wide (to the arc step "
+                         f"{sonar.arc_step_deg:g} degrees), got widths {widths} degrees")
+
+
+#: checks across the fields of one config section, run after its numbers are checked
+_SECTION_CHECKS = {"sensors.sonar": check_sonar_sectors}
+
+
 def check_config_fields(config: Any, prefix: str = "") -> None:
     """Check every numeric field of a config dataclass tree against :data:`fuzzynav.limits.FIELD_RANGES`
-    (finite always; the documented range where one is listed; sequences item by item and in length)."""
+    (finite always; the documented range where one is listed; sequences item by item and in length), then the
+    checks across fields of a section (:data:`_SECTION_CHECKS`)."""
     for f in dataclasses.fields(config):
         value = getattr(config, f.name)
         field = field_name(prefix, f.name)
         if dataclasses.is_dataclass(value):
             check_config_fields(value, field)
+            if field in _SECTION_CHECKS:
+                _SECTION_CHECKS[field](value, field)
         elif isinstance(value, tuple):
             check_count(len(value), field, limits.FIELD_MAX_ITEMS.get(field, 1_000))
             for i, item in enumerate(value):

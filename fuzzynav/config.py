@@ -13,7 +13,8 @@ import typing
 from collections.abc import Mapping
 from typing import Any
 
-from fuzzynav.checks import check_key, field_name
+from fuzzynav import limits
+from fuzzynav.checks import check_key, check_number, field_name, kind_of, show
 from fuzzynav.episode import EpisodeConfig
 
 
@@ -21,7 +22,7 @@ def from_dict(cls: type, data: Mapping[str, Any] | None, path: str = "") -> Any:
     """Instantiate dataclass ``cls`` from ``data`` recursively (lists become tuples)."""
     data = {} if data is None else data
     if not isinstance(data, Mapping):
-        raise ValueError(f"{path or cls.__name__}: expected a mapping, got {type(data).__name__}")
+        raise ValueError(f"{path or cls.__name__}: expected a mapping, got {kind_of(data)}")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs = {}
@@ -47,7 +48,7 @@ def _coerce(hint: Any, value: Any, where: str) -> Any:
     origin = typing.get_origin(hint)
     if origin is tuple:
         if not isinstance(value, list | tuple):
-            raise ValueError(f"{where}: expected a list, got {value!r}")
+            raise ValueError(f"{where}: expected a list, got {show(value)}")
         args = typing.get_args(hint)
         if args and Ellipsis not in args and len(value) != len(args):
             raise ValueError(f"{where}: expected a list of {len(args)} items, got {len(value)}")
@@ -55,21 +56,31 @@ def _coerce(hint: Any, value: Any, where: str) -> Any:
         return tuple(_coerce(item, v, f"{where}[{i}]") for i, v in enumerate(value))
     if hint is bool:
         if not isinstance(value, bool):
-            raise ValueError(f"{where}: expected true or false, got {value!r}")
+            raise ValueError(f"{where}: expected true or false, got {show(value)}")
         return value
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"{where}: expected an integer, got {value!r}")
+            raise ValueError(f"{where}: expected an integer, got {show(value)}")
+        _check_range(value, where)
         return value
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ValueError(f"{where}: expected a number, got {value!r}")
+            raise ValueError(f"{where}: expected a number, got {show(value)}")
+        _check_range(value, where)
         return float(value)
     if hint is str:
         if not isinstance(value, str):
-            raise ValueError(f"{where}: expected a string, got {value!r}")
+            raise ValueError(f"{where}: expected a string, got {show(value)}")
         return value
     return value
+
+
+def _check_range(value: int | float, where: str) -> None:
+    """The documented range of the field (``planner.successor_speeds[2]`` uses ``planner.successor_speeds``),
+    checked here, where the value is parsed, so that the message names exactly this field; the dataclasses'
+    own checks (relations between fields) run after."""
+    rng = limits.FIELD_RANGES.get(where.split("[")[0])
+    check_number(value, where, rng)
 
 
 def episode_config_from_dict(data: Mapping[str, Any] | None) -> EpisodeConfig:

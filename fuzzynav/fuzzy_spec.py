@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 
 from fuzzynav import limits
-from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text
+from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text, kind_of, show
 from fuzzynav.portable_math import exp_array
 
 SOURCES = ("left", "front", "right", "angle")
@@ -159,23 +159,18 @@ _IDENTIFIER = re.compile(r"[A-Za-z_]\w{0,63}", re.ASCII)  # what a rule can name
 
 def _number(value: Any, field: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ControllerSpecError(f"{field}: expected a number, got {_short(value)}")
+        raise ControllerSpecError(f"{field}: expected a number, got {show(value)}")
     x = float(value)
     if not math.isfinite(x):
-        raise ControllerSpecError(f"{field}: must be finite, got {value!r}")
+        raise ControllerSpecError(f"{field}: must be finite, got {show(value)}")
     if abs(x) > limits.MAX_CONTROLLER_ABS:
-        raise ControllerSpecError(f"{field}: {value!r} is out of range (|x| <= {limits.MAX_CONTROLLER_ABS:g})")
+        raise ControllerSpecError(f"{field}: {show(value)} is out of range (|x| <= {limits.MAX_CONTROLLER_ABS:g})")
     return x
-
-
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else f"{text[:57]}..."
 
 
 def _mapping(value: Any, field: str) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
-        raise ControllerSpecError(f"{field or 'controller'}: expected a mapping, got {type(value).__name__}")
+        raise ControllerSpecError(f"{field or 'controller'}: expected a mapping, got {kind_of(value)}")
     for key in value:
         check_key(key, field, ControllerSpecError)
     return value
@@ -183,7 +178,7 @@ def _mapping(value: Any, field: str) -> Mapping[str, Any]:
 
 def _identifier(name: str, field: str) -> str:
     if not _IDENTIFIER.fullmatch(name):
-        raise ControllerSpecError(f"{field}: {_short(name)} is not a valid name (a letter or _, then letters, "
+        raise ControllerSpecError(f"{field}: {show(name)} is not a valid name (a letter or _, then letters, "
                                   "digits or _, at most 64 characters: rules must be able to name it)")
     return name
 
@@ -205,7 +200,7 @@ def _parse_term(name: str, data: Any, field: str, universe: tuple[float, float],
     _check_keys(data, {"mf", "params"}, {"mf", "params"}, field)
     mf = data["mf"]
     if not isinstance(mf, str) or mf not in MF_PARAM_COUNT:
-        raise ControllerSpecError(f"{field}.mf: unknown membership function {_short(mf)} "
+        raise ControllerSpecError(f"{field}.mf: unknown membership function {show(mf)} "
                                   f"(known: {', '.join(MF_PARAM_COUNT)})")
     if mf == "crisp" and not is_input:
         raise ControllerSpecError(f"{field}.mf: crisp terms are for inputs only")
@@ -267,14 +262,14 @@ def _parse_variable(name: str, data: Any, field: str, is_input: bool) -> Variabl
     if is_input:
         source = data["source"]
         if not isinstance(source, str) or source not in SOURCES:
-            raise ControllerSpecError(f"{field}.source: unknown source {_short(source)} "
+            raise ControllerSpecError(f"{field}.source: unknown source {show(source)} "
                                       f"(known: {', '.join(SOURCES)})")
         scale = _number(data.get("scale", 1.0), f"{field}.scale")
         if not scale >= 1.0 / limits.MAX_CONTROLLER_ABS:
             raise ControllerSpecError(f"{field}.scale: must be in [{1.0 / limits.MAX_CONTROLLER_ABS:g}, "
                                       f"{limits.MAX_CONTROLLER_ABS:g}], got {scale:g}")
     elif not isinstance(role, str) or role not in ROLES:
-        raise ControllerSpecError(f"{field}.role: unknown role {_short(role)} (known: {', '.join(ROLES)})")
+        raise ControllerSpecError(f"{field}.role: unknown role {show(role)} (known: {', '.join(ROLES)})")
     return Variable(name=name, universe=(lo, hi), resolution=res, terms=terms, source=source, scale=scale,
                     role=role)
 
@@ -287,7 +282,7 @@ def _parse_clauses(text: str, sep: str, field: str) -> tuple[tuple[str, str], ..
     for part in text.split(sep):
         m = _CLAUSE.match(part)
         if not m:
-            raise ControllerSpecError(f"{field}: cannot read {_short(part.strip())} (expected var=term)")
+            raise ControllerSpecError(f"{field}: cannot read {show(part.strip())} (expected var=term)")
         clauses.append((m.group(1), m.group(2)))
     return tuple(clauses)
 
@@ -298,7 +293,7 @@ def parse_rule(text: str, variables: Mapping[str, Variable], inputs: set[str], o
     if not isinstance(text, str):
         raise ControllerSpecError(f"{field}: expected a string")
     if text.count("->") != 1:
-        raise ControllerSpecError(f"{field}: expected exactly one '->' in {_short(text)}")
+        raise ControllerSpecError(f"{field}: expected exactly one '->' in {show(text)}")
     left, right = text.split("->")
     ante = _parse_clauses(left, "&", field)
     cons = _parse_clauses(right, ",", field)
@@ -306,12 +301,12 @@ def parse_rule(text: str, variables: Mapping[str, Variable], inputs: set[str], o
         seen = set()
         for var, term in group:
             if var not in names:
-                raise ControllerSpecError(f"{field}: unknown {what} variable {var!r} in {_short(text)}")
+                raise ControllerSpecError(f"{field}: unknown {what} variable {show(var)} in {show(text)}")
             if var in seen:
-                raise ControllerSpecError(f"{field}: variable {var!r} appears twice in {_short(text)}")
+                raise ControllerSpecError(f"{field}: variable {show(var)} appears twice in {show(text)}")
             seen.add(var)
             if term not in {t.name for t in variables[var].terms}:
-                raise ControllerSpecError(f"{field}: unknown term {term!r} of variable {var!r} in {_short(text)}")
+                raise ControllerSpecError(f"{field}: unknown term {show(term)} of variable {show(var)} in {show(text)}")
     return Rule(antecedent=ante, consequent=cons, text=text.strip())
 
 

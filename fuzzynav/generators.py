@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from fuzzynav import limits
-from fuzzynav.checks import check_count, check_key, check_name, key_text
+from fuzzynav.checks import check_count, check_key, check_name, key_text, show
 from fuzzynav.portable_math import dist, sin_cos_deg
 from fuzzynav.portable_random import uniform
 from fuzzynav.scenario import ScenarioError, scenario_from_dict
@@ -36,14 +36,14 @@ def _param(params: Mapping[str, Any], key: str, default: Any, kind: type) -> Any
         if not (isinstance(value, list | tuple) and len(value) == 2
                 and all(_is_number(v) and 0 <= v <= limits.MAX_COORD_CM for v in value) and value[0] <= value[1]):
             raise ScenarioError(f"params.{key}: expected [min, max] with 0 <= min <= max <= "
-                                f"{limits.MAX_COORD_CM:g}, got {_short(value)}")
+                                f"{limits.MAX_COORD_CM:g}, got {show(value)}")
         return float(value[0]), float(value[1])
     if not _is_number(value) or not 0 <= value <= limits.MAX_COORD_CM:
         raise ScenarioError(f"params.{key}: expected a non-negative number (<= {limits.MAX_COORD_CM:g}), "
-                            f"got {_short(value)}")
+                            f"got {show(value)}")
     if kind is int:
         if value != int(value):
-            raise ScenarioError(f"params.{key}: expected an integer, got {value!r}")
+            raise ScenarioError(f"params.{key}: expected an integer, got {show(value)}")
         limit, what = _COUNT_LIMITS[key]
         check_count(int(value), f"params.{key}", limit, ScenarioError, what)
     return kind(value)
@@ -54,9 +54,6 @@ def _is_number(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
 
 
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else f"{text[:57]}..."
 
 
 def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed") -> dict[str, Any]:
@@ -133,7 +130,7 @@ def generate(data: Mapping[str, Any], seed: int):
     """Expand a scenario entry ``{generator: NAME, params: {...}, name: ...}`` into a validated Scenario."""
     kind = data.get("generator")
     if not isinstance(kind, str) or kind not in GENERATORS:
-        raise ScenarioError(f"generator: unknown generator {_short(kind)} (known: {', '.join(GENERATORS)})")
+        raise ScenarioError(f"generator: unknown generator {show(kind)} (known: {', '.join(GENERATORS)})")
     for key in data:
         check_key(key, "", ScenarioError)
         if key not in ("generator", "params", "name", "description"):

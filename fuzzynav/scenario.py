@@ -33,7 +33,7 @@ from shapely.geometry import Point, Polygon, box
 from shapely.validation import explain_validity
 
 from fuzzynav import limits
-from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text
+from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text, kind_of, show
 
 Vec2 = tuple[float, float]
 
@@ -116,31 +116,31 @@ class Scenario:
 
 def _finite(value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(f"{path}: expected a number, got {value!r}")
+        raise ScenarioError(f"{path}: expected a number, got {show(value)}")
     x = float(value)
     if not math.isfinite(x):
-        raise ScenarioError(f"{path}: must be finite, got {value!r}")
+        raise ScenarioError(f"{path}: must be finite, got {show(value)}")
     if abs(x) > limits.MAX_COORD_CM:
-        raise ScenarioError(f"{path}: {value!r} is out of range (|x| <= {limits.MAX_COORD_CM:g} cm)")
+        raise ScenarioError(f"{path}: {show(value)} is out of range (|x| <= {limits.MAX_COORD_CM:g} cm)")
     return x
 
 
 def _positive(value: Any, path: str) -> float:
     x = _finite(value, path)
     if x <= 0:
-        raise ScenarioError(f"{path}: must be > 0, got {value!r}")
+        raise ScenarioError(f"{path}: must be > 0, got {show(value)}")
     return x
 
 
 def _vec2(value: Any, path: str) -> Vec2:
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
-        raise ScenarioError(f"{path}: expected [x, y], got {value!r}")
+        raise ScenarioError(f"{path}: expected [x, y], got {show(value)}")
     return (_finite(value[0], f"{path}[0]"), _finite(value[1], f"{path}[1]"))
 
 
 def _points(value: Any, path: str, minimum: int, maximum: int) -> tuple[Vec2, ...]:
     if not _is_list(value):
-        raise ScenarioError(f"{path}: expected a list of [x, y] points, got {_short(value)}")
+        raise ScenarioError(f"{path}: expected a list of [x, y] points, got {show(value)}")
     if len(value) < minimum:
         raise ScenarioError(f"{path}: needs at least {minimum} point(s), got {len(value)}")
     check_count(len(value), path, maximum, ScenarioError, "points")  # before converting them: bounded work
@@ -151,14 +151,9 @@ def _is_list(value: Any) -> bool:
     return isinstance(value, Sequence) and not isinstance(value, str | bytes)
 
 
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else f"{text[:57]}..."
-
-
 def _mapping(value: Any, path: str) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
-        raise ScenarioError(f"{path}: expected a mapping, got {type(value).__name__}")
+        raise ScenarioError(f"{path}: expected a mapping, got {kind_of(value)}")
     return value
 
 
@@ -200,7 +195,7 @@ def _dynamic(data: Any, path: str) -> DynamicObstacle:
     _keys(data, {"id", "radius", "start", "velocity", "waypoints", "speed", "loop"}, {"id", "radius"}, path)
     oid = data["id"]
     if isinstance(oid, bool) or not isinstance(oid, str | int) or str(oid) == "":
-        raise ScenarioError(f"{path}.id: expected a non-empty string or integer, got {_short(oid)}")
+        raise ScenarioError(f"{path}.id: expected a non-empty string or integer, got {show(oid)}")
     check_name(str(oid), f"{path}.id", ScenarioError)
     radius = _positive(data["radius"], f"{path}.radius")
     has_cv = data.get("start") is not None or data.get("velocity") is not None
@@ -221,7 +216,7 @@ def _dynamic(data: Any, path: str) -> DynamicObstacle:
     speed = _positive(data["speed"], f"{path}.speed")
     loop = data.get("loop", False)
     if not isinstance(loop, bool):
-        raise ScenarioError(f"{path}.loop: expected true or false, got {loop!r}")
+        raise ScenarioError(f"{path}.loop: expected true or false, got {show(loop)}")
     return DynamicObstacle(id=str(oid), radius=radius, waypoints=waypoints, speed=speed, loop=loop)
 
 
@@ -234,7 +229,7 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
     description = check_text(data.get("description", ""), "description", ScenarioError)
     b = data["bounds"]
     if not _is_list(b) or len(b) != 4:
-        raise ScenarioError(f"bounds: expected [xmin, ymin, xmax, ymax], got {_short(b)}")
+        raise ScenarioError(f"bounds: expected [xmin, ymin, xmax, ymax], got {show(b)}")
     bounds = tuple(_finite(v, f"bounds[{i}]") for i, v in enumerate(b))
     statics = data.get("static_obstacles") or []
     dynamics = data.get("dynamic_obstacles") or []
@@ -245,7 +240,7 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
         check_count(len(value), key, limit, ScenarioError, "obstacles")
     max_steps = data.get("max_steps", 300)
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
-        raise ScenarioError(f"max_steps: expected a positive integer, got {_short(max_steps)}")
+        raise ScenarioError(f"max_steps: expected a positive integer, got {show(max_steps)}")
     check_count(max_steps, "max_steps", limits.MAX_STEPS, ScenarioError, "steps")
     tol = data.get("goal_tolerance")
     return Scenario(
@@ -265,7 +260,7 @@ def validate_limits(s: Scenario) -> None:
     check_name(s.name, "name", ScenarioError)
     check_text(s.description, "description", ScenarioError)
     if isinstance(s.max_steps, bool) or not isinstance(s.max_steps, int) or s.max_steps < 1:
-        raise ScenarioError(f"max_steps: expected a positive integer, got {_short(s.max_steps)}")
+        raise ScenarioError(f"max_steps: expected a positive integer, got {show(s.max_steps)}")
     check_count(s.max_steps, "max_steps", limits.MAX_STEPS, ScenarioError, "steps")
     check_count(len(s.static_obstacles), "static_obstacles", limits.MAX_STATIC_OBSTACLES, ScenarioError, "obstacles")
     check_count(len(s.dynamic_obstacles), "dynamic_obstacles", limits.MAX_DYNAMIC_OBSTACLES, ScenarioError,
@@ -352,7 +347,7 @@ def validate_geometry(s: Scenario) -> None:
     for i, dyn in enumerate(s.dynamic_obstacles):
         path = f"dynamic_obstacles[{i}]"
         if dyn.id in seen:
-            raise ScenarioError(f"{path}.id: duplicate id {dyn.id!r}")
+            raise ScenarioError(f"{path}.id: duplicate id {show(dyn.id)}")
         seen.add(dyn.id)
         if dyn.radius <= 0:
             raise ScenarioError(f"{path}.radius: must be > 0, got {dyn.radius}")

@@ -11,7 +11,8 @@ the field):
 - nesting deeper than :data:`~fuzzynav.limits.MAX_YAML_DEPTH`, recursive aliases, more than
   :data:`~fuzzynav.limits.MAX_YAML_NODES` nodes once aliases are expanded (aliases themselves are fine:
   ``conf/controller/listing.yaml`` shares its sensor terms with one);
-- interpolations: any ``${`` in a key or value.
+- interpolations: any ``${`` in a key or value;
+- anything but one mapping at the top (Hydra's own message for that names no file).
 
 The scanner and composer are libyaml's (C) when available: linear in the file size, no objects built.
 """
@@ -67,6 +68,9 @@ def check_data_text(raw: bytes | str, source: str) -> None:
         _Events(source).check(yaml.parse(text, Loader=_LOADER))
     except yaml.MarkedYAMLError as err:
         raise DataFileError(f"{source}{_yaml_error(err)}") from None
+    except yaml.reader.ReaderError as err:  # a character YAML does not allow: say where
+        line = text.count("\n", 0, err.position) + 1 if isinstance(err.position, int) else 0
+        raise DataFileError(f"{source}:{line}: YAML error: {str(err).splitlines()[0]}") from None
     except yaml.YAMLError as err:
         raise DataFileError(f"{source}: YAML error: {str(err).splitlines()[0]}") from None
 
@@ -137,6 +141,8 @@ class _Events:
                     self.fail(event, "", "more than one YAML document")
             elif isinstance(event, yaml.ScalarEvent | yaml.SequenceStartEvent | yaml.MappingStartEvent):
                 field = self.field()
+                if len(self.stack) == 1 and not isinstance(event, yaml.MappingStartEvent):
+                    self.fail(event, "", "expected a mapping (a scenario or controller file is a YAML mapping)")
                 if event.tag is not None:
                     self.fail(event, field, f"YAML tag {event.tag!r} is not allowed: scenario and controller "
                                             "files are data")
@@ -158,6 +164,8 @@ class _Events:
                 self.add(event, frame.size)
             elif isinstance(event, yaml.AliasEvent):
                 field = self.field()
+                if len(self.stack) == 1:
+                    self.fail(event, "", "expected a mapping (a scenario or controller file is a YAML mapping)")
                 if event.anchor not in self.anchors:
                     opened = any(f.anchor == event.anchor for f in self.stack)
                     self.fail(event, field, "recursive alias" if opened else f"undefined alias *{event.anchor}")

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from fuzzynav import limits
-from fuzzynav.checks import check_number
+from fuzzynav.checks import check_number, kind_of
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
@@ -114,7 +114,7 @@ def episode_config(cfg: Mapping[str, Any]) -> EpisodeConfig:
     """The library's EpisodeConfig from the composed run config (plain data)."""
     sensors = cfg.get("sensors") or {}
     if not isinstance(sensors, Mapping):
-        raise ValueError(f"sensors: expected a mapping, got {type(sensors).__name__}")
+        raise ValueError(f"sensors: expected a mapping, got {kind_of(sensors)}")
     return episode_config_from_dict({
         "dt": cfg.get("dt", 1.0), "robot": cfg.get("robot") or {}, "sonar": sensors.get("sonar") or {},
         "laser": sensors.get("laser") or {}, "perception": cfg.get("perception") or {},

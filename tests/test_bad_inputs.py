@@ -32,7 +32,7 @@ def test_bad_input_fails_with_one_clear_line(case, tmp_path):
     else:
         cmd = ["runners.run", f"hydra.run.dir={tmp_path / 'out'}"]
         if kind == "override":
-            cmd.append(name)
+            cmd += name.split(" ")  # one or more overrides, separated by spaces
         else:
             cmd += [f"hydra.searchpath=[file://{CORPUS}]", f"{kind}={name}"]
     res = subprocess.run([sys.executable, "-m", *cmd], cwd=ROOT, capture_output=True, text=True, timeout=120)
