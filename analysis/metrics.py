@@ -22,6 +22,7 @@ import shapely
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
+from fuzzynav.portable_math import dist, dot2, norm2
 
 PARAMETERS = EPISODE_PARAMETERS
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
@@ -51,9 +52,9 @@ def _swept_gap(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray) -
     robot's ``p0``, ``p1`` may be one point (2,) or one per row (N, 2))."""
     rel0 = p0 - o0
     d = (p1 - p0) - (o1 - o0)
-    dd = (d**2).sum(1)
-    s = np.clip(-(rel0 * d).sum(1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    return np.linalg.norm(rel0 + s[:, None] * d, axis=1)
+    dd = dot2(d, d)
+    s = np.clip(-dot2(rel0, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    return norm2(rel0 + s[:, None] * d)
 
 
 def _static_gaps(solid: shapely.Geometry, pos: np.ndarray, steps: int) -> np.ndarray:
@@ -62,7 +63,7 @@ def _static_gaps(solid: shapely.Geometry, pos: np.ndarray, steps: int) -> np.nda
     if steps == 0 or solid.is_empty:
         return np.full(steps, math.inf)
     p0, p1 = pos[:steps], pos[1:steps + 1]
-    still = np.hypot(*(p1 - p0).T) < 1e-9  # as the simulator decides between a point and a segment
+    still = norm2(p1 - p0) < 1e-9  # as the simulator decides between a point and a segment
     paths = np.empty(steps, dtype=object)
     paths[still] = shapely.points(p1[still])
     paths[~still] = shapely.linestrings(np.stack([p0[~still], p1[~still]], axis=1))
@@ -106,11 +107,11 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row["h_wait"] = int(row["h_wait"]) if row["h_wait"] not in (None, "") else None
     row["seed"] = int(row["seed"]) if row["seed"] not in (None, "") else None
     row.update(log=str(log.path), outcome=log.outcome, steps=log.steps)
-    seg = np.linalg.norm(np.diff(pos, axis=0), axis=1) if len(pos) > 1 else np.zeros(0)
-    row["path_length_cm"] = float(seg.sum())
+    seg = norm2(np.diff(pos, axis=0)) if len(pos) > 1 else np.zeros(0)
+    row["path_length_cm"] = math.fsum(seg.tolist())
     dh = _wrap(np.diff(log.headings)) if len(pos) > 1 else np.zeros(0)
     row["turn_count"] = turn_count(dh, opt.turn_threshold_deg)
-    row["heading_change_deg_total"] = float(np.abs(dh).sum())
+    row["heading_change_deg_total"] = math.fsum(np.abs(dh).tolist())
 
     # contacts recomputed from the logged geometry (swept over each step, as the simulator does)
     steps = len(log.states)
@@ -131,12 +132,12 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     # goal
     t_goal = math.nan
     if log.goal is not None and log.goal_tolerance is not None and len(pos) > 1:
-        reached = np.nonzero(np.linalg.norm(pos[1:] - np.array(log.goal), axis=1) <= log.goal_tolerance + 1e-6)[0]
+        reached = np.nonzero(norm2(pos[1:] - np.array(log.goal)) <= log.goal_tolerance + 1e-6)[0]
         if len(reached):
             t_goal = float((reached[0] + 1) * log.dt)
     row["time_to_goal_s"] = t_goal
     row["success"] = is_success(log.outcome, row["collisions_static"] + row["collisions_dynamic"], t_goal)
-    straight = float(np.linalg.norm(np.array(log.goal) - pos[0])) if log.goal is not None and len(pos) else math.nan
+    straight = dist(log.goal, pos[0]) if log.goal is not None and len(pos) else math.nan
     row["path_efficiency"] = straight / row["path_length_cm"] if row["success"] and row["path_length_cm"] > 0 \
         else math.nan
 
@@ -168,7 +169,7 @@ def _detour_extra(pos: np.ndarray, modes: list[str]) -> float:
         while j < len(modes) and modes[j] == "detour":
             j += 1
         run = pos[k:j + 1]
-        extra += float(np.linalg.norm(np.diff(run, axis=0), axis=1).sum() - np.linalg.norm(run[-1] - run[0]))
+        extra += math.fsum(norm2(np.diff(run, axis=0)).tolist()) - dist(run[-1], run[0])
         k = j
     return extra
 
@@ -190,7 +191,7 @@ def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
         predicted = np.array(t["obstacles_cm"], dtype=float).reshape(len(t["obstacles_cm"]), -1, 2)  # (rows, K, 2)
         for j, radius in enumerate(t["obstacle_radii_cm"]):
             pred = predicted[:, j]  # (n_traj + 1, 2)
-            d0 = np.hypot(*(true_now - pred[0]).T)
+            d0 = norm2(true_now - pred[0])
             match = int(np.argmin(d0))
             if d0[match] > radius + 50.0:
                 continue
@@ -198,10 +199,10 @@ def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
             rows = [k for k in range(1, len(pred)) if oid in truth_at.get(step + k, {})]
             if rows:
                 actual = np.array([truth_at[step + k][oid] for k in rows])
-                errs = np.hypot(*(pred[rows] - actual).T)
+                errs = norm2(pred[rows] - actual)
                 errors.extend(errs.tolist())
                 finals.append(float(errs[-1]))
-    return (float(np.mean(errors)), float(np.mean(finals))) if errors else (math.nan, math.nan)
+    return (math.fsum(errors) / len(errors), math.fsum(finals) / len(finals)) if errors else (math.nan, math.nan)
 
 
 def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:

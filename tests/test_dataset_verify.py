@@ -185,8 +185,9 @@ def _change_a_plan_length(topic, step, msg):
 
 
 def _change_a_printed_number(topic, step, msg):
-    if topic == "/log" and msg["message"].startswith("wait started"):
-        msg["message"] = re.sub(r"\((\d+),", lambda m: f"({int(m.group(1)) + 1},", msg["message"], count=1)
+    # every log line that prints a number (which lines exist depends on the episode's decisions)
+    if topic == "/log" and re.search(r"\d", msg["message"]):
+        msg["message"] = re.sub(r"\d+", lambda m: str(int(m.group()) + 1), msg["message"], count=1)
     return msg
 
 
