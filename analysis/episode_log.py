@@ -8,6 +8,7 @@ parameters from the ``fuzzynav.run`` metadata.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,9 +16,9 @@ from typing import Any
 
 import numpy as np
 import shapely
-import yaml
 from shapely.geometry import Point, Polygon, box
 
+from analysis.log_check import CheckError, check_episode, check_message, check_metadata
 from analysis.logs import LogError, LogFile, decode
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
@@ -25,7 +26,8 @@ METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decisio
 
 @dataclass
 class EpisodeLog:
-    """An episode as logged. ``positions`` has one row per step plus the final position (cm)."""
+    """An episode as logged. ``positions`` has one row per step plus the final position (cm); ``dt``: the step
+    length (s), from the config, else from the log times."""
 
     path: Path
     meta: dict[str, str]
@@ -89,14 +91,27 @@ def _cm(points: Iterable[dict[str, float]]) -> list[tuple[float, float]]:
 
 
 def _read_scene(log: EpisodeLog, scene: dict[str, Any]) -> None:
+    """The static world from the first ``/scene`` (already checked field by field): walls, static obstacles
+    (valid polygons and circles) and the goal, each at most once."""
+    seen: set[str] = set()
     for ent in scene["entities"]:
         eid = ent["id"]
+        if eid in seen:
+            raise CheckError(f"/scene entity {eid!r}", "appears twice in the first scene")
+        seen.add(eid)
         if eid == "walls" and ent["lines"]:
-            xs, ys = zip(*_cm(ent["lines"][0]["points"]), strict=True)
+            points = _cm(ent["lines"][0]["points"])
+            if len(points) < 2:
+                raise CheckError("/scene walls", f"{len(points)} point(s): not a boundary")
+            xs, ys = zip(*points, strict=True)
             log.bounds = (min(xs), min(ys), max(xs), max(ys))
         elif eid.startswith("static/"):
             for line in ent["lines"]:
-                log.static_polygons.append(Polygon(_cm(line["points"])))
+                points = _cm(line["points"])
+                polygon = Polygon(points) if len(points) >= 3 else None
+                if polygon is None or not polygon.is_valid:
+                    raise CheckError(f"/scene {eid}", "not a valid polygon (fewer than 3 points or self-intersecting)")
+                log.static_polygons.append(polygon)
             for cyl in ent["cylinders"]:
                 c = cyl["pose"]["position"]
                 # the simulator's circles are 64-gons (quad_segs=16): rebuild the same geometry
@@ -108,28 +123,33 @@ def _read_scene(log: EpisodeLog, scene: dict[str, Any]) -> None:
             log.goal_tolerance = c["size"]["x"] * 50
 
 
-_YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when PyYAML has it: ~10x faster
-
-
-def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], required: dict[str, list[str]]
+def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], times: dict[str, list[int]]
                    ) -> None:
-    """Decode, check against the schema's required fields, and file each message into ``log``."""
+    """Decode each message, check the fields the analysis reads (:func:`check_message`) and file it into
+    ``log``; ``times`` collects each topic's log times (ns) for :func:`check_episode`."""
     scene_seen = False
-    for topic, _t, data in messages:
+    for topic, t, data in messages:
         if topic == "/scene" and scene_seen:
             continue  # only the first scene (the static world) is read; the later ones are for Foxglove
         msg = decode(log.path, topic, data)
-        missing = [f for f in required.get(topic, []) if f not in msg] if isinstance(msg, dict) else ["(object)"]
-        if missing:
-            step = msg.get("step", "?") if isinstance(msg, dict) else "?"
-            raise LogError(f"{log.path}: {topic} message at step {step} does not match its schema: "
-                           f"missing field '{missing[0]}'")
+        try:
+            check_message(topic, msg)
+        except CheckError as err:
+            step = msg.get("step") if isinstance(msg, dict) else None
+            at = f"at step {step}" if type(step) is int else f"number {len(times[topic])}"
+            what = f"missing field '{err.where}'" if err.problem == "missing" else str(err)
+            raise LogError(f"{log.path}: {topic} message {at} does not match its schema: {what}") from None
+        times[topic].append(t)
         if topic == "/scene":
             _read_scene(log, msg)
             scene_seen = True
         elif topic == "/tpt":
+            if msg["step"] in log.tpts:
+                raise CheckError(f"/tpt step {msg['step']}", "two tables for one step")
             log.tpts[msg["step"]] = msg
         elif topic == "/episode":
+            if log.episode is not None:
+                raise CheckError("/episode", "two outcome messages")
             log.episode = msg
         else:
             getattr(log, _TOPIC_LISTS[topic]).append(msg)
@@ -140,26 +160,27 @@ _TOPIC_LISTS = {"/robot/state": "states", "/obstacles/truth": "truth", "/planner
 
 
 def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> EpisodeLog:
-    """Read the given topics of one log. Raises :class:`LogError` (naming the file) if it is not a
-    fuzzynav log; a truncated log loads what it has, with ``complete`` False and outcome ``incomplete``."""
-    path = Path(path)
-    with LogFile(path) as source:
-        meta = source.metadata()
-        try:
-            config = yaml.load(meta.get("config", ""), Loader=_YAML_LOADER) or {}
-        except yaml.YAMLError:
-            config = {}
-        if not isinstance(config, dict):
-            config = {}
-        log = EpisodeLog(path=path, meta=meta, config=config, complete=source.complete,
-                         dt=float(config.get("dt", 1.0)))
-        required = source.required_fields()
-        try:
-            _read_messages(log, source.raw_messages(topics), required)
-        except LogError as err:
-            if log.complete or "does not match its schema" in str(err):
-                raise
-            # a truncated log: keep what was read before the damage
+    """Read the given topics of one log, verified and checked (:mod:`analysis.mcap_verify`,
+    :mod:`analysis.log_check`). Raises :class:`LogError` naming the file and the problem; a truncated log loads
+    what it has, with ``complete`` False and outcome ``incomplete``."""
+    path = path if isinstance(path, Path) else Path(path)
+    topics = tuple(topics)
+    unknown = [t for t in topics if t not in _TOPIC_LISTS and t not in ("/scene", "/tpt", "/episode")]
+    if unknown:
+        raise ValueError(f"load_episode: no place for topic {unknown[0]!r}")
+    source = LogFile(path, topics)
+    meta = source.metadata()
+    try:
+        config, dt = check_metadata(meta)
+    except CheckError as err:
+        raise LogError(f"{path}: metadata {err}") from None
+    log = EpisodeLog(path=path, meta=meta, config=config, complete=source.complete, dt=math.nan)
+    times: dict[str, list[int]] = {topic: [] for topic in topics}
+    try:
+        _read_messages(log, source.raw_messages(topics), times)
+        check_episode(log, times, dt)
+    except CheckError as err:
+        raise LogError(f"{path}: {err}") from None
     if log.states:
         log.robot_radius = float(log.states[0]["radius_cm"])
     return log

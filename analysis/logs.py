@@ -1,16 +1,23 @@
-"""Reading fuzzynav MCAP logs (the analysis reads logs only, never the simulator's memory)."""
+"""Reading fuzzynav MCAP logs (the analysis reads logs only, never the simulator's memory).
+
+A log is verified before anything in it is believed (:mod:`analysis.mcap_verify`: framing, chunk, data-section
+and summary CRCs; a truncated log is read up to the chunk that was being written). Only regular files are
+opened: a FIFO, device or directory named ``*.mcap`` is refused without being opened (opening a FIFO blocks
+until someone writes to it). Every problem is a :class:`LogError` whose message names the file.
+"""
 
 from __future__ import annotations
 
-import json
+import os
+import stat
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 import orjson
-from mcap.reader import make_reader
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+
+from analysis.log_check import TOPIC_SCHEMAS, CheckError, check_message
+from analysis.mcap_verify import MAX_FILE_BYTES, McapContent, McapError, read_mcap
 
 T = TypeVar("T")
 
@@ -22,8 +29,73 @@ class LogError(Exception):
     """A log cannot be read as a fuzzynav episode; the message names the file and what is wrong."""
 
 
+class RejectedLog(type(Path())):  # type: ignore[misc]  # the concrete Path class of this platform
+    """A path that :func:`find_logs` will not let the analysis read (not a regular file, the same episode as
+    another log, ...), with the reason; opening it raises :class:`LogError` with that reason. It survives
+    pickling (the analysis's worker processes receive paths)."""
+
+    reason: str
+
+    @classmethod
+    def with_reason(cls, path: str | Path, reason: str) -> RejectedLog:
+        rejected = cls(path)
+        rejected.reason = reason
+        return rejected
+
+    def __reduce__(self):  # type: ignore[override]
+        return RejectedLog.with_reason, (str(self), self.reason)
+
+
+def file_kind(mode: int) -> str:
+    """What a non-regular file is, from its ``st_mode``."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def regular_file_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be read as a log without opening it (missing, not a regular file), or None."""
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        return f"cannot read: {err.strerror or err}"
+    if not stat.S_ISREG(st.st_mode):
+        return f"{file_kind(st.st_mode)}, not a regular file: skipped, not opened"
+    return None
+
+
+def read_log_bytes(path: Path) -> bytes:
+    """The whole file, after checking that it is a regular file of a plausible size; :class:`LogError`."""
+    if isinstance(path, RejectedLog):
+        raise LogError(f"{path}: {path.reason}")
+    problem = regular_file_problem(path)
+    if problem:
+        raise LogError(f"{path}: {problem}")
+    try:
+        # O_NONBLOCK: should the path have become a FIFO since the check, opening it still returns at once
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as err:
+        raise LogError(f"{path}: cannot read: {err.strerror or err}") from None
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise LogError(f"{path}: {file_kind(st.st_mode)}, not a regular file: skipped")
+        if st.st_size > MAX_FILE_BYTES:
+            raise LogError(f"{path}: {st.st_size / 2**20:.0f} MB, larger than any episode log "
+                           f"({MAX_FILE_BYTES // 2**20} MB)")
+        try:
+            return f.read(MAX_FILE_BYTES + 1)
+        except OSError as err:
+            raise LogError(f"{path}: cannot read: {err.strerror or err}") from None
+
+
 def is_complete(path: Path) -> bool:
-    """A finished MCAP ends with the magic bytes (a killed run's file does not)."""
+    """A finished MCAP ends with the magic bytes (a killed run's file does not). Only regular files are looked
+    at (never a FIFO: opening one blocks)."""
+    if regular_file_problem(Path(path)):
+        return False
     try:
         with open(path, "rb") as f:
             f.seek(-len(MCAP_MAGIC), 2)
@@ -33,48 +105,29 @@ def is_complete(path: Path) -> bool:
 
 
 def find_logs(paths: Iterable[str | Path]) -> list[Path]:
-    """All ``.mcap`` files under the given files or directories, sorted."""
-    out: list[Path] = []
-    for p in map(Path, paths):
-        out.extend(sorted(p.rglob("*.mcap")) if p.is_dir() else [p])
-    return out
+    """The logs under the given files or directories: each file once, each episode once (see
+    :mod:`analysis.log_inputs`); what cannot be read comes back as a :class:`RejectedLog` with the reason."""
+    from analysis.log_inputs import collect_logs
 
-
-def _linear_records(path: Path) -> Iterator[Any]:
-    """Records of a possibly truncated MCAP, in file order, up to the last readable chunk (a killed run's
-    log has no summary, so it cannot be read through the index)."""
-    with open(path, "rb") as f:
-        reader = StreamReader(f)
-        records = iter(reader.records)
-        try:
-            first = next(records)
-        except Exception as err:  # empty file, wrong magic, garbage
-            raise LogError(f"{path}: not an MCAP file ({type(err).__name__}: {err})") from None
-        yield first
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                return
-            except Exception:  # the truncated tail: stop at what was fully written
-                return
-            yield record
+    return collect_logs(paths)
 
 
 class LogFile:
-    """One log opened once: metadata, schemas and messages from the same reader (the MCAP summary of a
-    complete log is parsed once). A truncated log (no summary) is read linearly instead. Use as a context
-    manager; every reading error becomes a :class:`LogError` naming the file."""
+    """One log, read and verified when opened: metadata, channels and the messages of ``topics`` (None: all).
+    ``complete``: the file has its MCAP summary (a killed run's has not; what it has is read). A context manager
+    for compatibility (nothing stays open). Every problem is a :class:`LogError` naming the file."""
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        self.complete = is_complete(self.path)
-        self._file = open(self.path, "rb") if self.complete else None  # noqa: SIM115 - closed in close()
+    def __init__(self, path: str | Path, topics: Iterable[str] | None = None) -> None:
+        self.path = path if isinstance(path, Path) else Path(path)
+        data = read_log_bytes(self.path)
         try:
-            self._reader = make_reader(self._file) if self._file is not None else None
-        except Exception as err:  # ends like an MCAP but does not start like one
-            self.close()
-            raise LogError(f"{self.path}: not an MCAP file ({type(err).__name__}: {err})") from None
+            self._content: McapContent = read_mcap(data, None if topics is None else frozenset(topics))
+        except McapError as err:
+            damaged = "" if str(err).startswith("not an MCAP file") else "damaged MCAP file: "
+            raise LogError(f"{self.path}: {damaged}{err}") from None
+        self.complete = self._content.complete
+        self._topics = {cid: topic for cid, (topic, _sid, _enc) in self._content.channels.items()}
+        self._check_channels()
 
     def __enter__(self) -> LogFile:
         return self
@@ -83,73 +136,43 @@ class LogFile:
         self.close()
 
     def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
+        """Nothing to release: the file was read whole when opened."""
 
-    def _fail(self, err: Exception, what: str) -> LogError:
-        return err if isinstance(err, LogError) else LogError(f"{self.path}: {what} ({type(err).__name__}: {err})")
+    def _check_channels(self) -> None:
+        """Each topic on one channel, JSON-encoded, with the schema its name says (when it declares one)."""
+        seen: set[str] = set()
+        for topic, sid, encoding in self._content.channels.values():
+            if topic in seen:
+                raise LogError(f"{self.path}: two channels carry {topic}")
+            seen.add(topic)
+            expected = TOPIC_SCHEMAS.get(topic)
+            if expected is None:
+                continue
+            if encoding != "json":
+                raise LogError(f"{self.path}: {topic} is encoded as {encoding!r}, not json")
+            if sid:
+                name = self._content.schemas[sid][0]
+                if name != expected:
+                    raise LogError(f"{self.path}: {topic} declares schema {name!r}, expected {expected!r}")
 
     def metadata(self) -> dict[str, str]:
-        """The ``fuzzynav.run`` metadata record."""
-        try:
-            records = self._reader.iter_metadata() if self._reader is not None else \
-                (r for r in _linear_records(self.path) if isinstance(r, Metadata))
-            for record in records:
-                if record.name == RUN_METADATA:
-                    return dict(record.metadata)
-        except Exception as err:  # the mcap reader raises many types on corrupt input
-            raise self._fail(err, "not a readable MCAP file") from None
-        raise LogError(f"{self.path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
-
-    def required_fields(self) -> dict[str, list[str]]:
-        """Per topic, the top-level fields its embedded JSON schema requires (topics without one: none)."""
-        schemas: dict[int, Any] = {}
-        channels: dict[int, tuple[str, int]] = {}
-        try:
-            if self._reader is not None:
-                summary = self._reader.get_summary()
-                if summary is not None:
-                    schemas = dict(summary.schemas)
-                    channels = {cid: (c.topic, c.schema_id) for cid, c in summary.channels.items()}
-            else:
-                for record in _linear_records(self.path):
-                    if isinstance(record, Schema):
-                        schemas[record.id] = record
-                    elif isinstance(record, Channel):
-                        channels[record.id] = (record.topic, record.schema_id)
-        except Exception as err:
-            raise self._fail(err, "not a readable MCAP file") from None
-        out: dict[str, list[str]] = {}
-        for topic, schema_id in channels.values():
-            schema = schemas.get(schema_id)
-            if schema is None or schema.encoding != "jsonschema":
-                continue
-            try:
-                out[topic] = list(json.loads(schema.data).get("required", []))
-            except (ValueError, AttributeError):
-                raise LogError(f"{self.path}: the schema of {topic} is not valid JSON") from None
-        return out
+        """The ``fuzzynav.run`` metadata record (exactly one)."""
+        records = [m for name, m in self._content.metadata if name == RUN_METADATA]
+        if not records:
+            raise LogError(f"{self.path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
+        if len(records) > 1:
+            raise LogError(f"{self.path}: {len(records)} '{RUN_METADATA}' metadata records (expected one)")
+        return dict(records[0])
 
     def raw_messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
-        """(topic, log time ns, raw JSON bytes) in file order, which for fuzzynav logs is log-time order
-        (the writer appends step after step); a truncated log yields what it has."""
-        wanted = set(topics) if topics else None
-        try:
-            if self._reader is not None:
-                for _schema, channel, message in self._reader.iter_messages(
-                        topics=list(wanted) if wanted else None, log_time_order=False):
-                    yield channel.topic, message.log_time, message.data
-                return
-            channels: dict[int, str] = {}
-            for record in _linear_records(self.path):
-                if isinstance(record, Channel):
-                    channels[record.id] = record.topic
-                elif isinstance(record, Message):
-                    topic = channels.get(record.channel_id, "")
-                    if wanted is None or topic in wanted:
-                        yield topic, record.log_time, record.data
-        except Exception as err:
-            raise self._fail(err, "cannot read messages") from None
+        """(topic, log time ns, raw JSON bytes) in file order, which for fuzzynav logs is log-time order (the
+        writer appends step after step); a truncated log yields what it has."""
+        wanted = None if topics is None else frozenset(topics)
+        names = self._topics
+        for channel, log_time, data in self._content.messages:
+            topic = names[channel]
+            if wanted is None or topic in wanted:
+                yield topic, log_time, data
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
         """(topic, log time ns, decoded JSON message), as :meth:`raw_messages`."""
@@ -158,15 +181,13 @@ class LogFile:
 
 
 def read_metadata(path: Path) -> dict[str, str]:
-    """The ``fuzzynav.run`` metadata record of a log (complete or truncated)."""
-    with LogFile(path) as log:
-        return log.metadata()
+    """The ``fuzzynav.run`` metadata record of a log (complete or truncated), after verifying the file."""
+    return LogFile(path, ()).metadata()
 
 
 def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """(topic, log time ns, decoded JSON message) in log-time order; a truncated log yields what it has."""
-    with LogFile(path) as log:
-        yield from log.messages(topics)
+    yield from LogFile(path, topics).messages(topics)
 
 
 def decode(path: Path, topic: str, data: bytes) -> Any:
@@ -197,20 +218,24 @@ def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1) 
 
 
 def episode_summary(path: Path) -> dict[str, Any]:
-    """One row: run parameters from the metadata and the ``/episode`` outcome (``incomplete`` if missing)."""
-    with LogFile(path) as log:
-        meta = log.metadata()
-        row: dict[str, Any] = {"log": str(path), "scenario": meta.get("scenario"), "strategy": meta.get("strategy"),
-                               "h_wait": _int(meta.get("h_wait")), "controller": meta.get("controller"),
-                               "perception": meta.get("perception"), "seed": _int(meta.get("seed")),
-                               "outcome": "incomplete", "steps": None, "time_s": None, "contacts": None}
-        for _topic, _t, msg in log.messages(["/episode"]):
-            row.update(outcome=msg["outcome"], steps=msg["steps"], time_s=msg["time_s"], contacts=msg["contacts"])
-    return row
+    """One row: run parameters from the metadata and the ``/episode`` outcome (``incomplete`` if missing), after
+    verifying the file and checking the metadata and the ``/episode`` message."""
+    from analysis.log_check import check_metadata
 
-
-def _int(value: str | None) -> int | None:
+    log = LogFile(path, ["/episode"])
+    meta = log.metadata()
     try:
-        return None if value is None else int(value)
-    except ValueError:
-        return None
+        check_metadata(meta)
+    except CheckError as err:
+        raise LogError(f"{path}: metadata {err}") from None
+    row: dict[str, Any] = {"log": str(path), "scenario": meta["scenario"], "strategy": meta["strategy"],
+                           "h_wait": int(meta["h_wait"]), "controller": meta["controller"],
+                           "perception": meta["perception"], "seed": int(meta["seed"]),
+                           "outcome": "incomplete", "steps": None, "time_s": None, "contacts": None}
+    for topic, _t, msg in log.messages(["/episode"]):
+        try:
+            check_message(topic, msg)
+        except CheckError as err:
+            raise LogError(f"{path}: /episode message does not match its schema: {err}") from None
+        row.update(outcome=msg["outcome"], steps=msg["steps"], time_s=msg["time_s"], contacts=msg["contacts"])
+    return row

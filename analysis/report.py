@@ -22,6 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import plots
+from analysis.cli_args import OneLineParser, jobs, number_in, unwritable_dir
 from analysis.metrics import Analysis, MetricOptions, analyse_logs
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
@@ -293,12 +294,13 @@ def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, pair
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("paths", nargs="+", help="sweep directories and/or .mcap files")
     parser.add_argument("--out", help="output directory (default: the first path if it is a directory, "
                                       "else ./report)")
-    parser.add_argument("--turn-threshold-deg", type=float, default=5.0, help="heading change counted as a turn")
-    parser.add_argument("--jobs", type=int, default=-1,
+    parser.add_argument("--turn-threshold-deg", type=number_in(0.0, 180.0, "degrees", lo_open=True), default=5.0,
+                        help="heading change counted as a turn (degrees per step, in (0, 180])")
+    parser.add_argument("--jobs", type=jobs, default=-1,
                         help="worker processes reading the logs (default -1: every core; 1: this process only)")
     parser.add_argument("--split-provenance", action="store_true",
                         help="logs written by different code (fuzzynav version, git commit, library versions) form "
@@ -310,9 +312,21 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     first = Path(args.paths[0])
     out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
-    build_report(args.paths, out, MetricOptions(turn_threshold_deg=args.turn_threshold_deg), jobs=args.jobs,
-                 split_provenance=args.split_provenance)
+    problem = unwritable_dir(out)  # before the analysis, not after it
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
+    options = MetricOptions(turn_threshold_deg=args.turn_threshold_deg)
+    analysis = analyse_logs(args.paths, options, jobs=args.jobs, split_provenance=args.split_provenance)
+    try:
+        build_report(args.paths, out, options, analysis=analysis)
+    except OSError as err:  # disk full, or the directory changed under us: the report is incomplete
+        print(f"error: {err.filename or out}: cannot write the report: {err.strerror or err} (incomplete)",
+              file=sys.stderr)
+        return 1
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
+    if len(analysis.excluded):
+        print(f"{len(analysis.excluded)} log(s) left out, each with its reason: see 'Logs left out' in the report")
     return 0
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import copy
 import math
+import stat
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,19 +29,22 @@ from typing import Any
 import numpy as np
 import yaml
 
+from analysis.cli_args import OneLineParser
 from analysis.episode_log import EpisodeLog, load_episode
-from analysis.logs import LogError
+from analysis.logs import LogError, file_kind
 from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
+from fuzzynav.fuzzy_spec import ControllerSpec
 from fuzzynav.kinematics import RobotState
 from fuzzynav.navigator import ActivePlan, Decision, Navigator, Observation
 from fuzzynav.tracking import Track
-from runners.run import episode_config
+from runners.run import ConfigFileError, episode_config
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 ALL_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode", "/tracks",
               "/sonar", "/laser")
 TOLERANCE = 1e-2  # degrees and cm/s: the log rounds to 1e-4
+MAX_SNAPSHOTS = 100  # --steps: snapshots drawn in one PNG
+MAX_CONTROLLER_BYTES = 1 << 20  # --controller: a controller file is a few KB
 
 
 @dataclass(frozen=True)
@@ -75,14 +79,41 @@ def timeline(log: EpisodeLog) -> list[str]:
     return lines
 
 
+class ReplayError(Exception):
+    """A replay argument or input that cannot be used; the message is the one line printed."""
+
+
 def _set(config: dict[str, Any], dotted: str, value: Any) -> None:
-    node = config
+    """Set an existing key of the recorded config (dotted path); :class:`ReplayError` if there is none."""
+    node: Any = config
     keys = dotted.split(".")
     for key in keys[:-1]:
-        node = node.setdefault(key, {})
-    if keys[-1] not in node:
-        raise KeyError(dotted)
+        node = node.get(key) if isinstance(node, dict) else None
+    if not isinstance(node, dict) or keys[-1] not in node:
+        raise ReplayError(f"override {dotted}: no such key in the recorded config")
     node[keys[-1]] = value
+
+
+def parse_steps(text: str) -> list[int]:
+    """``--steps 5,12,20``: step numbers (non-negative integers), at most ``MAX_SNAPSHOTS`` of them."""
+    items = [item.strip() for item in text.split(",")]
+    if len(items) > MAX_SNAPSHOTS:
+        raise ReplayError(f"--steps: {len(items)} steps, at most {MAX_SNAPSHOTS} snapshots")
+    for item in items:
+        if not item.isascii() or not item.isdigit() or len(item) > 9:
+            raise ReplayError(f"--steps: {item[:20]!r} is not a step number (comma-separated integers from 0)")
+    return [int(item) for item in items]
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    """``key=value`` (the value as YAML, like a Hydra override)."""
+    key, sep, value = item.partition("=")
+    if not sep or not key or any(not part for part in key.split(".")):
+        raise ReplayError(f"override {item[:60]!r}: expected key=value, e.g. planner.h_wait=4")
+    try:
+        return key, yaml.safe_load(value)
+    except yaml.YAMLError as err:
+        raise ReplayError(f"override {key}: the value is not valid YAML ({getattr(err, 'problem', err)})") from None
 
 
 def navigator_for(config: dict[str, Any], robot_radius: float) -> Navigator:
@@ -128,13 +159,19 @@ def _compare(k: int, recorded: dict[str, Any], d: Decision) -> Divergence | None
     return None
 
 
+def replayable_steps(log: EpisodeLog) -> int:
+    """Steps whose recorded inputs and decision are all in the log (an episode that ended with an error may
+    have written part of its last step)."""
+    return min(len(log.decisions), len(log.states), len(log.sonar), len(log.tracks), len(log.laser))
+
+
 def replay(log: EpisodeLog, config: dict[str, Any], stop_at_first: bool) -> list[Divergence]:
     """Feed the recorded inputs of every step to a navigator built from ``config``."""
     navigator = navigator_for(config, log.robot_radius)
     goal = log.goal
     active: ActivePlan | None = None
     out = []
-    for k, recorded in enumerate(log.decisions):
+    for k, recorded in enumerate(log.decisions[:replayable_steps(log)]):
         decision, active = navigator.decide(_observation(log, k, goal), active)  # type: ignore[arg-type]
         diff = _compare(k, recorded, decision)
         if diff is not None:
@@ -145,16 +182,31 @@ def replay(log: EpisodeLog, config: dict[str, Any], stop_at_first: bool) -> list
 
 
 def _controller(name: str) -> dict[str, Any]:
+    """A controller definition: a YAML file, or a name in conf/controller/ (regular files only, a bounded
+    size: a FIFO would block the read)."""
     path = Path(name)
     if not path.exists():
         path = CONF / "controller" / f"{name}.yaml"
     if not path.exists():
-        raise FileNotFoundError(f"controller {name!r}: no such file (looked in {CONF / 'controller'})")
-    return yaml.safe_load(path.read_text())
+        raise ReplayError(f"controller {name!r}: no such file (looked in {CONF / 'controller'})")
+    try:
+        st = path.stat()
+        if not stat.S_ISREG(st.st_mode):
+            raise ReplayError(f"{path}: {file_kind(st.st_mode)}, not a controller file")
+        if st.st_size > MAX_CONTROLLER_BYTES:
+            raise ReplayError(f"{path}: {st.st_size} bytes, more than {MAX_CONTROLLER_BYTES} for a controller file")
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except (OSError, UnicodeDecodeError) as err:
+        raise ReplayError(f"{path}: cannot read: {getattr(err, 'strerror', None) or err}") from None
+    except yaml.YAMLError as err:
+        raise ReplayError(f"{path}: not valid YAML ({getattr(err, 'problem', None) or err})") from None
+    if not isinstance(data, dict):
+        raise ReplayError(f"{path}: a controller file is a mapping (inputs, outputs, rules)")
+    return data
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", help="an episode log (.mcap)")
     parser.add_argument("overrides", nargs="*", help="key=value changes of the recorded config (counterfactual)")
     parser.add_argument("--verify", action="store_true", help="re-decide every step; exit 1 at the first change")
@@ -164,64 +216,80 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", help="output path stem for the PNG/GIF (default: beside the log)")
     parser.add_argument("--quiet", action="store_true", help="no timeline")
     args = parser.parse_intermixed_args(argv)
-    path = Path(args.log)
-    if not path.exists():
-        print(f"error: {path}: no such file", file=sys.stderr)
+    try:
+        return _run(args)
+    except ReplayError as err:
+        print("error: " + str(err).replace("\n", "\\n"), file=sys.stderr)  # one line, even for odd file names
         return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The replay of ``args``; every problem with the arguments or the log is a :class:`ReplayError`."""
+    path = Path(args.log)
+    steps = parse_steps(args.steps) if args.steps is not None else None
+    overrides = [parse_override(item) for item in args.overrides]
+    if not path.exists() and not path.is_symlink():
+        raise ReplayError(f"{path}: no such file")
     try:
         log = load_episode(path, ALL_TOPICS)
     except LogError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+        raise ReplayError(str(err)) from None
     if not log.decisions:
-        print(f"error: {path}: no /planner/decision messages to replay", file=sys.stderr)
-        return 2
+        raise ReplayError(f"{path}: no /planner/decision messages to replay")
     if args.verify and not log.complete:
-        print(f"error: {path}: truncated log (no MCAP summary; {log.steps} steps readable): an unfinished episode "
-              "cannot be verified", file=sys.stderr)
-        return 2
-    counterfactual = bool(args.controller or args.overrides)
-    config = copy.deepcopy(log.config)
-    try:
-        if args.controller:
-            config["controller"] = _controller(args.controller)
-        for item in args.overrides:
-            key, _, value = item.partition("=")
-            _set(config, key, yaml.safe_load(value))
-    except KeyError as err:
-        print(f"error: override {err.args[0]}: no such key in the recorded config", file=sys.stderr)
-        return 2
-    except (FileNotFoundError, yaml.YAMLError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+        raise ReplayError(f"{path}: truncated log (no MCAP summary; {log.steps} steps readable): an unfinished "
+                          "episode cannot be verified")
+    if steps is not None and any(k >= log.steps for k in steps):
+        raise ReplayError(f"--steps: step {max(steps)} is beyond the episode's {log.steps} steps "
+                          f"(0 to {log.steps - 1})")
+    counterfactual = bool(args.controller or overrides)
     if args.verify or counterfactual:
-        try:
-            diffs = replay(log, config, stop_at_first=args.verify and not counterfactual)
-        except (ControllerSpecError, ValueError, KeyError) as err:
-            print(f"error: {path}: cannot rebuild the navigator from the recorded config: {err}", file=sys.stderr)
-            return 2
-        if counterfactual:
-            print(f"counterfactual replay of {len(log.decisions)} recorded steps: {len(diffs)} decisions differ")
-            for d in diffs:
-                print(f"  step {d.step}: {d.field} recorded {d.recorded!r}, now {d.replayed!r}")
-            return 0
-        if diffs:
-            d = diffs[0]
-            print(f"{path}: decision differs at step {d.step}: {d.field} recorded {d.recorded!r}, "
-                  f"replayed {d.replayed!r}")
-            return 1
-        print(f"{path}: all {len(log.decisions)} decisions reproduced")
-        return 0
+        return _decide_again(log, path, args, overrides, counterfactual)
     if not args.quiet:
         print("\n".join(timeline(log)))
     from analysis.render import render_gif, render_png
 
     stem = Path(args.out) if args.out else path.with_suffix("")
-    steps = [int(s) for s in args.steps.split(",")] if args.steps else None
-    png = render_png(log, stem.with_suffix(".png"), steps)
-    print(f"wrote {png}")
-    if args.animate:
-        print(f"wrote {render_gif(log, stem.with_suffix('.gif'))}")
+    for target in [stem.with_suffix(".png")] + ([stem.with_suffix(".gif")] if args.animate else []):
+        try:
+            written = render_png(log, target, steps) if target.suffix == ".png" else render_gif(log, target)
+        except OSError as err:
+            raise ReplayError(f"{target}: cannot write: {err.strerror or err}") from None
+        print(f"wrote {written}")
+    return 0
+
+
+def _decide_again(log: EpisodeLog, path: Path, args: argparse.Namespace, overrides: list[tuple[str, Any]],
+                  counterfactual: bool) -> int:
+    """``--verify`` and counterfactual replays: the recorded inputs through a navigator rebuilt from the
+    recorded (or changed) config."""
+    if log.goal is None:
+        raise ReplayError(f"{path}: the first /scene has no goal: the navigator cannot be rebuilt")
+    config = copy.deepcopy(log.config)
+    if args.controller:
+        config["controller"] = _controller(args.controller)
+    for key, value in overrides:
+        _set(config, key, value)
+    try:
+        diffs = replay(log, config, stop_at_first=args.verify and not counterfactual)
+    except (ConfigFileError, ValueError, KeyError, TypeError, AttributeError) as err:
+        # the config's own validation raises ValueError subclasses; KeyError/TypeError/AttributeError come from a
+        # recorded config that lacks a section or has one of another type (hand-written or old logs)
+        which = "changed" if counterfactual else "recorded"
+        kind = f"{type(err).__name__}: " if type(err) in (KeyError, TypeError, AttributeError) else ""
+        raise ReplayError(f"{path}: cannot rebuild the navigator from the {which} config: {kind}{err}") from None
+    steps = replayable_steps(log)
+    if counterfactual:
+        print(f"counterfactual replay of {steps} recorded steps: {len(diffs)} decisions differ")
+        for d in diffs:
+            print(f"  step {d.step}: {d.field} recorded {d.recorded!r}, now {d.replayed!r}")
+        return 0
+    if diffs:
+        d = diffs[0]
+        print(f"{path}: decision differs at step {d.step}: {d.field} recorded {d.recorded!r}, "
+              f"replayed {d.replayed!r}")
+        return 1
+    print(f"{path}: all {steps} decisions reproduced")
     return 0
 
 

@@ -1,0 +1,63 @@
+"""Command-line argument checks shared by ``analysis.report`` and ``runners.replay``: every bad argument ends
+with one line ``error: <argument>: <problem>`` and exit status 2, never a traceback or argparse's usage block."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import NoReturn
+
+MAX_JOBS = 1024
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line on stderr (``error: ...``), exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"error: {message} (see --help)\n")
+        raise SystemExit(2)
+
+
+def number_in(lo: float, hi: float, unit: str = "", lo_open: bool = False) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in [lo, hi] (``(lo, hi]`` with ``lo_open``); NaN and infinities are
+    refused (NaN passes every ``<`` test, so an unchecked NaN threshold silently changes a metric)."""
+    interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a number") from None
+        if not math.isfinite(value) or value < lo or value > hi or (lo_open and value == lo):
+            raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a finite number in {interval}")
+        return value
+    return parse
+
+
+def jobs(text: str) -> int:
+    """An argparse ``type`` for ``--jobs``: -1 (every core) or 1 to ``MAX_JOBS`` worker processes."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not an integer") from None
+    if value != -1 and not 1 <= value <= MAX_JOBS:
+        raise argparse.ArgumentTypeError(f"{value}: expected -1 (every core) or 1 to {MAX_JOBS}")
+    return value
+
+
+def unwritable_dir(path: Path) -> str | None:
+    """Why files cannot be written into directory ``path`` (created if missing), or None: tried by creating
+    and removing a file, so that a long analysis does not end with a traceback on its first write."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-test-", dir=path)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        return f"{err.filename or path}: cannot write: {err.strerror or err}"
+    return None

@@ -1,0 +1,145 @@
+"""Which files an analysis reads: every log file once, every episode once, whatever the paths given.
+
+:func:`collect_logs` turns command-line paths into the list of logs the analysis reads:
+
+1. A directory stands for its ``*.mcap`` files at any depth, in sorted order (symlinked directories are not
+   followed: no loops); a file stands for itself, whatever its name.
+2. Something that is not a regular file (a FIFO, device, socket or directory named ``*.mcap``), a dangling link
+   or a directory that cannot be listed is never opened: it comes back as a :class:`RejectedLog` whose reason
+   the analysis lists with the logs left out.
+3. The same file reached twice (``D`` and ``D/0``, a symlink, a hard link, a path given twice) is read once.
+4. The same episode — the same config hash and seed, written by the same code (fuzzynav version, git commit,
+   library versions) — in two different files is compared: when their verified content is the same (apart from
+   the decision compute times, which no run reproduces) the first is read and the others are left out as copies;
+   when it differs, every one of them is left out, listing the others, because nothing says which is right.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import stat
+from collections.abc import Iterable
+from pathlib import Path
+
+from analysis.logs import RUN_METADATA, LogError, LogFile, RejectedLog, file_kind
+from analysis.mcap_verify import peek_metadata
+
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+
+
+def is_provenance_key(key: str) -> bool:
+    """Metadata keys that say which code wrote the log (versions, git commit)."""
+    return key in ("fuzzynav_version", "git_commit") or key.endswith("_version")
+
+_COMPUTE_TIME = re.compile(rb'"compute_time_us":[-+0-9.eE]+')  # the one field no re-run reproduces
+
+
+def collect_logs(paths: Iterable[str | Path]) -> list[Path]:
+    """The logs to read, in order: plain paths, and :class:`RejectedLog` for what must not be read (see the
+    module docstring)."""
+    out: list[Path] = []
+    seen: set[tuple[int, int] | str] = set()
+    for path in _expand(paths):
+        if isinstance(path, RejectedLog):
+            key: tuple[int, int] | str = str(path)
+        else:
+            try:
+                st = os.stat(path)
+            except OSError as err:
+                path = RejectedLog.with_reason(path, f"cannot read: {err.strerror or err}")
+                key = str(path)
+            else:
+                if not stat.S_ISREG(st.st_mode):
+                    path = RejectedLog.with_reason(path, f"{file_kind(st.st_mode)}, not a regular file: skipped, "
+                                                         "not opened")
+                    key = str(path)
+                else:
+                    key = (st.st_dev, st.st_ino)
+        if key not in seen:
+            seen.add(key)
+            out.append(path)
+    return _one_per_episode(out)
+
+
+def _expand(paths: Iterable[str | Path]) -> list[Path]:
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if not p.is_dir():
+            out.append(p)
+            continue
+        found: list[Path] = []
+        unlistable: list[Path] = []
+
+        def failed(err: OSError, unlistable: list[Path] = unlistable) -> None:
+            unlistable.append(RejectedLog.with_reason(err.filename, f"directory cannot be listed: "
+                                                                    f"{err.strerror or err}"))
+
+        for root, dirs, files in os.walk(p, onerror=failed):
+            base = Path(root)
+            found.extend(base / name for name in files if name.endswith(".mcap"))
+            found.extend(base / name for name in dirs if name.endswith(".mcap"))  # rejected below: a directory
+        out.extend(sorted(found))
+        out.extend(unlistable)
+    return out
+
+
+def _identity(path: Path) -> tuple[str, ...] | None:
+    """(config hash, seed, provenance...) from the unverified metadata, or None (no SHA-256 config hash,
+    unreadable): only used to choose which files to compare."""
+    try:
+        with open(path, "rb") as f:
+            meta = peek_metadata(f, RUN_METADATA)
+    except OSError:
+        return None
+    if not meta or not _SHA256.fullmatch(meta.get("config_hash", "")) or "seed" not in meta:
+        return None
+    return (meta["config_hash"], meta["seed"], *sorted(f"{k}={v}" for k, v in meta.items() if is_provenance_key(k)))
+
+
+def _content_digest(path: Path) -> str | None:
+    """SHA-256 of a complete, verified log's metadata and messages, compute times masked; None when the log is
+    truncated or unreadable (its own reading reports it)."""
+    try:
+        log = LogFile(path)
+        if not log.complete:
+            return None
+        digest = hashlib.sha256()
+        for key, value in sorted(log.metadata().items()):
+            digest.update(f"{key}={value}\0".encode())
+        for topic, log_time, data in log.raw_messages():
+            digest.update(f"{topic}@{log_time}\0".encode())
+            digest.update(_COMPUTE_TIME.sub(b'"compute_time_us":0', data) if topic == "/planner/decision" else data)
+    except LogError:
+        return None
+    return digest.hexdigest()
+
+
+def _one_per_episode(paths: list[Path]) -> list[Path]:
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for i, path in enumerate(paths):
+        if not isinstance(path, RejectedLog):
+            identity = _identity(path)
+            if identity is not None:
+                groups.setdefault(identity, []).append(i)
+    out = list(paths)
+    for identity, members in groups.items():
+        if len(members) < 2:
+            continue
+        digests = {i: _content_digest(paths[i]) for i in members}
+        compared = [i for i in members if digests[i] is not None]
+        if len(compared) < 2:
+            continue
+        episode = f"config hash {identity[0][:12]}…, seed {identity[1]}"
+        first = compared[0]
+        if len({digests[i] for i in compared}) == 1:
+            for i in compared[1:]:
+                out[i] = RejectedLog.with_reason(paths[i], f"a copy of {paths[first]} (the same episode: {episode}, "
+                                                           "same content): counted once")
+            continue
+        for i in compared:
+            others = ", ".join(str(paths[j]) for j in compared if j != i)
+            out[i] = RejectedLog.with_reason(paths[i], f"the same episode ({episode}, same code) as {others}, but "
+                                                       "different content: none of them is counted")
+    return out

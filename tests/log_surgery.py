@@ -1,0 +1,80 @@
+"""Edit MCAP logs for tests: re-write a log through the ``mcap`` library's writer (fresh, valid CRCs) with its
+metadata or messages changed, or damage its bytes. Independent of :mod:`analysis.mcap_verify`, the reader under
+test."""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import orjson
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+MessageEdit = Callable[[str, int, Any], Any]  # (topic, index of the message on its topic, message) -> message,
+# DROP to leave it out, or Twice(message) to write it twice
+DROP = object()
+
+
+class Twice:
+    """A message edit's answer: write this message twice (same log time)."""
+
+    def __init__(self, msg: Any) -> None:
+        self.msg = msg
+
+
+def rewrite(src: Path, dst: Path, *, metadata: Callable[[dict[str, str]], dict[str, str]] | None = None,
+            message: MessageEdit | None = None, compression: CompressionType = CompressionType.ZSTD) -> Path:
+    """Copy ``src`` to ``dst`` record by record: ``metadata(run_metadata)`` returns the new ``fuzzynav.run``
+    record, ``message(topic, index, msg)`` the new message (any JSON value; DROP leaves it out, Twice repeats it)."""
+    with open(src, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        records = [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
+        messages = [(channel, m) for _s, channel, m in reader.iter_messages(log_time_order=False)]
+    counts: dict[str, int] = {}
+    with open(dst, "wb") as out:
+        writer = Writer(out, compression=compression)
+        writer.start()
+        schemas = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        channels = {cid: writer.register_channel(c.topic, c.message_encoding, schemas.get(c.schema_id, 0))
+                    for cid, c in summary.channels.items()}
+        for name, meta in records:
+            writer.add_metadata(name, metadata(dict(meta)) if metadata and name == "fuzzynav.run" else meta)
+        for channel, m in messages:
+            data = m.data
+            if message is not None:
+                index = counts.get(channel.topic, 0)
+                counts[channel.topic] = index + 1
+                edited = message(channel.topic, index, orjson.loads(data))
+                if edited is DROP:
+                    continue
+                if isinstance(edited, Twice):
+                    edited = edited.msg
+                    writer.add_message(channels[channel.id], m.log_time, _dumps(edited), m.publish_time)
+                data = _dumps(edited)
+            writer.add_message(channels[channel.id], m.log_time, data, m.publish_time)
+        writer.finish()
+    return dst
+
+
+def _dumps(value: Any) -> bytes:
+    """JSON as the writer's orjson writes it; integers beyond 64 bits (which orjson refuses) and NaN through the
+    standard library (NaN then becomes the non-JSON token ``NaN``, as a broken writer would write it)."""
+    try:
+        return orjson.dumps(value)
+    except TypeError:
+        return json.dumps(value, separators=(",", ":")).encode()
+
+
+def record_offsets(data: bytes) -> list[tuple[int, int, int]]:
+    """(opcode, offset, body length) of each top-level record of an intact MCAP file."""
+    out, pos = [], 8
+    while pos + 9 <= len(data) - 8:
+        opcode, length = struct.unpack_from("<BQ", data, pos)
+        out.append((opcode, pos, length))
+        pos += 9 + length
+    return out

@@ -1,0 +1,213 @@
+"""Logs are verified before they are believed (issue 14, item 3): the damaged and malformed logs of
+tests/bad_inputs/logs/cases.yaml, non-regular files, the same log or episode given twice, and the argument checks
+of ``analysis.report`` and ``runners.replay``."""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from analysis import report
+from analysis.logs import RejectedLog, find_logs
+from analysis.metrics import metrics_table
+from runners import replay
+from tests.conftest import ROOT
+from tests.log_surgery import rewrite
+from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
+
+LOGS = ROOT / "tests" / "bad_inputs" / "logs"
+CASES = yaml.safe_load((LOGS / "cases.yaml").read_text())
+
+
+@pytest.fixture
+def good(recorded_logs) -> Path:  # noqa: F811 - the fixture imported above
+    """A complete, valid log (replay --verify reproduces it)."""
+    return recorded_logs[0]
+
+
+def one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_every_log_case_is_a_file():
+    assert len(CASES) >= 16
+    for case in CASES:
+        assert (LOGS / case["name"]).is_file(), case
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
+def test_replay_refuses_a_bad_log_in_one_line(case, capsys):
+    log = LOGS / case["name"]
+    assert replay.main([str(log), "--verify"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert line.startswith(f"error: {log}: ") and case["expect"] in line, line
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
+def test_the_analysis_leaves_a_bad_log_out_with_its_reason(case):
+    df, left_out = metrics_table([LOGS / case["name"]])
+    assert df.empty and len(left_out) == 1
+    assert case["expect"] in left_out["reason"].iloc[0]
+
+
+def test_a_truncated_log_is_left_out_as_truncated():
+    df, left_out = metrics_table([LOGS / "truncated_mid_chunk.mcap"])
+    assert df.empty and left_out["reason"].iloc[0].startswith("truncated:")
+
+
+# -- which files are read -----------------------------------------------------------------------------------
+@pytest.fixture
+def sweep_dir(tmp_path, good):
+    """A directory with one good log in a subdirectory, as a sweep's job directory holds it."""
+    (tmp_path / "0").mkdir()
+    shutil.copy(good, tmp_path / "0" / good.name)
+    return tmp_path
+
+
+def test_the_same_file_through_several_paths_is_read_once(sweep_dir, good):
+    log = sweep_dir / "0" / good.name
+    (sweep_dir / "link.mcap").symlink_to(log)
+    os.link(log, sweep_dir / "hard.mcap")
+    paths = [sweep_dir, sweep_dir / "0", log, log, sweep_dir / "link.mcap"]
+    assert find_logs(paths) == [sweep_dir / "0" / good.name]
+    df, left_out = metrics_table(paths)
+    assert len(df) == 1 and left_out.empty
+
+
+def test_a_copy_of_an_episode_is_counted_once_and_listed(sweep_dir, good):
+    shutil.copy(good, sweep_dir / "copy.mcap")
+    df, left_out = metrics_table([sweep_dir])
+    assert len(df) == 1 and len(left_out) == 1
+    assert "a copy of" in left_out["reason"].iloc[0] and "counted once" in left_out["reason"].iloc[0]
+
+
+def test_two_different_logs_of_one_episode_are_both_left_out(sweep_dir, good):
+    def nudge(topic, index, msg):  # same config hash and seed, different content
+        if topic == "/planner/decision" and index == 2:
+            msg["v_cm_s"] += 1.0
+        return msg
+
+    rewrite(good, sweep_dir / "other.mcap", message=nudge)
+    df, left_out = metrics_table([sweep_dir])
+    assert df.empty and len(left_out) == 2
+    assert all("different content: none of them is counted" in r for r in left_out["reason"])
+
+
+def test_a_re_run_differing_only_in_compute_times_is_a_copy(sweep_dir, good):
+    def slower(topic, index, msg):
+        if topic == "/planner/decision":
+            msg["compute_time_us"] *= 2
+        return msg
+
+    rewrite(good, sweep_dir / "rerun.mcap", message=slower)
+    df, left_out = metrics_table([sweep_dir])
+    assert len(df) == 1 and "a copy of" in left_out["reason"].iloc[0]
+
+
+def test_non_regular_files_are_skipped_without_being_opened(sweep_dir):
+    os.mkfifo(sweep_dir / "x.mcap")
+    (sweep_dir / "d.mcap").mkdir()
+    (sweep_dir / "dangling.mcap").symlink_to(sweep_dir / "nowhere")
+    found = find_logs([sweep_dir, "/dev/null"])
+    rejected = {p.name: p.reason for p in found if isinstance(p, RejectedLog)}
+    assert rejected == {"x.mcap": "a FIFO, not a regular file: skipped, not opened",
+                        "d.mcap": "a directory, not a regular file: skipped, not opened",
+                        "dangling.mcap": "cannot read: No such file or directory",
+                        "null": "a character device, not a regular file: skipped, not opened"}
+    df, left_out = metrics_table([sweep_dir])
+    assert len(df) == 1 and len(left_out) == 3
+
+
+def test_a_fifo_named_mcap_blocks_neither_report_nor_replay(sweep_dir):
+    fifo = sweep_dir / "x.mcap"
+    os.mkfifo(fifo)
+    res = subprocess.run([sys.executable, "-m", "analysis.report", str(sweep_dir), str(fifo), "--jobs", "1",
+                          "--out", str(sweep_dir / "rep")], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and "1 log(s) left out" in res.stdout, res.stderr
+    assert "a FIFO, not a regular file" in (sweep_dir / "rep" / "report.md").read_text()
+    res = subprocess.run([sys.executable, "-m", "runners.replay", str(fifo), "--verify"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "a FIFO, not a regular file" in one_error_line(res.stderr)
+
+
+# -- arguments ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("args, expect", [
+    (["--turn-threshold-deg", "nan"], "--turn-threshold-deg: 'nan' is not a finite number in (0, 180] degrees"),
+    (["--turn-threshold-deg", "-5"], "--turn-threshold-deg: '-5' is not a finite number"),
+    (["--turn-threshold-deg", "inf"], "--turn-threshold-deg: 'inf' is not a finite number"),
+    (["--jobs", "0"], "--jobs: 0: expected -1 (every core) or 1 to 1024"),
+    (["--no-such-option"], "unrecognized arguments: --no-such-option"),
+])
+def test_report_options_are_checked(args, expect, capsys, tmp_path, good):
+    with pytest.raises(SystemExit) as stop:
+        report.main([str(good), "--out", str(tmp_path / "rep"), *args])
+    assert stop.value.code == 2 and expect in one_error_line(capsys.readouterr().err)
+    assert not (tmp_path / "rep").exists()
+
+
+def test_an_unwritable_report_directory_is_one_line_before_any_work(capsys, tmp_path, good):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert report.main([str(good), "--out", str(blocker / "rep")]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert line == f"error: {blocker / 'rep'}: cannot write: Not a directory", line
+
+
+def test_a_report_that_cannot_be_written_completely_exits_non_zero(capsys, tmp_path, monkeypatch, good):
+    def disk_full(rep, out, *args):
+        raise OSError(errno.ENOSPC, "No space left on device", str(out / "report.md"))
+
+    monkeypatch.setattr(report, "_write", disk_full)
+    monkeypatch.setattr(report.plots, "_save", lambda fig, path: report.plots.plt.close(fig) or path)
+    assert report.main([str(good), "--out", str(tmp_path / "rep"), "--jobs", "1"]) == 1
+    line = one_error_line(capsys.readouterr().err)
+    assert f"{tmp_path / 'rep' / 'report.md'}: cannot write the report: No space left on device" in line
+
+
+@pytest.mark.parametrize("args, expect", [
+    (["--steps", "a,b"], "--steps: 'a' is not a step number"),
+    (["--steps", "3,-1"], "--steps: '-1' is not a step number"),
+    (["--steps", "5,4000"], "--steps: step 4000 is beyond the episode's"),
+    (["planner.h_wait"], "override 'planner.h_wait': expected key=value"),
+    (["dt.x=1"], "override dt.x: no such key in the recorded config"),
+    (["planner.h_wait=[1"], "override planner.h_wait: the value is not valid YAML"),
+    (["--controller", "/dev/null"], "/dev/null: a character device, not a controller file"),
+    (["--controller", "no_such_controller"], "controller 'no_such_controller': no such file"),
+    (["--nope"], "unrecognized arguments: --nope"),
+])
+def test_replay_arguments_are_checked(args, expect, capsys, tmp_path, good):
+    try:
+        code = replay.main([str(good), "--out", str(tmp_path / "x"), *args])
+    except SystemExit as stop:
+        code = stop.code
+    assert code == 2 and expect in one_error_line(capsys.readouterr().err)
+    assert not list(tmp_path.iterdir())
+
+
+def test_replay_names_an_unwritable_picture(capsys, tmp_path, good):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert replay.main([str(good), "--quiet", "--out", str(blocker / "x")]) == 2
+    assert one_error_line(capsys.readouterr().err) == f"error: {blocker / 'x.png'}: cannot write: Not a directory"
+
+
+def test_rejected_paths_keep_their_reason_in_worker_processes(sweep_dir, monkeypatch):
+    import pickle
+
+    import analysis.logs
+
+    rejected = RejectedLog.with_reason(sweep_dir / "x.mcap", "a FIFO, not a regular file: skipped, not opened")
+    assert pickle.loads(pickle.dumps(rejected)).reason == rejected.reason
+    os.mkfifo(sweep_dir / "x.mcap")
+    monkeypatch.setattr(analysis.logs, "PARALLEL_MIN_LOGS", 1)  # 2 paths over 2 workers
+    df, left_out = metrics_table([sweep_dir], jobs=2)
+    assert len(df) == 1 and list(left_out["reason"]) == [f"{rejected}: {rejected.reason}"]

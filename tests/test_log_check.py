@@ -1,0 +1,123 @@
+"""The hand-written log checks agree with the JSON schemas the logs embed, and with the writer: every field they
+demand is one the schema requires, of the schema's type; the config hash is the one ``runners.run`` computes; the
+verified reader reads a truncated log up to its last whole record and refuses damage in a closed one."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import pytest
+
+from analysis.log_check import MESSAGE_CHECKS, TOPIC_SCHEMAS, CheckError, check_message, config_hash
+from analysis.logs import LogFile
+from analysis.mcap_verify import McapError, read_mcap
+from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
+from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
+from tests.log_surgery import record_offsets
+from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
+
+SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
+OTHER_TYPE = {"number": "text", "integer": "text", "string": 1.5, "boolean": 1, "array": {}, "object": []}
+
+
+def _richest(log_path, topic: str) -> dict[str, Any]:
+    """The message of ``topic`` with the most content (non-empty lists, a plan), the first scene for /scene."""
+    messages = [m for _t, _n, m in LogFile(log_path, [topic]).messages()]
+    return messages[0] if topic == "/scene" else max(messages, key=lambda m: len(repr(m)))
+
+
+def _schema_at(schema: dict[str, Any], path: tuple) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(schema of the object holding the last key of ``path``, schema of its value)."""
+    parent = schema
+    for key in path:
+        if "oneOf" in parent:  # nullable object: the object variant
+            parent = next(s for s in parent["oneOf"] if s.get("type") == "object")
+        holder = parent
+        parent = parent["items"] if isinstance(key, int) else parent["properties"][key]
+    return holder, parent
+
+
+def _paths(node: Any, prefix: tuple = ()) -> list[tuple]:
+    out = []
+    if isinstance(node, dict):
+        for k, v in node.items():
+            out.append((*prefix, k))
+            out.extend(_paths(v, (*prefix, k)))
+    elif isinstance(node, list) and node:
+        out.extend(_paths(node[0], (*prefix, 0)))
+    return out
+
+
+def _edit(msg: dict[str, Any], path: tuple, value: Any = None, delete: bool = False) -> dict[str, Any]:
+    out = copy.deepcopy(msg)
+    node = out
+    for key in path[:-1]:
+        node = node[key]
+    if delete:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return out
+
+
+def _rejects(topic: str, msg: dict[str, Any]) -> bool:
+    try:
+        check_message(topic, msg)
+    except CheckError:
+        return True
+    return False
+
+
+@pytest.mark.parametrize("topic", sorted(MESSAGE_CHECKS))
+def test_every_field_the_check_demands_is_required_by_the_schema_and_typed_alike(topic, recorded_logs):  # noqa: F811
+    schema = SCHEMAS[TOPIC_SCHEMAS[topic]]()
+    msg = _richest(recorded_logs[0], topic)
+    check_message(topic, msg)
+    demanded = []
+    for path in _paths(msg):
+        if isinstance(path[-1], int) or not _rejects(topic, _edit(msg, path, delete=True)):
+            continue
+        demanded.append(path)
+        holder, value_schema = _schema_at(schema, path)
+        assert path[-1] in holder.get("required", []), f"{topic} {path}: demanded but not required by the schema"
+        kind = value_schema.get("type")
+        if isinstance(kind, str):
+            assert _rejects(topic, _edit(msg, path, OTHER_TYPE[kind])), f"{topic} {path}: accepts a non-{kind}"
+    assert demanded, topic
+
+
+def test_the_topics_schemas_are_the_writers():
+    from runners.mcap_log import TOPICS
+
+    assert {t: s for t, s in TOPICS.items() if t in TOPIC_SCHEMAS} == TOPIC_SCHEMAS
+
+
+def test_config_hash_is_the_runs():
+    from runners.provenance import provenance
+    from runners.run import config_hash as run_hash
+
+    text = "dt: 1.0\nresume: false\nplanner:\n  h_wait: 2\n"
+    assert config_hash(text, "7", provenance()["fuzzynav_version"]) == run_hash(text, 7)
+
+
+def test_a_log_cut_after_any_record_is_truncated_and_inside_any_record_too(recorded_logs):  # noqa: F811
+    data = recorded_logs[0].read_bytes()
+    full = read_mcap(data)
+    assert full.complete
+    for _opcode, offset, length in record_offsets(data):
+        for cut in (offset, offset + 9 + length // 2):
+            content = read_mcap(data[:cut])
+            assert not content.complete and len(content.messages) <= len(full.messages)
+            assert content.messages == full.messages[:len(content.messages)]
+
+
+def test_a_closed_log_with_a_changed_byte_is_refused_wherever_the_byte_is(recorded_logs):  # noqa: F811
+    data = recorded_logs[0].read_bytes()
+    for at in range(0, len(data), max(1, len(data) // 997)):  # ~1,000 positions spread over the file
+        damaged = data[:at] + bytes([data[at] ^ 0x04]) + data[at + 1:]
+        try:
+            content = read_mcap(damaged)
+        except McapError:
+            continue
+        assert not content.complete, f"a changed byte at {at} went unnoticed"  # the closing magic itself
