@@ -18,7 +18,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon, box
 
-from analysis.log_check import CheckError, check_episode, check_message, check_metadata
+from analysis.episode_check import check_episode
+from analysis.log_check import CheckError, check_message, check_metadata
 from analysis.logs import LogError, LogFile, decode
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")

@@ -1,0 +1,191 @@
+"""The messages of one episode log checked together, after each passed :func:`analysis.log_check.check_message`:
+one message per step and topic, numbered from 0; log times at step * dt (ns); the first scene is the static world;
+the robot starts at the scenario's start pose and each step's ``distance_to_goal_cm`` is the distance from the
+position after the move to the goal (when the log carries its scenario); the robot's and the moving obstacles'
+positions continue from one step to the next (each step's ``next_*`` is the following step's position); scans and
+their moving beams agree; TPTs have the episode's step length and plans their table; the decisions' strategy and
+h_wait are the metadata's; a finished episode has every step and the time ``/episode`` reports. Raises
+:class:`CheckError`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
+import yaml
+
+from analysis.json_checks import CheckError, array, number, obj
+from analysis.log_check import FINISHED, MAX_CONFIG_BYTES, POSITIVE_CM, TIME_TOLERANCE_NS, YAML_LOADER
+
+if TYPE_CHECKING:
+    from analysis.episode_log import EpisodeLog
+
+
+def check_episode(log: EpisodeLog, times: Mapping[str, list[int]], config_dt: float | None) -> None:
+    """Consistency of the loaded messages (see the module docstring). ``times``: per topic read, the log time
+    (ns) of each message in order. Sets ``log.dt`` (s): ``config_dt``, or from the log times when the config
+    does not give it."""
+    per_step = {"/robot/state": log.states, "/obstacles/truth": log.truth, "/planner/decision": log.decisions,
+                "/tracks": log.tracks, "/sonar": log.sonar}
+    for topic, messages in per_step.items():
+        for k, msg in enumerate(messages):
+            if msg["step"] != k:
+                raise CheckError(f"{topic} message {k}", f"step {msg['step']}, expected {k} (steps from 0, one "
+                                                         "message per step)")
+    log.dt = config_dt if config_dt is not None else _dt_from_log(log, times)
+    for topic in (*per_step, "/laser"):
+        _check_times(topic, times.get(topic, ()), log.dt)
+    _check_world(log, times)
+    _check_against_scenario(log)
+    _check_robot_path(log)
+    _check_obstacle_paths(log)
+    _check_beams(log)
+    _check_tpts(log)
+    _check_decisions(log, times)
+    _check_counts(log, times)
+
+
+def _dt_from_log(log: EpisodeLog, times: Mapping[str, list[int]]) -> float:
+    """The step length (s) when the config does not give it: the log time of step 1, else the episode's time per
+    step, else 1 s (an episode of one step or none has no time to measure)."""
+    states = times.get("/robot/state", ())
+    if len(states) > 1 and states[1] > 0:
+        return states[1] / 1e9
+    if log.episode and log.episode["steps"] > 0 and log.episode["time_s"] > 0:
+        return log.episode["time_s"] / log.episode["steps"]
+    return 1.0
+
+
+def _check_times(topic: str, times: list[int] | tuple, dt: float) -> None:
+    step_ns = dt * 1e9
+    for k, t in enumerate(times):
+        if abs(t - k * step_ns) > TIME_TOLERANCE_NS:
+            raise CheckError(f"{topic} message {k}", f"log time {t} ns, expected step * dt = {k * step_ns:.0f} ns "
+                                                     f"(dt {dt:g} s)")
+
+
+def _check_world(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:
+    """The first ``/scene`` is the static world at time 0: walls and goal (a later scene in its place, e.g. when
+    the first was dropped, has neither). A complete log has one."""
+    if "/scene" not in times:
+        return
+    if not times["/scene"]:
+        if log.complete:
+            raise CheckError("/scene", "no scene message: the static world is unknown")
+        return
+    if times["/scene"][0] != 0 or log.bounds is None or log.goal is None:
+        raise CheckError("/scene", "the first scene is not the static world at time 0 (walls and goal)")
+
+
+_ROBOT = obj(start=array(number(), length=2), goal=array(number(), length=2), heading=number(-1e6, 1e6),
+             radius=POSITIVE_CM)
+
+
+def _check_against_scenario(log: EpisodeLog) -> None:
+    """The exact world of the episode (the ``scenario_yaml`` metadata that ``runners.run`` writes; hand-written
+    logs have none, or a placeholder that is not a scenario): the robot starts at its start pose with its
+    radius, each step's ``distance_to_goal_cm`` is the distance from the position after the move to the goal,
+    and the scene's goal is that goal (to the 0.1 mm the scene rounds to)."""
+    text = log.meta.get("scenario_yaml", "")
+    try:
+        world = yaml.load(text, Loader=YAML_LOADER) if len(text) <= MAX_CONFIG_BYTES else None
+    except (yaml.YAMLError, RecursionError):
+        world = None
+    robot = world.get("robot") if isinstance(world, dict) else None
+    if robot is None:
+        return
+    try:
+        _ROBOT(robot)
+    except CheckError as err:
+        raise err.inside("metadata scenario_yaml robot") from None
+    (x0, y0), (gx, gy) = robot["start"], robot["goal"]  # type: ignore[index]
+    states = log.states
+    if states and (states[0]["x_cm"], states[0]["y_cm"], states[0]["heading_deg"], states[0]["radius_cm"]) != (
+            x0, y0, robot["heading"] % 360.0, robot["radius"]):  # type: ignore[index]
+        raise CheckError("/robot/state step 0", "not the scenario's start pose and radius (metadata scenario_yaml)")
+    for k, st in enumerate(states):
+        d = math.hypot(st["next_x_cm"] - gx, st["next_y_cm"] - gy)
+        if abs(d - st["distance_to_goal_cm"]) > 1e-6 * max(1.0, d):
+            raise CheckError(f"/robot/state step {k}", f"the position after the move is {d:.6f} cm from the goal, "
+                                                       f"distance_to_goal_cm says {st['distance_to_goal_cm']!r}")
+    if log.goal is not None and max(abs(log.goal[0] - gx), abs(log.goal[1] - gy)) > 0.011:
+        raise CheckError("/scene goal", f"{log.goal} is not the scenario's goal ({gx}, {gy})")
+
+
+def _check_robot_path(log: EpisodeLog) -> None:
+    states = log.states
+    for k in range(len(states) - 1):
+        a, b = states[k], states[k + 1]
+        if a["next_x_cm"] != b["x_cm"] or a["next_y_cm"] != b["y_cm"] or a["next_heading_deg"] != b["heading_deg"]:
+            raise CheckError(f"/robot/state step {k + 1}", "position or heading differs from step "
+                                                           f"{k}'s next_x_cm/next_y_cm/next_heading_deg")
+    if states and any(s["radius_cm"] != states[0]["radius_cm"] for s in states):
+        raise CheckError("/robot/state radius_cm", "changes during the episode")
+
+
+def _check_obstacle_paths(log: EpisodeLog) -> None:
+    truth = log.truth
+    for k in range(len(truth) - 1):
+        now, after = truth[k]["obstacles"], truth[k + 1]["obstacles"]
+        if len(now) != len(after):
+            raise CheckError(f"/obstacles/truth step {k + 1}", f"{len(after)} obstacles, step {k} has {len(now)}")
+        for a, b in zip(now, after, strict=True):
+            if a["id"] != b["id"] or a["next_x_cm"] != b["x_cm"] or a["next_y_cm"] != b["y_cm"] \
+                    or a["radius_cm"] != b["radius_cm"]:
+                raise CheckError(f"/obstacles/truth step {k + 1}", f"obstacle {b['id']!r} does not continue step "
+                                                                   f"{k}'s obstacle {a['id']!r}")
+
+
+def _check_beams(log: EpisodeLog) -> None:
+    """Each scan has one intensity per range, and the beams the tracker calls moving are beams of the scan."""
+    for k, laser in enumerate(log.laser):
+        n = len(laser["ranges"])
+        if len(laser["intensities"]) != n:
+            raise CheckError(f"/laser message {k} intensities", f"{len(laser['intensities'])} values for {n} beams")
+        if k < len(log.tracks) and log.tracks[k]["moving_beams"] and max(log.tracks[k]["moving_beams"]) >= n:
+            raise CheckError(f"/tracks step {k} moving_beams", f"beam {max(log.tracks[k]['moving_beams'])} of a "
+                                                               f"{n}-beam scan")
+
+
+def _check_tpts(log: EpisodeLog) -> None:
+    for step, t in log.tpts.items():
+        if abs(t["dt_s"] - log.dt) > 1e-9 * log.dt:
+            raise CheckError(f"/tpt step {step} dt_s", f"{t['dt_s']!r} s, the episode's step is {log.dt!r} s")
+
+
+def _check_decisions(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:
+    """Each decision's strategy and plan h_wait are the metadata's; a plan is made from a TPT of its step."""
+    strategy, h_wait = log.meta["strategy"], int(log.meta["h_wait"])
+    tables = "/tpt" in times
+    for k, d in enumerate(log.decisions):
+        if tables and d["planning"] is not None and k not in log.tpts:
+            raise CheckError(f"/planner/decision step {k} planning", "a plan without a /tpt table of its step")
+        if d["strategy"] != strategy:
+            raise CheckError(f"/planner/decision step {k} strategy", f"{d['strategy']!r}, the metadata says "
+                                                                     f"{strategy!r}")
+        plan = d["planning"]
+        if plan is not None and plan["h_wait"] != h_wait:
+            raise CheckError(f"/planner/decision step {k} planning.h_wait", f"{plan['h_wait']}, the metadata says "
+                                                                            f"{h_wait}")
+
+
+def _check_counts(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:
+    """A finished episode (goal, collision, timeout) has one message per step on every per-step topic read, as
+    many steps as ``/episode`` says, and its time; TPTs lie within the steps."""
+    if log.complete and "/episode" in times and log.episode is None:
+        raise CheckError("/episode", "no outcome message, although the file was closed normally")
+    n = len(log.states) if "/robot/state" in times else None
+    if n is not None:
+        for step in log.tpts:
+            if step >= n and log.complete:
+                raise CheckError(f"/tpt step {step}", f"beyond the episode's {n} steps")
+    if not log.complete or log.episode is None or log.episode["outcome"] not in FINISHED:
+        return
+    steps = log.episode["steps"]
+    for topic, messages in times.items():
+        if topic in ("/robot/state", "/obstacles/truth", "/planner/decision", "/tracks", "/sonar", "/laser") \
+                and len(messages) != steps:
+            raise CheckError(topic, f"{len(messages)} messages for the {steps} steps /episode reports")
+    if abs(log.episode["time_s"] - steps * log.dt) > 1e-6 * max(1.0, steps * log.dt):
+        raise CheckError("/episode time_s", f"{log.episode['time_s']!r} s for {steps} steps of {log.dt!r} s")

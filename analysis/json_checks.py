@@ -1,0 +1,204 @@
+"""Checks of decoded JSON values, built from small rules (``number(lo, hi)``, ``array(item)``, ``obj(**fields)``)
+that raise :class:`CheckError` naming the field and the problem. Common cases are decided at C speed — the number
+fields of one object that share a range with one ``itemgetter``, a set of types, ``min`` and ``max``; arrays of
+numbers, of [x, y] pairs and of booleans likewise — and only a value that fails is walked item by item to say
+what is wrong. Units are the caller's (the log checks use cm, cm/s, degrees, s)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from itertools import chain
+from operator import itemgetter
+from typing import Any
+
+MAX_CM = 1e9  # the scenario files' limit on coordinates (cm): the default magnitude bound of a number
+
+
+class CheckError(ValueError):
+    """A value the analysis would read is missing, of the wrong type, out of range or inconsistent.
+    ``where``: the field's path (``x_cm``, ``obstacles[2].radius_cm``); ``problem``: what is wrong."""
+
+    def __init__(self, where: str, problem: str) -> None:
+        super().__init__(f"{where}: {problem}" if where else problem)
+        self.where, self.problem = where, problem
+
+    def inside(self, prefix: str) -> CheckError:
+        """The same problem one level up (``prefix`` is the enclosing field or ``[index]``)."""
+        joined = prefix if not self.where else f"{prefix}{self.where}" if self.where.startswith("[") \
+            else f"{prefix}.{self.where}"
+        return CheckError(joined, self.problem)
+
+
+Check = Callable[[Any], None]  # raises CheckError (with an empty ``where``) if the value is not acceptable
+
+
+def kind_of(value: Any) -> str:
+    """How an error message names the JSON type of ``value``."""
+    return "null" if value is None else {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+                                         list: "an array", dict: "an object"}.get(type(value), type(value).__name__)
+
+
+def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
+    """A JSON number (not a boolean) in [lo, hi]; NaN and infinities fail the range test."""
+    def check(v: Any) -> None:
+        t = type(v)
+        if t is not float and t is not int:
+            raise CheckError("", f"expected a number, got {kind_of(v)}")
+        if not lo <= v <= hi:
+            raise CheckError("", f"{v!r} is out of range [{lo:g}, {hi:g}]")
+    check.bounds = (lo, hi)  # type: ignore[attr-defined]  # lets obj() check such fields together
+    return check
+
+
+def integer(lo: int = 0, hi: int = 2**63 - 1) -> Check:
+    def check(v: Any) -> None:
+        if type(v) is not int:
+            raise CheckError("", f"expected an integer, got {kind_of(v)}")
+        if not lo <= v <= hi:
+            raise CheckError("", f"{v!r} is out of range [{lo}, {hi}]")
+    return check
+
+
+def boolean(v: Any) -> None:
+    if type(v) is not bool:
+        raise CheckError("", f"expected a boolean, got {kind_of(v)}")
+
+
+def string(v: Any) -> None:
+    if type(v) is not str:
+        raise CheckError("", f"expected a string, got {kind_of(v)}")
+
+
+def one_of(*values: str) -> Check:
+    allowed = frozenset(values)
+
+    def check(v: Any) -> None:
+        if type(v) is not str or v not in allowed:
+            raise CheckError("", f"{v!r} is not one of {', '.join(values)}")
+    return check
+
+
+def nullable(inner: Check) -> Check:
+    def check(v: Any) -> None:
+        if v is not None:
+            inner(v)
+    return check
+
+
+def array(item: Check, min_items: int = 0, length: int | None = None) -> Check:
+    """A JSON array of ``item``s (at least ``min_items``; exactly ``length`` when given)."""
+    def check(v: Any) -> None:
+        if type(v) is not list:
+            raise CheckError("", f"expected an array, got {kind_of(v)}")
+        if len(v) < min_items or (length is not None and len(v) != length):
+            raise CheckError("", f"{len(v)} items, expected {length if length is not None else f'>= {min_items}'}")
+        i = 0
+        try:
+            for i, x in enumerate(v):  # noqa: B007 - i names the failing item
+                item(x)
+        except CheckError as err:
+            raise err.inside(f"[{i}]") from None
+    return check
+
+
+class _Slow(Exception):
+    """The fast path of :func:`obj` saw something wrong: the field-by-field path says what."""
+
+
+def obj(**fields: Check) -> Check:
+    """A JSON object with at least these fields (others are not read, so not checked). Number fields with the
+    same range are checked together at C speed (one ``itemgetter``, a set of types, min and max); the rest, and
+    any object the fast path refuses, field by field."""
+    items = tuple(fields.items())
+    by_range: dict[tuple[float, float], list[str]] = {}
+    for name, field_check in items:
+        bounds = getattr(field_check, "bounds", None)
+        if bounds is not None:
+            by_range.setdefault(bounds, []).append(name)
+    groups = tuple((itemgetter(*names), lo, hi) for (lo, hi), names in by_range.items() if len(names) > 1)
+    grouped = {name for (_lo, _hi), names in by_range.items() if len(names) > 1 for name in names}
+    others = tuple((name, c) for name, c in items if name not in grouped)
+
+    def field_by_field(v: Any) -> None:
+        name = ""
+        try:
+            for name, field_check in items:
+                field_check(v[name])
+        except KeyError:
+            raise CheckError(name, "missing") from None
+        except CheckError as err:
+            raise err.inside(name) from None
+
+    def check(v: Any) -> None:
+        if type(v) is not dict:
+            raise CheckError("", f"expected an object, got {kind_of(v)}")
+        try:
+            for get, lo, hi in groups:
+                values = get(v)
+                if not (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi):
+                    raise _Slow
+            for name, field_check in others:
+                field_check(v[name])
+        except (KeyError, CheckError, _Slow):
+            field_by_field(v)
+            raise CheckError("", "not acceptable") from None  # unreachable while the two paths agree
+    return check
+
+
+NUMBER_TYPES = frozenset({int, float})
+LIST_TYPES = frozenset({list})
+BOOL_TYPES = frozenset({bool})
+
+
+def _fast(accept: Callable[[Any], bool], slow: Check) -> Check:
+    """``accept`` decides the common case at C speed; when it says no, ``slow`` (the same rule, item by item)
+    finds the item and says what is wrong."""
+    def check(v: Any) -> None:
+        if not accept(v):
+            slow(v)
+            raise CheckError("", "not acceptable")  # unreachable while the two rules agree
+    return check
+
+
+def numbers(lo: float = -MAX_CM, hi: float = MAX_CM, min_items: int = 0, length: int | None = None) -> Check:
+    """An array of numbers in [lo, hi] (the large TPT and laser arrays: checked with set, min and max)."""
+    def accept(v: Any) -> bool:
+        if type(v) is not list or len(v) < min_items or (length is not None and len(v) != length):
+            return False
+        return not v or (set(map(type, v)) <= NUMBER_TYPES and lo <= min(v) and max(v) <= hi)
+    return _fast(accept, array(number(lo, hi), min_items, length))
+
+
+def are_points(v: Any) -> bool:
+    """An array of [x, y] number pairs within ±MAX_CM (map, set, min and max: no Python loop per pair)."""
+    if type(v) is not list:
+        return False
+    if not v:
+        return True
+    if not set(map(type, v)) <= LIST_TYPES or set(map(len, v)) != {2}:
+        return False
+    coords = list(chain.from_iterable(v))
+    return set(map(type, coords)) <= NUMBER_TYPES and min(coords) >= -MAX_CM and max(coords) <= MAX_CM
+
+
+def points(min_items: int = 0) -> Check:
+    """An array of [x, y] pairs of numbers (cm)."""
+    return _fast(lambda v: are_points(v) and len(v) >= min_items, array(array(number(), length=2), min_items))
+
+
+def point_rows(min_items: int = 0) -> Check:
+    """An array of arrays of [x, y] pairs (the TPT's predicted obstacle positions, [row][obstacle])."""
+    def accept(v: Any) -> bool:
+        return type(v) is list and len(v) >= min_items and set(map(type, v)) <= LIST_TYPES \
+            and are_points(list(chain.from_iterable(v)))
+    return _fast(accept, array(points(), min_items))
+
+
+def boolean_rows(min_items: int = 0) -> Check:
+    """An array of arrays of booleans (the TPT's collision matrix)."""
+    def accept(v: Any) -> bool:
+        return type(v) is list and len(v) >= min_items and set(map(type, v)) <= LIST_TYPES \
+            and set(map(type, chain.from_iterable(v))) <= BOOL_TYPES
+    return _fast(accept, array(array(boolean), min_items))
+
+
