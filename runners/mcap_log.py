@@ -12,9 +12,13 @@ encoded with orjson (compact JSON; numpy arrays are written directly, floats in 
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
+import logging
 import math
+import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -112,6 +116,33 @@ def _channels() -> tuple[foxglove.Context, dict[str, foxglove.Channel]]:
 
 _OPEN: list[EpisodeLogWriter] = []  # the log being written in this process, if any
 
+# The SDK does not raise when writing a message fails (disk full, I/O error): it reports a warning on this
+# logger for every message after the failure, and only ``close`` raises. The writer watches it instead.
+SDK_LOGGER = "foxglove.log_sink_set"
+_OS_CODE = re.compile(r"(?:code: |os error )(\d+)")  # "Os { code: 28, ..." or "(os error 28)"
+
+
+class LogWriteError(OSError):
+    """A log file could not be written (disk full, read-only, I/O error); ``filename`` is the log's final path,
+    ``errno``/``strerror`` the operating system's error when known. ``str()`` is one line naming the file."""
+
+    def __init__(self, path: Path, errno: int | None, detail: str) -> None:
+        super().__init__(f"{path}: cannot write the log: {detail}")
+        self.errno, self.strerror, self.filename = errno, detail, str(path)
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+    def __reduce__(self):  # type: ignore[override]  # travels from a sweep's worker to its launcher
+        return LogWriteError, (Path(self.filename), self.errno, self.strerror)
+
+
+def partial_path(path: Path) -> Path:
+    """Where the log of ``path`` is written until it is finished: a hidden ``.<name>.partial`` next to it, renamed
+    to ``path`` by :meth:`EpisodeLogWriter.finish`. No ``*.mcap`` file is ever incomplete: a killed run leaves
+    only the partial file (readable up to its last chunk, e.g. by ``runners.replay``)."""
+    return path.with_name(f".{path.name}.partial")
+
 
 @functools.cache
 def _schema_bytes(schema_name: str) -> bytes:
@@ -161,9 +192,11 @@ def _line(points_cm, color: dict, loop: bool = False, thickness_m: float = 0.02,
 
 
 class EpisodeLogWriter:
-    """Writes one episode to ``destination``: a file path (created or replaced; the SDK writes the file itself,
-    which is cheaper than through a Python stream) or an open binary stream with ``write``, ``seek`` and
-    ``flush``. Use :meth:`step` per record, then :meth:`finish`."""
+    """Writes one episode to ``destination``: a file path or an open binary stream with ``write``, ``seek`` and
+    ``flush``. Use :meth:`step` per record, then :meth:`finish`. A path is written as :func:`partial_path` (the
+    SDK writes the file itself, which is cheaper than through a Python stream) and atomically renamed to the
+    path (created or replaced) when finished. A failed write raises :class:`LogWriteError` from the next
+    :meth:`step` (or :meth:`finish`), and the partial file is removed."""
 
     def __init__(self, destination: str | Path | BinaryIO, episode: Episode, metadata: Mapping[str, str], strategy: str,
                  perception_mode: str) -> None:
@@ -182,20 +215,59 @@ class EpisodeLogWriter:
         self._last_time = 0.0
         self._plan_lines: list[dict] = []
         self._radii = [float(r) for r in episode.motion.radii]  # moving obstacles' radii (cm)
+        self.path = Path(destination) if isinstance(destination, str | Path) else None
+        self._partial = partial_path(self.path) if self.path is not None else None
+        self._failures: list[str] = []  # the SDK's reports of failed writes (see SDK_LOGGER)
         try:
-            self.writer = foxglove.open_mcap(destination, context=context, writer_options=_WRITE_OPTIONS,
-                                             allow_overwrite=True)
+            self.writer = foxglove.open_mcap(self._partial or destination, context=context,
+                                             writer_options=_WRITE_OPTIONS, allow_overwrite=True)
         except OSError as err:  # the SDK's message does not name the file
-            raise type(err)(f"{destination}: cannot write the log: {err}") from None
+            failed = type(err)(f"{destination}: cannot write the log: {err}")
+            failed.errno, failed.filename = err.errno or _errno_of(str(err)), str(destination)
+            raise failed from None
+        logging.getLogger(SDK_LOGGER).addFilter(self._capture_failure)
         try:
             self.writer.write_metadata(RUN_METADATA, dict(metadata))
             self.log(0.0, LOG_INFO, f"episode started: scenario {self.scenario.name}, strategy {strategy}, "
                                     f"h_wait {self.h_wait}, seed {episode.seed}")
             self._write_static_scene()
+            self._raise_if_failed()
         except BaseException:
-            self.writer.close()
+            self._abandon()
             raise
         _OPEN.append(self)
+
+    # -- write failures -----------------------------------------------------------------------------------
+    def _capture_failure(self, record: logging.LogRecord) -> bool:
+        """Logging filter on the SDK's logger: keep the first failure reports, drop the records (a full disk
+        would otherwise print one warning per message, each failing again in a log file on that disk)."""
+        if len(self._failures) < 8:
+            self._failures.append(record.getMessage())
+        return False
+
+    def _raise_if_failed(self) -> None:
+        if self._failures:
+            raise self._error()
+
+    def _error(self, err: BaseException | None = None) -> LogWriteError:
+        """The write failure as one :class:`LogWriteError` naming the log: the operating system's error when the
+        SDK reported one (its first report names it) or writing to the file again shows it (when the last writes
+        fail in ``close``, the SDK says only "I/O error from writing"), else the SDK's own words."""
+        text = self._failures[0] if self._failures else str(err or "unknown error")
+        code = _errno_of(text)
+        if code is None and self._partial is not None:
+            code = _write_errno(self._partial)
+        detail = os.strerror(code) if code is not None else text.removeprefix("error logging message: ")
+        return LogWriteError(self.path or Path("<stream>"), code, detail)
+
+    def _abandon(self) -> None:
+        """After a failure: close the writer (its error is ours already) and remove the partial file."""
+        logging.getLogger(SDK_LOGGER).removeFilter(self._capture_failure)
+        with contextlib.suppress(Exception):
+            self.writer.close()
+        if self._partial is not None:
+            with contextlib.suppress(OSError):
+                self._partial.unlink()
 
     # -- writing helpers --------------------------------------------------------------------------------
     def _write(self, topic: str, t: float, message: dict) -> None:
@@ -261,6 +333,8 @@ class EpisodeLogWriter:
         self._write_scene(t, stamp, rec)
         self._write_events(t, rec)
         self.steps += 1
+        if self._failures:
+            raise self._error()
 
     def _write_laser(self, rec: StepRecord, stamp: dict[str, int]) -> None:
         scan, s = rec.scan, rec.state
@@ -344,7 +418,8 @@ class EpisodeLogWriter:
 
     # -- end ----------------------------------------------------------------------------------------------
     def finish(self, outcome: str, reason: str = "") -> None:
-        """Write ``/episode`` and the summary; the file is complete afterwards."""
+        """Write ``/episode`` and the summary, then rename the partial file to the log's path: the file is complete
+        afterwards, or :class:`LogWriteError` is raised and no file is left."""
         if self.finished:
             return
         t = self._last_time
@@ -358,10 +433,49 @@ class EpisodeLogWriter:
                                         "reason": reason})
         finally:  # whatever happens, the file is closed and the process can open the next log
             try:
-                self.writer.close()
+                self._close()
             finally:
                 _OPEN.remove(self)
                 self.finished = True
+
+    def _close(self) -> None:
+        """Close the writer and move the finished file into place (an atomic rename: a reader sees the whole
+        log or none); any failure removes the partial file and raises :class:`LogWriteError`."""
+        try:
+            self.writer.close()
+        except Exception as err:  # the SDK raises RuntimeError for I/O errors
+            failure = self._error(err)
+            self._abandon()
+            raise failure from None
+        logging.getLogger(SDK_LOGGER).removeFilter(self._capture_failure)
+        if self._failures:
+            failure = self._error()
+            self._abandon()
+            raise failure
+        if self._partial is not None and self.path is not None:
+            try:
+                os.replace(self._partial, self.path)
+            except OSError as err:
+                self._abandon()
+                raise LogWriteError(self.path, err.errno, err.strerror or str(err)) from None
+
+
+def _write_errno(path: Path) -> int | None:
+    """The operating system's error for writing one block more to ``path`` (a file being abandoned), if any."""
+    try:
+        with open(path, "ab") as f:
+            f.write(b"\0" * 4096)
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as err:
+        return err.errno
+    return None
+
+
+def _errno_of(text: str) -> int | None:
+    """The operating system error code in one of the SDK's error texts (``... Os { code: 28, ...``)."""
+    match = _OS_CODE.search(text)
+    return int(match.group(1)) if match else None
 
 
 def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:

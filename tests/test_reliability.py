@@ -1,5 +1,5 @@
-"""Faults: SIGINT/SIGTERM finish the log as interrupted; SIGKILL leaves a log readable up to its last chunk;
-a killed sweep resumes without losing or recomputing anything."""
+"""Faults: SIGINT/SIGTERM finish the log as interrupted; SIGKILL leaves a partial log (never one that looks
+complete) readable up to its last chunk; a killed sweep resumes without losing or recomputing anything."""
 
 from __future__ import annotations
 
@@ -37,7 +37,8 @@ def wait_for(predicate, timeout=120.0):
 
 
 def log_size(run_dir: Path) -> int:
-    logs = list(run_dir.glob("*.mcap"))
+    """Size of the log being written (``.<name>.mcap.partial`` until finished) or written."""
+    logs = list(run_dir.glob(".*.mcap.partial")) + list(run_dir.glob("*.mcap"))
     return logs[0].stat().st_size if logs else 0
 
 
@@ -62,11 +63,12 @@ def test_sigkill_leaves_a_log_readable_up_to_its_last_chunk(tmp_path):
     assert wait_for(lambda: log_size(tmp_path) > 150_000)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.communicate(timeout=60)
-    log = next(tmp_path.glob("*.mcap"))
+    assert not list(tmp_path.glob("*.mcap"))  # nothing that looks like a finished log
+    log = next(tmp_path.glob(".*.mcap.partial"))
     assert not is_complete(log)
     episode = load_episode(log)
     assert episode.outcome == "incomplete" and episode.steps > 20 and not episode.complete
-    rows, bad = metrics_table([tmp_path])
+    rows, bad = metrics_table([log])  # named explicitly, a partial log is read for what it has
     assert rows.empty and "truncated" in bad.iloc[0]["reason"]
     res = subprocess.run([sys.executable, "-m", "runners.replay", str(log), "--out", str(tmp_path / "r")], cwd=ROOT,
                          capture_output=True, text=True, timeout=120)
