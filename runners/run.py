@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import logging
 import os
 import signal
 import sys
@@ -29,15 +30,19 @@ from omegaconf import DictConfig, OmegaConf
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.scenario import Scenario
-from runners import schema
-from runners.mcap_log import EpisodeLogWriter, run_metadata
+from runners import schema, stop, sweep_resume
+from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
+from runners.provenance import provenance
 
 # input loading and validation live in runners.run_inputs; these names are imported from here by the dataset,
 # bench and replay runners and the tests
 from runners.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
 
-__all__ = ["ConfigFileError", "episode_config", "load_evaluator", "load_scenario", "log_name", "run_episode",
-           "run_job"]
+# the stop requests (signals, a sweep's stop file) live in runners.stop
+from runners.stop import Interrupted
+
+__all__ = ["ConfigFileError", "Interrupted", "episode_config", "load_evaluator", "load_scenario", "log_name",
+           "run_episode", "run_job"]
 
 schema.register()
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # absolute: works from any working directory
@@ -82,7 +87,9 @@ def scenario_yaml(scenario: Scenario) -> str:
 def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
                 log_path: Path | None, config_yaml: str, digest: str = "") -> dict[str, Any]:
     """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
-    with its traceback) instead of propagating. Ctrl-C finishes the log as ``interrupted`` and re-raises."""
+    with its traceback) instead of propagating. A stop request (:mod:`runners.stop`: Ctrl-C, SIGTERM, a sweep's
+    stop file) finishes the log as ``interrupted`` and re-raises; a log that cannot be written raises
+    :class:`runners.mcap_log.LogWriteError` (not an episode outcome: nothing is left at ``log_path``)."""
     episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
     summary = {"scenario": scenario.name, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
                "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode, "seed": seed,
@@ -99,13 +106,14 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         for record in episode.run():
             if log is not None:
                 log.step(record)
-            _stop_if_requested()
+            stop.check()
         outcome = episode.outcome or "error"
         reason = {"goal": "within goal tolerance", "collision": "contact with an obstacle",
                   "timeout": f"max_steps {scenario.max_steps} reached"}.get(outcome, "")
     except KeyboardInterrupt as err:
-        outcome = "interrupted"
-        reason = "terminated (SIGTERM)" if isinstance(err, Interrupted) else "interrupted (Ctrl-C)"
+        outcome, reason = "interrupted", stop.reason_of(err)
+        raise
+    except LogWriteError:
         raise
     except Exception as err:  # an episode that raises must not stop the sweep
         outcome, reason = "error", f"{type(err).__name__}: {err}"
@@ -128,96 +136,71 @@ def config_hash(config_yaml: str, seed: int) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def completed_summary(path: Path, expected_hash: str) -> dict[str, Any] | None:
-    """The summary of an existing complete log of the same episode (same config hash), else None."""
-    from analysis.logs import LogError, episode_summary, is_complete, read_metadata
-
-    if not path.exists() or not is_complete(path):
-        return None
-    try:
-        if read_metadata(path).get("config_hash") != expected_hash:
-            return None
-        row = episode_summary(path)
-    except LogError:
-        return None
-    return row if row["outcome"] not in ("incomplete", "interrupted") else None
-
-
-class Interrupted(KeyboardInterrupt):
-    """SIGTERM, turned into the same clean stop as Ctrl-C (the log in flight is finished as interrupted)."""
-
-
-_STOP_REQUESTED: list[int] = []  # signals received while a job runs, acted on between two steps
-
-
-def _stop(signum: int) -> KeyboardInterrupt:
-    """The exception a stop signal raises: :class:`Interrupted` for SIGTERM, KeyboardInterrupt for SIGINT."""
-    return Interrupted("terminated") if signum == signal.SIGTERM else KeyboardInterrupt()
-
-
-def _on_stop_signal(signum, frame) -> None:
-    """SIGINT/SIGTERM during a job: noted, and raised between two steps (see :func:`_stop_if_requested`), so
-    that a log is never cut in the middle of a message. A second signal stops at once."""
-    if _STOP_REQUESTED:
-        raise _stop(signum)
-    _STOP_REQUESTED.append(signum)
-
-
-def _stop_if_requested() -> None:
-    """Raise the pending stop, if any (see :func:`_stop`)."""
-    if _STOP_REQUESTED:
-        raise _stop(_STOP_REQUESTED[0])
-
-
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
-    """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory. With
-    ``resume=true`` an episode whose complete log with the same config hash is already there is kept."""
-    runtime = HydraConfig.get().runtime
-    inputs = load_run(cfg, runtime)  # everything validated (every seed's scenario) before any log is written
-    plain, evaluator, ep_cfg, seeds = inputs.plain, inputs.evaluator, inputs.episode_config, inputs.seeds
-    out_dir = Path(runtime.output_dir)
-    config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
-    results = []
-    previous = _install_stop_handlers()
+    """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory. With ``resume=true`` an
+    episode (:func:`runners.sweep_resume.episode_key`: config, seed, fuzzynav version) whose log passes a full
+    verification and ended goal/collision/timeout is kept (:func:`runners.sweep_resume.keep`); the others run
+    again.
+
+    A stop request ends the episode in flight as ``interrupted``: in a single run the stop is raised (the process
+    exits 130/143); in a sweep's job the results so far are returned, so that the launcher gets every finished
+    job's results and writes the summary. A log that cannot be written asks the whole sweep to stop, then
+    raises."""
+    hydra_cfg = HydraConfig.get()
+    runtime = hydra_cfg.runtime
+    sweep_dir = Path(hydra_cfg.sweep.dir).absolute() if hydra_cfg.mode == RunMode.MULTIRUN else None
+    # a worker between two jobs ignores SIGINT/SIGTERM: a terminal's Ctrl-C reaches every process of the sweep,
+    # and a loky worker killed by it while idle would break the pool (and kill the others' episodes mid-log)
+    idle = signal.SIG_IGN if sweep_dir is not None and not stop.is_launcher() else None
+    restore = stop.install(sweep_dir, idle)
+    results: list[dict[str, Any]] = []
     try:
+        stop.check()  # a job that starts after the sweep was asked to stop does nothing
+        inputs = load_run(cfg, runtime)  # everything validated (every seed's scenario) before any log is written
+        plain, evaluator, ep_cfg, seeds = inputs.plain, inputs.evaluator, inputs.episode_config, inputs.seeds
+        out_dir = Path(runtime.output_dir)
+        config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
+        version = provenance()["fuzzynav_version"]
         for seed in seeds:
-            _stop_if_requested()
+            stop.check()
             scenario = inputs.scenarios[seed]
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
-            kept = completed_summary(path, digest) if plain.get("resume") else None
+            key = sweep_resume.episode_key(config_yaml, seed, version)  # identity whatever the seed batching
+            kept = sweep_resume.keep(path, key, sweep_dir) if plain.get("resume") else None
             if kept is not None:
                 kept.update(kept=True, reason="resumed: complete log kept")
                 results.append(kept)
                 continue
             results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml, digest))
+            sweep_resume.supersede(sweep_dir, key)
+    except KeyboardInterrupt:
+        if sweep_dir is None:
+            raise
+    except OSError as err:
+        if sweep_dir is not None:  # the other jobs would write into the same full or read-only file system
+            stop.request_sweep_stop(sweep_dir, 0, f"sweep stopped: {err}")
+        raise
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+        restore()
     return results
-
-
-def _install_stop_handlers() -> dict[int, Any]:
-    """Route SIGINT and SIGTERM to :func:`_on_stop_signal`; returns the previous handlers (none outside the
-    main thread, where Python cannot install handlers: there the signals act as before)."""
-    _STOP_REQUESTED.clear()
-    previous = {}
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[signum] = signal.signal(signum, _on_stop_signal)
-        except ValueError:  # not the main thread
-            break
-    return previous
 
 
 @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
 def main(cfg: DictConfig) -> list[dict[str, Any]]:
+    logging.raiseExceptions = False  # a job's log file on a full disk must not print a traceback per record
     try:
         results = run_job(cfg)
     except KeyboardInterrupt as err:
-        print(f"interrupted: the episode in flight was logged with outcome 'interrupted' ({err or 'Ctrl-C'})",
+        print(f"interrupted: the episode in flight was logged with outcome 'interrupted' ({stop.reason_of(err)})",
               file=sys.stderr)
-        sys.exit(143 if isinstance(err, Interrupted) else 130)
+        sys.exit(stop.exit_code(err))
+    except OSError as err:  # a log that cannot be written (disk full, read-only): one line naming it
+        if HydraConfig.get().mode == RunMode.MULTIRUN:
+            raise  # the sweep's launcher reports it (hydra_plugins.fuzzynav_sweeper)
+        print(f"error: {err if isinstance(err, LogWriteError) else f'{err.filename}: {err.strerror or err}'}",
+              file=sys.stderr)
+        sys.exit(1)
     except ConfigFileError as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(2)

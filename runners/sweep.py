@@ -9,12 +9,19 @@ Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>__h<h_wait>__...__s<s
 writes ``summary.csv``, prints a table of outcomes per group — scenario, strategy, h_wait and every other run
 parameter the sweep varied (:mod:`analysis.run_parameters`) — and writes the analysis report from the same
 numbers into ``<sweep dir>/report/``.
+
+Faults (:mod:`runners.sweep_control`): the sweep owns its directory (a lock: a second sweep into it exits at once);
+``resume=true`` verifies and keeps each completed episode once (:mod:`runners.sweep_resume`); SIGINT/SIGTERM stop
+the jobs cleanly, write the summary of what completed and exit 130/143; a lost worker, a full disk or a job that
+failed ends the sweep with the summary, one line per failure and a non-zero exit. ``summary.csv`` and the report
+are written whole or not at all.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import os
 import sys
 import threading
 from pathlib import Path
@@ -26,7 +33,10 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 from tqdm import tqdm
 
-from analysis.logs import find_logs, is_complete
+from analysis.logs import is_complete
+from runners import sweep_control, sweep_resume
+from runners.sweep_outputs import write_whole
+from runners.sweep_paths import job_logs
 
 if TYPE_CHECKING:  # pandas and the analysis are imported where the summary is written: the sweep's workers
     import pandas as pd  # load this module
@@ -82,19 +92,25 @@ def short_jobs_tip(total_episodes: int | None, episodes_per_job: int) -> str | N
 
 # watcher threads live here, not on the callback: the launcher pickles callbacks to send them to workers
 _WATCHERS: dict[str, tuple[threading.Thread, threading.Event]] = {}
-_BEFORE: dict[str, dict[Path, float]] = {}  # complete logs (and their mtimes) present when the sweep started
+_PLANS: dict[str, sweep_resume.ResumePlan] = {}  # what a resume set aside, per sweep directory
 
 
 def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
-    """Count finished logs (they end with the MCAP magic) until ``stop`` is set."""
-    with tqdm(total=total, unit="episode", desc="sweep", file=sys.stderr, dynamic_ncols=True) as bar:
+    """Count the logs the jobs finish (a log appears under its name only when complete; a kept one is moved back
+    into its job's directory) until ``stop`` is set. Logs already there at the start count when replaced."""
+    before = {p: p.stat().st_mtime_ns for p in job_logs(sweep_dir) if p.exists()}
+    # a bar only on a terminal: piped or captured, stderr is for the few lines that say what went wrong
+    with tqdm(total=total, unit="episode", desc="sweep", file=sys.stderr, dynamic_ncols=True, disable=None) as bar:
         done: set[Path] = set()
         while True:
             stopping = stop.wait(0.5)
-            for path in sweep_dir.rglob("*.mcap") if sweep_dir.exists() else []:
-                if path not in done and is_complete(path):
-                    done.add(path)
-                    bar.update(1)
+            for path in job_logs(sweep_dir):
+                if path in done:
+                    continue
+                with contextlib.suppress(OSError):
+                    if before.get(path) != path.stat().st_mtime_ns and is_complete(path):
+                        done.add(path)
+                        bar.update(1)
             if stopping:
                 break
 
@@ -102,12 +118,16 @@ def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
 def _import_runner() -> int:
     """Run in a launcher worker: import what every job needs (the worker keeps it for the next jobs),
     including what the tracker imports on first use."""
-    import os
+    import signal
 
     import scipy.optimize  # noqa: F401
 
     import runners.run  # noqa: F401
 
+    # idle workers ignore SIGINT/SIGTERM (each job handles them while it runs, see runners.run.run_job): a
+    # terminal's Ctrl-C reaches every process of the sweep, and a worker that died of it would break the pool
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     return os.getpid()
 
 
@@ -146,16 +166,30 @@ def prewarm_workers(config: DictConfig) -> None:
 
 
 class SweepProgress(Callback):
-    """Shows a progress bar over episodes (counting finished logs) and writes the summary at the end."""
+    """Owns the sweep directory for the sweep (:mod:`runners.sweep_control`), prepares a resume, shows a progress
+    bar over episodes, and at the end writes the summary and the report and reports what went wrong. Hydra turns
+    an exception raised in a callback into a warning: every failure here is one line on stderr and an exit
+    status instead."""
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
-        before = {p: p.stat().st_mtime for p in sweep_dir.rglob("*.mcap") if is_complete(p)} \
-            if sweep_dir.exists() else {}
-        _BEFORE[str(sweep_dir)] = before
-        if before and not config.get("resume", False):
-            print(f"warning: {sweep_dir} already holds {len(before)} complete logs; without resume=true they are "
-                  "re-run and overwritten", file=sys.stderr)
+        sweep_control.begin_or_exit(sweep_dir)
+        try:
+            if config.get("resume", False):
+                _PLANS[str(sweep_dir)] = sweep_resume.prepare(sweep_dir, jobs=-1)
+            else:
+                sweep_resume.restore(sweep_dir)
+                existing = sum(1 for p in job_logs(sweep_dir) if is_complete(p))
+                if existing:
+                    print(f"warning: {sweep_dir} already holds {existing} complete logs; without resume=true they "
+                          "are re-run and overwritten", file=sys.stderr)
+        except Exception as err:  # Hydra would turn it into a warning and run the sweep anyway
+            if sweep_control.debug_requested():
+                raise
+            line = sweep_control.io_line(err, sweep_dir) if isinstance(err, OSError) else \
+                f"preparing the sweep failed: {type(err).__name__}: {err}"
+            print(f"error: {line}", file=sys.stderr)
+            sys.exit(1)
         prewarm_workers(config)
         total = count_episodes(config)
         tip = short_jobs_tip(total, int(config.get("episodes", 1)))
@@ -172,18 +206,23 @@ class SweepProgress(Callback):
         if stop is not None and thread is not None:
             stop.set()
             thread.join()
-        before = _BEFORE.pop(str(sweep_dir), {})
-        if config.get("resume", False):
-            kept = sum(1 for p, t in before.items() if p.exists() and p.stat().st_mtime == t)
-            total = len(find_logs([sweep_dir]))
-            print(f"resume: {kept} complete episode(s) kept, {total - kept} run (incomplete, missing or changed)")
-        from analysis.metrics import analyse_logs
-        from analysis.report import build_report
+        run = sweep_control.current() or sweep_control.begin(sweep_dir)
+        from runners import sweep_end
 
-        analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
-        write_summary(sweep_dir, analysis=analysis)
-        build_report([sweep_dir], sweep_dir / "report", analysis=analysis)
-        print(f"report: {sweep_dir / 'report' / 'report.html'} (and report.md)")
+        try:
+            sweep_end.end_of_sweep(config, run, _PLANS.pop(str(sweep_dir), None))
+        except Exception as err:  # Hydra would turn it into a warning and exit 0
+            if sweep_control.debug_requested():
+                raise
+            run.errors.append(sweep_control.io_line(err) if isinstance(err, OSError) else
+                              f"writing the summary failed: {type(err).__name__}: {err}")
+        sweep_control.print_errors(run)
+        signum = run.stop_signal()
+        sweep_control.end(run)
+        if signum is not None:
+            sys.exit(128 + signum)
+        if run.errors:
+            sys.exit(1)
 
 
 SUMMARY_COLUMNS = ["outcome", "success", "steps", "time_to_goal_s", "collisions_static", "collisions_dynamic"]
@@ -238,7 +277,7 @@ def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = No
     if episodes.empty:
         print(f"no logs found in {sweep_dir}")
         return table
-    episodes.to_csv(sweep_dir / "summary.csv", index=False)
+    write_whole(sweep_dir / "summary.csv", lambda f: episodes.to_csv(f, index=False))  # whole or absent
     with pd.option_context("display.width", 200, "display.max_rows", 500, "display.max_colwidth", 80):
         print(table.to_string(index=False, na_rep="-", float_format=lambda x: f"{x:.2f}" if not math.isnan(x) else "-"))
     unreadable = int((episodes["outcome"] == "unreadable").sum())
@@ -251,6 +290,7 @@ def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = No
 
 
 def main() -> None:
+    sweep_control.install_handlers()  # from the start: a signal before the sweep begins kills its prewarmed workers
     args = sys.argv[1:]
     if not any(a.startswith("sweep=") for a in args):
         args = ["sweep=default", *args]

@@ -1,24 +1,40 @@
-"""fuzzynav's Hydra sweeper: Hydra's basic sweeper, checking each swept value once instead of every job.
+"""fuzzynav's Hydra sweeper: Hydra's basic sweeper, checking each swept value once, and surviving its jobs' faults.
 
 Installed as ``hydra_plugins.fuzzynav_sweeper`` (Hydra loads sweepers only from the ``hydra_plugins``
 package; ``pyproject.toml`` maps this directory there) and selected in ``conf/config.yaml``
-(``hydra/sweeper: fuzzynav``). Before launching, Hydra's basic sweeper composes the config of every job in
-the launching process, one after the other (about 0.1 s each), and the launcher composes each job again where
-it runs. This sweeper composes, before launching, only the jobs needed to try every swept value at least
-once: every distinct value of a text setting or config group option (``scenario=head_on``), and one value of
-each type for numbers and booleans (``seed=range(0,1000,50)`` composes like ``seed=0``). A bad value is
-still reported before anything runs; the default sweep of 21 jobs composes 9 configs up front instead of 21.
-Everything else (batches, ``params``, ``max_batch_size``) is the basic sweeper's.
+(``hydra/sweeper: fuzzynav``). Two differences from Hydra's ``BasicSweeper``:
+
+1. Before launching, the basic sweeper composes the config of every job in the launching process, one after the
+   other (about 0.1 s each), and the launcher composes each job again where it runs. This sweeper composes only
+   the jobs needed to try every swept value at least once: every distinct value of a text setting or config group
+   option (``scenario=head_on``), and one value of each type for numbers and booleans (``seed=range(0,1000,50)``
+   composes like ``seed=0``). A bad value is still reported before anything runs; the default sweep of 21 jobs
+   composes 9 configs up front instead of 21.
+2. A launcher that raises (a worker process killed: loky's ``TerminatedWorkerError``, a Submitit job that
+   vanished) or a job that fails (a log that cannot be written) does not end the sweep with a traceback: the
+   failure is noted as one line (:mod:`runners.sweep_control`) and the sweep ends normally, so that its end
+   writes the summary of the episodes that completed and says how to resume. After a stop request (a signal, or a
+   job's stop file) no new job or batch is handed out.
+
+Everything else (batches, ``params``, ``max_batch_size``) is the basic sweeper's. ``hydra/sweeper=basic`` brings
+Hydra's back (then a lost worker is a traceback again).
 """
 
 from __future__ import annotations
 
 import logging
+import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.utils import JobStatus
+from omegaconf import OmegaConf
 
+from runners import sweep_control, sweep_resume
 from runners.precheck import representative_jobs
 
 __all__ = ["FuzzynavSweeper", "representative_jobs"]
@@ -27,7 +43,8 @@ log = logging.getLogger(__name__)
 
 
 class FuzzynavSweeper(BasicSweeper):
-    """Hydra's ``BasicSweeper``, validating only :func:`representative_jobs` of each batch before launching."""
+    """Hydra's ``BasicSweeper``, validating only :func:`representative_jobs` of each batch before launching, and
+    noting launcher and job failures instead of raising them (see the module docstring)."""
 
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
         tic = time.perf_counter()
@@ -35,3 +52,56 @@ class FuzzynavSweeper(BasicSweeper):
         for overrides in jobs:
             self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
         log.debug(f"Validated {len(jobs)} of {len(batch)} job configs in {time.perf_counter() - tic:.2f} s")
+
+    def sweep(self, arguments: list[str]) -> Any:
+        assert self.config is not None and self.launcher is not None and self.hydra_context is not None
+        sweep_dir = Path(self.config.hydra.sweep.dir)
+        run = sweep_control.begin_or_exit(sweep_dir)
+        parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
+        self.overrides = self.split_arguments(parser.parse_overrides([*self._parse_config(), *arguments]),
+                                              self.max_batch_size)
+        returns: list[Sequence[Any]] = []
+        try:  # the sweep's own config, as Hydra saves it
+            sweep_dir.mkdir(parents=True, exist_ok=True)
+            OmegaConf.save(self.config, sweep_dir / "multirun.yaml")
+        except OSError as err:
+            run.fail(sweep_control.io_line(err, sweep_dir / "multirun.yaml"))
+            return _finish(run, self.config, returns)
+        initial_job_idx = 0
+        while not self.is_done() and not run.stop_requested():
+            batch = self.get_job_batch()
+            try:
+                self.validate_batch_is_legal(batch)
+            except BaseException:  # Hydra reports the bad config; a resume's set-aside logs go back first
+                sweep_resume.restore(sweep_dir)
+                raise
+            try:
+                results = self.launcher.launch(sweep_control.StoppableJobs(batch, run), initial_job_idx=initial_job_idx)
+            except Exception as err:
+                if sweep_control.debug_requested():
+                    raise
+                sweep_control.launcher_failed(run, err)
+                break
+            for result in results:
+                if result.status == JobStatus.FAILED:
+                    job = result.hydra_cfg.hydra.job.num if result.hydra_cfg is not None else "?"
+                    sweep_control.job_failed(run, job, result._return_value)
+            initial_job_idx += len(batch)
+            returns.append(results)
+        return _finish(run, self.config, returns)
+
+
+def _finish(run: sweep_control.SweepRun, config: Any, returns: list[Sequence[Any]]) -> list[Sequence[Any]]:
+    """Without ``runners.sweep``'s callback (a plain ``runners.run --multirun``) nobody else reports failures and
+    stops: report them here, one line each, and exit non-zero (128 + the signal after a stop)."""
+    callbacks = OmegaConf.to_container(config.hydra.get("callbacks") or {}, resolve=False)
+    if "runners.sweep.SweepProgress" in str(callbacks):
+        return returns
+    sweep_control.print_errors(run)
+    signum = run.stop_signal()
+    sweep_control.end(run)
+    if signum is not None:
+        sys.exit(128 + signum)
+    if run.errors:
+        sys.exit(1)
+    return returns

@@ -1,0 +1,152 @@
+"""Stopping episodes cleanly: SIGINT/SIGTERM, and a sweep's stop file, acted on between two steps.
+
+A stop never cuts a log inside a message: a signal handler only notes the request, and the episode loop calls
+:func:`check` after every step, which raises :class:`Interrupted`; the episode's log is then finished with outcome
+``interrupted``. A second signal raises at once.
+
+In a sweep the launching process cannot signal its jobs reliably (Submitit processes, cluster nodes, loky workers
+that a signal between two jobs would kill, breaking the pool), so it asks them to stop through the file system:
+it creates the sweep's stop file (:func:`request_sweep_stop`), which every job looks for at most every
+``STOP_POLL_S`` seconds while it runs and before each episode. A job that cannot write its logs creates it too,
+so that the other jobs do not go on into a full disk.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from runners.sweep_paths import stop_file
+
+STOP_POLL_S = 0.25  # how often (at most) a running job looks for the stop file: a stat per 0.25 s, not per step
+SIGNAL_NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop request: ``signum`` is the signal behind it (the exit code is 128 + signum: 130 for SIGINT, 143 for
+    SIGTERM) and ``reason`` the words the log records."""
+
+    def __init__(self, signum: int = signal.SIGTERM, reason: str = "") -> None:
+        super().__init__(reason or describe(signum))
+        self.signum = signum
+        self.reason = reason or describe(signum)
+
+
+def describe(signum: int) -> str:
+    return "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated ({SIGNAL_NAMES.get(signum, signum)})"
+
+
+def exit_code(err: BaseException) -> int:
+    """The exit status of a process stopped by ``err``: 128 + the signal number (a plain KeyboardInterrupt is a
+    Ctrl-C: 130)."""
+    return 128 + (err.signum if isinstance(err, Interrupted) else signal.SIGINT)
+
+
+def reason_of(err: BaseException) -> str:
+    return err.reason if isinstance(err, Interrupted) else describe(signal.SIGINT)
+
+
+# -- in the process running episodes -------------------------------------------------------------------------------
+_LAUNCHER: list[bool] = []  # this process launches a sweep (its jobs may run here too: Hydra's basic launcher)
+
+
+def mark_launcher() -> None:
+    _LAUNCHER.append(True)
+
+
+def is_launcher() -> bool:
+    return bool(_LAUNCHER)
+
+
+_PENDING: list[int] = []  # signals received while a job runs, acted on between two steps
+_WATCHED: list[Path] = []  # the sweep directory whose stop file this job looks for (none outside a sweep)
+_next_look = 0.0  # time.monotonic() of the next look at the stop file
+
+
+def _on_signal(signum: int, frame: Any) -> None:
+    """SIGINT/SIGTERM during a job: noted, and raised between two steps by :func:`check`; a second one raises
+    at once."""
+    if _PENDING:
+        raise Interrupted(signum)
+    _PENDING.append(signum)
+
+
+def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
+    """Route SIGINT and SIGTERM to the step-boundary stop and watch the stop file of ``sweep_dir`` (None: not in
+    a sweep) for the duration of a job. Returns the function that undoes it; ``idle`` (e.g. ``signal.SIG_IGN``)
+    is then the handler instead of the previous one. In a thread other than the main one Python cannot install
+    handlers: there the signals act as before, and only the stop file is watched."""
+    global _next_look
+    _PENDING.clear()
+    _WATCHED[:] = [sweep_dir] if sweep_dir is not None else []
+    _next_look = 0.0  # look at once: a job that starts after the sweep was asked to stop does nothing
+    previous: dict[int, Any] = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[signum] = signal.signal(signum, _on_signal)
+        except ValueError:  # not the main thread
+            break
+
+    def restore() -> None:
+        _WATCHED.clear()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler if idle is None else idle)
+
+    return restore
+
+
+def check() -> None:
+    """Raise :class:`Interrupted` if a stop was requested: a signal, or (looked at every ``STOP_POLL_S``) the
+    sweep's stop file. Called after every step and before every episode."""
+    global _next_look
+    if _PENDING:
+        if _WATCHED:  # a signal to one job of a sweep stops the sweep (a terminal's Ctrl-C reaches them all)
+            request_sweep_stop(_WATCHED[0], _PENDING[0], describe(_PENDING[0]))
+        raise Interrupted(_PENDING[0])
+    if _WATCHED and time.monotonic() >= _next_look:
+        _next_look = time.monotonic() + STOP_POLL_S
+        request = read_sweep_stop(stop_file(_WATCHED[0]))
+        if request is not None:
+            raise Interrupted(*request)
+
+
+# -- the sweep's stop file -----------------------------------------------------------------------------------------
+def request_sweep_stop(sweep_dir: Path, signum: int, why: str) -> bool:
+    """Ask every job of the sweep to stop: create the stop file holding the signal number (0: a failure, not a
+    signal) and the reason the interrupted logs will record. Returns False if it could not be created (then the
+    caller must stop the jobs otherwise). An empty file (a full disk can refuse the content but not the name)
+    still stops the jobs."""
+    path = stop_file(sweep_dir)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    except OSError:
+        return False
+    with contextlib.suppress(OSError):
+        os.write(fd, f"{int(signum)}\n{why}\n".encode())
+    os.close(fd)
+    return True
+
+
+def read_sweep_stop(path: Path) -> tuple[int, str] | None:
+    """(signal number, reason) of the stop file at ``path``, or None when there is none."""
+    try:
+        text = path.read_text(errors="replace")
+    except FileNotFoundError:
+        return None
+    except OSError:
+        text = ""
+    first, _, rest = text.partition("\n")
+    signum = int(first) if first.strip().isdigit() else 0  # empty (a full disk took no content): not a signal
+    return signum, rest.strip() or "sweep stopped"
+
+
+def clear_sweep_stop(sweep_dir: Path) -> None:
+    """Remove a stop file left by an earlier sweep (whose launcher died before removing it)."""
+    with contextlib.suppress(FileNotFoundError):
+        stop_file(sweep_dir).unlink()

@@ -1,0 +1,96 @@
+"""The end of a sweep, in its launching process: account for every episode, write the summary (and, when the
+sweep is complete, the report), and say how to complete a sweep that is not.
+
+Episodes are counted from the sweep directory itself, so that the count is right whatever happened to the jobs'
+results (a lost worker loses them): kept by a resume (taken back from ``.fuzzynav/resume/``), run by this sweep (a
+log written since it started: finished, or ``interrupted`` by a stop), lost (a ``.*.mcap.partial`` left by a process
+that died), and not run (the rest of the episodes the sweep was to run).
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from omegaconf import DictConfig
+
+from runners import sweep_control, sweep_resume
+from runners.sweep import count_episodes, write_summary
+from runners.sweep_outputs import write_report
+from runners.sweep_paths import job_logs, partial_logs
+
+if TYPE_CHECKING:
+    from analysis.metrics import Analysis
+
+
+def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_resume.ResumePlan | None) -> None:
+    """Account for every episode (kept, run, interrupted, lost, not run), write ``summary.csv`` and, when the sweep
+    completed without a failure, the report. Failures are noted in ``run``; an error writing the summary or the
+    report propagates (an ``OSError`` names the file)."""
+    from analysis.metrics import analyse_logs
+
+    sweep_dir = run.sweep_dir
+    kept = plan.kept - sweep_resume.held_count(sweep_dir) if plan is not None else 0  # taken back by the jobs
+    in_place, earlier = sweep_resume.restore(sweep_dir)  # episodes this sweep does not include go back
+    if plan is not None:
+        fresh = [p for p in job_logs(sweep_dir) if _written_since(p, run.started)]
+        print(f"resume: {kept} complete episode(s) kept, {len(fresh)} run (incomplete, missing or changed)")
+        if plan.rerun or plan.removed or in_place or earlier:
+            print(f"resume: {plan.rerun} failed or damaged log(s) run again, {plan.removed} extra copies of an "
+                  f"episode removed, {in_place + earlier} log(s) of episodes outside this sweep left in the directory"
+                  + (f" ({earlier} moved to {sweep_dir / sweep_resume.EARLIER}: their name is taken)" if earlier
+                     else ""))
+    analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
+    signum = run.stop_signal()
+    lost = partial_logs(sweep_dir)
+    if signum is None and not run.errors and not lost:
+        write_summary(sweep_dir, analysis=analysis)
+        report = write_report(sweep_dir, analysis)
+        print(f"report: {report / 'report.html'} (and report.md)")
+        return
+    written = True
+    try:  # the summary of what completed; then how to complete the rest, even when the summary cannot be written
+        write_summary(sweep_dir, analysis=analysis)
+    except OSError as err:
+        run.errors.append(sweep_control.io_line(err))
+        written = False
+    _report_incomplete(config, run, analysis, kept, lost, written)
+
+
+def _written_since(path: Path, started: float) -> bool:
+    """``path`` was written after ``started`` (s since the epoch): by this sweep, not kept from an earlier one."""
+    try:
+        return path.stat().st_mtime >= started
+    except OSError:
+        return False
+
+
+def _report_incomplete(config: DictConfig, run: sweep_control.SweepRun, analysis: Analysis, kept: int,
+                       lost: list[Path], summary_written: bool) -> None:
+    """What did not complete and how to complete it (stdout); the report is left for the complete sweep.
+    ``kept``: episodes a resume kept; ``lost``: partial logs of episodes whose process died."""
+    outcomes = {str(log): outcome for frame in (analysis.episodes, analysis.excluded) if not frame.empty
+                for log, outcome in zip(frame["log"], frame["outcome"], strict=True)}
+    fresh = [outcomes.get(str(p)) for p in job_logs(run.sweep_dir) if _written_since(p, run.started)]
+    interrupted = sum(1 for o in fresh if o == "interrupted")
+    total = count_episodes(config)
+    not_run = f", {max(total - kept - len(fresh) - len(lost), 0)} not run (of {total})" if total is not None else ""
+    signum = run.stop_signal()
+    what = f"stopped by {sweep_control.stop.SIGNAL_NAMES[signum]}" if signum is not None else "incomplete"
+    summary = run.sweep_dir / "summary.csv"
+    print(f"{what}: {len(fresh) - interrupted} episode(s) finished, {interrupted} interrupted, {len(lost)} lost"
+          f"{not_run}" + (f"; every log is in {summary}" if summary_written and summary.exists() else ""))
+    if lost:
+        shown = ", ".join(str(p) for p in lost[:3]) + (f" and {len(lost) - 3} more" if len(lost) > 3 else "")
+        print(f"lost: {len(lost)} episode(s) did not finish because their process died (partial logs, readable by "
+              f"runners.replay: {shown})")
+    print(f"to complete the sweep: {resume_command(run.sweep_dir)}")
+
+
+def resume_command(sweep_dir: Path) -> str:
+    """This sweep's command line with ``hydra.sweep.dir=<sweep_dir> resume=true``."""
+    args = [a for a in sys.argv[1:]
+            if a not in ("--multirun", "-m") and not a.startswith(("hydra.sweep.dir=", "resume="))]
+    return shlex.join(["python", "-m", "runners.sweep", *args, f"hydra.sweep.dir={sweep_dir}", "resume=true"])

@@ -1,0 +1,256 @@
+"""Resuming a sweep: every episode once, each kept log verified in full, failed episodes run again.
+
+An episode is identified by :func:`episode_key`, computed from its ``fuzzynav.run`` metadata: the resolved
+config, its seed and the fuzzynav version — like the ``config_hash`` stored there, but without the keys that only
+say how seeds were batched into jobs (``seed``, the job's first seed, and ``episodes``), so that ``seed=0
+episodes=4`` and ``seed=0,2 episodes=2`` run the same four episodes. Not by where its log lies: a resume whose
+jobs are numbered or batched differently from the earlier sweep's (an overlapping but different sweep into the
+same directory) must still find each episode, and must not count it twice.
+
+Before any job runs, the launching process (holding the directory's lock) verifies every log of the sweep
+directory in full — every chunk's CRC, the summary, the metadata and every message against its schema
+(:mod:`analysis.logs`, :mod:`analysis.log_check`) — and sets them aside in ``.fuzzynav/resume/``:
+
+- ``<episode key>.mcap``: the one complete log of an episode that ended ``goal``, ``collision`` or ``timeout``;
+  the job that runs this episode takes it back into its own directory (an atomic rename: one job gets it) instead
+  of running it again;
+- ``<episode key>.rerun``: the log of an episode to run again (outcome ``error`` or ``interrupted``, truncated,
+  damaged); removed when the episode has been run again;
+- other logs of an episode that has a log above (copies) are removed; logs whose metadata cannot be read at all
+  stay where they are (a re-run of the same name replaces them).
+
+At the end of the sweep (:func:`restore`) what no job took back — episodes the sweep does not include — returns
+to where it was, or to ``earlier/<that path>`` if a log of this sweep now has that name. ``index.json`` in the
+same directory remembers the original places, so a launcher that dies in between loses nothing: the next sweep
+into the directory restores them first.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from runners.sweep_paths import holding_dir, job_logs
+
+FINAL_OUTCOMES = ("goal", "collision", "timeout")  # the outcomes a resume keeps; error/interrupted run again
+BATCHING_KEYS = ("seed:", "episodes:", "resume:")  # top-level config lines that do not change an episode
+INDEX = "index.json"
+EARLIER = "earlier"
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What a full verification of one log found: ``key`` (its :func:`episode_key`, None when not even the
+    metadata is readable), ``ok`` (complete, intact, valid, with a final outcome) and otherwise ``reason``."""
+
+    path: Path
+    key: str | None
+    ok: bool
+    outcome: str | None = None
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class ResumePlan:
+    """Counts of :func:`prepare`: logs set aside to keep, episodes to run again, copies removed, logs left in
+    place because they are unreadable."""
+
+    kept: int
+    rerun: int
+    removed: int
+    unreadable: int
+
+
+def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:
+    """SHA-256 of what makes an episode the same episode: the resolved config without the seed-batching keys
+    (``BATCHING_KEYS``, top-level lines of the YAML), the episode's seed and the fuzzynav version."""
+    body = "\n".join(line for line in config_yaml.splitlines() if not line.startswith(BATCHING_KEYS))
+    return hashlib.sha256(f"{body}\nseed={seed}\nfuzzynav={fuzzynav_version}".encode()).hexdigest()
+
+
+def _key_of(meta: dict[str, str] | None) -> str | None:
+    if not meta or not all(isinstance(meta.get(k), str) for k in ("config", "seed", "fuzzynav_version")):
+        return None
+    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"])
+
+
+def verify(path: Path) -> Verdict:
+    """Read one log in full and decide whether a resume may keep it (see :class:`Verdict`)."""
+    from analysis.log_check import CheckError, check_message, check_metadata
+    from analysis.logs import LogError, LogFile
+
+    key = _peek_key(path)
+    try:
+        log = LogFile(path)  # every chunk decompressed and CRC-checked, the summary CRC-checked
+        meta = log.metadata()
+        check_metadata(meta)  # includes: the config hash is the hash of the config and seed
+        key = _key_of(meta)
+        if not log.complete:
+            return Verdict(path, key, False, None, "truncated (no MCAP summary)")
+        outcome = None
+        for topic, _t, msg in log.messages():
+            check_message(topic, msg)
+            if topic == "/episode":
+                outcome = msg["outcome"]
+    except (LogError, CheckError) as err:
+        return Verdict(path, key, False, None, str(err))
+    if key is None:
+        return Verdict(path, None, False, outcome, "no config, seed or fuzzynav version in the metadata")
+    if outcome not in FINAL_OUTCOMES:
+        return Verdict(path, key, False, outcome, f"outcome {outcome or 'missing'}")
+    return Verdict(path, key, True, outcome)
+
+
+def _verify_all(paths: list[Path]) -> list[Verdict]:
+    return [verify(p) for p in paths]
+
+
+def _peek_key(path: Path) -> str | None:
+    """The episode key from the unverified metadata: which episode a damaged log belongs to (never believed for
+    anything else)."""
+    from analysis.logs import RUN_METADATA
+    from analysis.mcap_verify import peek_metadata
+
+    try:
+        with open(path, "rb") as f:
+            meta = peek_metadata(f, RUN_METADATA)
+    except Exception:  # unverified bytes: whatever goes wrong, the answer is "unknown"
+        return None
+    return _key_of(meta)
+
+
+# -- the launching process -----------------------------------------------------------------------------------------
+def prepare(sweep_dir: Path, jobs: int = 1) -> ResumePlan:
+    """Verify every log of the sweep directory and set them aside (see the module docstring). ``jobs``: worker
+    processes for the verification (:func:`analysis.logs.read_logs`). Call with the directory's lock held, before
+    any job runs."""
+    from analysis.logs import read_logs
+
+    restore(sweep_dir)  # what an earlier launcher set aside and could not restore
+    hold = holding_dir(sweep_dir)
+    hold.mkdir(parents=True, exist_ok=True)
+    verdicts = [v for chunk in read_logs(_verify_all, job_logs(sweep_dir), jobs) for v in chunk]
+    by_episode: dict[str, list[Verdict]] = {}
+    unreadable = 0
+    for verdict in verdicts:
+        if verdict.key is None:
+            unreadable += 1
+        else:
+            by_episode.setdefault(verdict.key, []).append(verdict)
+    index: dict[str, str] = {}
+    kept = rerun = removed = 0
+    for key, found in by_episode.items():
+        good = [v for v in found if v.ok]
+        chosen = (good or found)[0]
+        name = f"{key}.mcap" if good else f"{key}.rerun"
+        os.replace(chosen.path, hold / name)
+        index[name] = chosen.path.relative_to(sweep_dir).as_posix()
+        kept, rerun = kept + bool(good), rerun + (not good)
+        for other in found:
+            if other is not chosen:  # a copy of the kept log, or an older failed attempt of the same episode
+                other.path.unlink()
+                removed += 1
+    _write_index(hold, index)
+    return ResumePlan(kept, rerun, removed, unreadable)
+
+
+def restore(sweep_dir: Path) -> tuple[int, int]:
+    """Return what is still set aside to where it was (``earlier/<path>`` if that name is taken now). Returns
+    (restored in place, moved to ``earlier/``)."""
+    hold = holding_dir(sweep_dir)
+    if not hold.is_dir():
+        return 0, 0
+    index = _read_index(hold)
+    in_place = earlier = 0
+    for held in sorted(hold.iterdir()):
+        if held.suffix not in (".mcap", ".rerun"):
+            continue
+        rel = _safe_relative(index.get(held.name)) or Path(EARLIER) / f"{held.stem}.mcap"
+        target = sweep_dir / rel
+        if target.exists():
+            target = _free_name(sweep_dir / EARLIER / rel)
+            earlier += 1
+        else:
+            in_place += 1
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(held, target)
+    with contextlib.suppress(FileNotFoundError):
+        (hold / INDEX).unlink()
+    return in_place, earlier
+
+
+def held_count(sweep_dir: Path) -> int:
+    """Logs still set aside to keep (not taken back by a job)."""
+    hold = holding_dir(sweep_dir)
+    return sum(1 for _ in hold.glob("*.mcap")) if hold.is_dir() else 0
+
+
+# -- a job ---------------------------------------------------------------------------------------------------------
+def keep(path: Path, key: str, sweep_dir: Path | None) -> dict[str, Any] | None:
+    """The summary row of a kept log of the episode ``key``, now at ``path``, or None when it must run: in a
+    sweep, the log set aside for it is taken back; otherwise (a single run, or a sweep whose launcher did not
+    prepare the resume) the log already at ``path`` is verified in full."""
+    from analysis.logs import LogError, episode_summary
+
+    taken = False
+    if sweep_dir is not None:
+        try:
+            os.replace(holding_dir(sweep_dir) / f"{key}.mcap", path)  # atomic: exactly one job takes it
+            taken = True
+        except FileNotFoundError:
+            pass
+    if not taken:
+        if not path.is_file():
+            return None
+        verdict = verify(path)
+        if not verdict.ok or verdict.key != key:
+            return None
+    try:
+        return episode_summary(path)
+    except LogError:
+        return None
+
+
+def supersede(sweep_dir: Path | None, key: str) -> None:
+    """The episode ``key`` has been run again: its earlier failed log is no longer needed."""
+    if sweep_dir is not None:
+        with contextlib.suppress(FileNotFoundError):
+            (holding_dir(sweep_dir) / f"{key}.rerun").unlink()
+
+
+# -- helpers -------------------------------------------------------------------------------------------------------
+def _read_index(hold: Path) -> dict[str, str]:
+    try:
+        data = json.loads((hold / INDEX).read_text())
+    except (OSError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+
+def _write_index(hold: Path, index: dict[str, str]) -> None:
+    """Written whole or not at all (temporary file + rename): a torn index would misplace logs."""
+    tmp = hold / f".{INDEX}.tmp"
+    tmp.write_text(json.dumps(index, indent=0, sort_keys=True))
+    os.replace(tmp, hold / INDEX)
+
+
+def _safe_relative(text: str | None) -> Path | None:
+    """A path from the index, if it stays inside the sweep directory."""
+    if not text:
+        return None
+    rel = Path(text)
+    return None if rel.is_absolute() or ".." in rel.parts else rel
+
+
+def _free_name(path: Path) -> Path:
+    """``path``, or ``path`` with ``.1``, ``.2``, ... before ``.mcap`` when taken."""
+    candidate, k = path, 0
+    while candidate.exists():
+        k += 1
+        candidate = path.with_name(f"{path.stem}.{k}{path.suffix}")
+    return candidate

@@ -1,0 +1,235 @@
+"""The parts of a sweep's fault handling, in this process: the directory lock, the stop file, log files written
+under a temporary name and a failed write, files written whole or not at all (summary, report), the end of a sweep
+that fails, and the resume's setting aside and restoring of logs. The same faults through the real commands:
+tests/test_sweep_faults.py."""
+
+from __future__ import annotations
+
+import errno
+import logging
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from omegaconf import OmegaConf
+
+from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
+from fuzzynav.config import episode_config_from_dict
+from fuzzynav.fuzzy_fast import FastEvaluator
+from runners import stop, sweep_control, sweep_lock, sweep_resume
+from runners.mcap_log import SDK_LOGGER, EpisodeLogWriter, LogWriteError, partial_path
+from runners.run import run_episode
+from tests.conftest import ROOT, load_controller, load_scenario
+from tests.tmpfs import tmpfs_mounter
+
+EVALUATOR = FastEvaluator(load_controller("table1"))
+
+
+def episode(path: Path, seed: int = 0, scenario: str = "head_on", config: str = "dt: 1.0\n") -> dict:
+    """One real episode (about 45 steps) logged at ``path``; its config hash is that of ``config`` and ``seed``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return run_episode(load_scenario(scenario), EVALUATOR, episode_config_from_dict({}), seed, path, config)
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    yield from tmpfs_mounter(tmp_path)
+
+
+def test_the_lock_names_its_holder_and_dies_with_it(tmp_path):
+    code = ("import sys, time; from pathlib import Path; from runners.sweep_lock import acquire; "
+            "acquire(Path(sys.argv[1])); print('held', flush=True); time.sleep(60)")
+    holder = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(sweep_lock.SweepLockError, match=rf"in use by another sweep \(pid {holder.pid} on "):
+            sweep_lock.acquire(tmp_path)
+    finally:
+        holder.kill()
+        holder.wait()
+    sweep_lock.acquire(tmp_path)  # the lock file is still there, the lock is not: a dead holder blocks nobody
+    assert f"pid {os.getpid()} on " in (tmp_path / ".fuzzynav" / "lock").read_text()
+    sweep_lock.release(tmp_path)
+
+
+def test_the_stop_file_ends_the_episode_in_flight_as_interrupted(tmp_path):
+    sweep_dir = tmp_path / "sweep"
+    restore = stop.install(sweep_dir)
+    stop.check()  # no stop file: nothing happens
+    restore()
+    assert stop.request_sweep_stop(sweep_dir, signal.SIGTERM, "sweep stopped (SIGTERM to the launching process)")
+    restore = stop.install(sweep_dir)  # a job starting now looks at the stop file at its first check
+    log = sweep_dir / "0" / "x.mcap"
+    try:
+        with pytest.raises(stop.Interrupted) as raised:
+            episode(log)
+    finally:
+        restore()
+        stop.clear_sweep_stop(sweep_dir)
+    assert raised.value.signum == signal.SIGTERM and stop.exit_code(raised.value) == 143
+    assert is_complete(log) and not partial_path(log).exists()
+    row = episode_summary(log)
+    assert row["outcome"] == "interrupted" and row["steps"] == 1  # stopped after its first step
+    (_topic, _t, message), = iter_messages(log, ["/episode"])
+    assert message["reason"] == "sweep stopped (SIGTERM to the launching process)"
+    assert stop.read_sweep_stop(sweep_dir / ".fuzzynav" / "stop") is None
+
+
+def test_a_log_is_written_under_a_temporary_name_until_it_is_finished(tmp_path):
+    from fuzzynav.episode import Episode
+
+    path = tmp_path / "x.mcap"
+    ep = Episode(load_scenario("head_on"), EVALUATOR, episode_config_from_dict({}), seed=0)
+    log = EpisodeLogWriter(path, ep, {"seed": "0"}, "auto", "laser")
+    for record in ep.run():
+        log.step(record)
+        assert not path.exists() and partial_path(path).exists()
+    log.finish(ep.outcome or "error")
+    assert is_complete(path) and not partial_path(path).exists()
+    assert partial_path(path).name == ".x.mcap.partial"
+
+
+def test_a_failed_write_is_one_error_naming_the_log_and_leaves_no_file(tmp_path, monkeypatch):
+    """The SDK reports a failed write (here: simulated, as it reports ENOSPC) on its logger instead of raising."""
+    written = []
+    original = EpisodeLogWriter._write
+
+    def failing(self, topic, t, message):
+        written.append(topic)
+        if len(written) == 200:
+            logging.getLogger(SDK_LOGGER).warning('error logging message: McapError(Io(Os { code: 28, kind: '
+                                                  'StorageFull, message: "No space left on device" }))')
+        original(self, topic, t, message)
+
+    monkeypatch.setattr(EpisodeLogWriter, "_write", failing)
+    path = tmp_path / "x.mcap"
+    with pytest.raises(LogWriteError) as raised:
+        episode(path)
+    err = raised.value
+    assert str(err) == f"{path}: cannot write the log: No space left on device"
+    assert err.errno == errno.ENOSPC and err.filename == str(path)
+    assert not path.exists() and not partial_path(path).exists()
+    monkeypatch.undo()
+    assert episode(tmp_path / "next.mcap")["outcome"] == "goal"  # the process's log slot was released
+
+
+def test_a_full_disk_is_one_error_naming_the_log(tmpfs):
+    """The same on a real 96 KB file system: the first log fits, the second does not."""
+    disk = tmpfs("96k")
+    assert episode(disk / "first.mcap")["outcome"] == "goal"
+    with pytest.raises(LogWriteError, match=rf"^{disk / 'second.mcap'}: cannot write the log: No space left on "):
+        episode(disk / "second.mcap", seed=1)
+    assert sorted(p.name for p in disk.iterdir()) == ["first.mcap"] and is_complete(disk / "first.mcap")
+
+
+def test_summary_and_report_are_written_whole_or_not_at_all(tmp_path, monkeypatch):
+    import analysis.report as report_module
+    from analysis.metrics import analyse_logs
+    from runners.sweep_outputs import write_report, write_whole
+
+    for seed in (0, 1):
+        episode(tmp_path / "0" / f"s{seed}.mcap", seed)
+    analysed = analyse_logs([tmp_path])
+    report = write_report(tmp_path, analysed)
+    assert (report / "report.html").exists() and (report / "episodes.csv").exists()
+
+    def half_written(paths, out, **kwargs):
+        out.mkdir(parents=True)
+        (out / "box.png").write_bytes(b"png")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(report_module, "build_report", half_written)
+    with pytest.raises(OSError) as raised:
+        write_report(tmp_path, analysed)
+    assert raised.value.filename == str(tmp_path / "report") and "No space left on device" in str(raised.value)
+    assert (report / "report.html").exists() and not (report / "box.png").exists()  # the earlier report, whole
+    assert not (tmp_path / ".report.partial").exists()
+
+    def full(f):
+        f.write("log,outcome\n")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(OSError) as raised:
+        write_whole(tmp_path / "summary.csv", full)
+    assert raised.value.filename == str(tmp_path / "summary.csv")
+    assert not (tmp_path / "summary.csv").exists() and not (tmp_path / ".summary.csv.partial").exists()
+
+
+@pytest.mark.parametrize("failure, line", [
+    (ValueError("boom"), "error: writing the summary failed: ValueError: boom"),
+    (OSError(errno.ENOSPC, "No space left on device", "/data/s/summary.csv"),
+     "error: /data/s/summary.csv: No space left on device")])
+def test_a_failing_end_of_sweep_exits_non_zero_with_one_line(tmp_path, monkeypatch, capsys, failure, line):
+    """Hydra turns an exception raised in a callback into a warning (and the sweep would exit 0 without a
+    summary): the callback makes it one line and exit status 1."""
+    import runners.sweep
+    import runners.sweep_end
+
+    def broken(config, run, plan):
+        raise failure
+
+    monkeypatch.setattr(runners.sweep_end, "end_of_sweep", broken)
+    monkeypatch.setattr(sweep_control, "_CURRENT", [sweep_control.SweepRun(tmp_path, time.time())])
+    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path)}}})
+    with pytest.raises(SystemExit) as exited:
+        runners.sweep.SweepProgress().on_multirun_end(config)
+    assert exited.value.code == 1
+    assert capsys.readouterr().err.splitlines() == [line]
+
+
+def test_resume_sets_logs_aside_each_episode_once_and_restores_the_others(tmp_path):
+    """Four logs: episode a (good), a copy of a in another job, episode b (good), episode c (truncated)."""
+    sweep_dir = tmp_path
+    a, b, c = sweep_dir / "0" / "a.mcap", sweep_dir / "1" / "b.mcap", sweep_dir / "1" / "c.mcap"
+    episode(a, 0), episode(b, 1), episode(c, 2)
+    copy = sweep_dir / "2" / "a.mcap"
+    copy.parent.mkdir()
+    shutil.copy2(a, copy)
+    c.write_bytes(c.read_bytes()[: c.stat().st_size // 2])
+    key = {p.stem: sweep_resume._key_of(read_metadata(p)) for p in (a, b)}
+    key["c"] = sweep_resume._peek_key(c)  # from the unverified metadata of the truncated log
+    assert key["c"] is not None and len(set(key.values())) == 3
+
+    plan = sweep_resume.prepare(sweep_dir)
+    assert plan == sweep_resume.ResumePlan(kept=2, rerun=1, removed=1, unreadable=0)
+    assert not list(sweep_dir.glob("[0-9]/*.mcap"))  # every log set aside until a job takes it back
+
+    moved = sweep_dir / "5" / "a.mcap"  # episode a belongs to job 5 in this sweep
+    moved.parent.mkdir()
+    assert sweep_resume.keep(moved, key["a"], sweep_dir)["outcome"] == "goal"
+    assert sweep_resume.keep(sweep_dir / "6" / "a.mcap", key["a"], sweep_dir) is None  # taken once only
+    sweep_resume.supersede(sweep_dir, key["c"])  # c was run again
+    b.write_bytes(b"another episode now has this name")
+    assert sweep_resume.held_count(sweep_dir) == 1
+    assert sweep_resume.restore(sweep_dir) == (0, 1)  # b is not part of this sweep: kept, under earlier/
+    assert is_complete(sweep_dir / "earlier" / "1" / "b.mcap") and not c.exists()
+    assert sweep_resume._key_of(read_metadata(sweep_dir / "earlier" / "1" / "b.mcap")) == key["b"]
+
+
+def test_the_launcher_does_not_start_jobs_after_a_stop(tmp_path):
+    run = sweep_control.SweepRun(tmp_path, time.time())
+    jobs = sweep_control.StoppableJobs([["a=1"], ["a=2"], ["a=3"]], run)
+    taken = []
+    for job in jobs:
+        taken.append(job)
+        stop.request_sweep_stop(tmp_path, signal.SIGINT, "test")
+    assert taken == [["a=1"]] and len(jobs) == 3 and run.stop_signal() == signal.SIGINT
+    stop.request_sweep_stop(tmp_path, 0, "sweep stopped: disk full")
+    assert run.stop_signal() is None  # a failure, not a signal: exit 1, not 128 + n
+
+
+def test_an_episode_is_the_same_whatever_the_seed_batching():
+    """``seed=0 episodes=4`` and ``seed=2 episodes=2`` both run the episode of seed 3: one key; any other change
+    of the config, the seed or the version is another episode."""
+    config = "scenario:\n  name: head_on\nseed: {first}\nepisodes: {n}\nresume: {resume}\ndt: 1.0\n"
+    key = sweep_resume.episode_key
+    same = key(config.format(first=0, n=4, resume="false"), 3, "1.0")
+    assert key(config.format(first=2, n=2, resume="true"), 3, "1.0") == same
+    assert key(config.format(first=0, n=4, resume="false").replace("dt: 1.0", "dt: 0.5"), 3, "1.0") != same
+    assert key(config.format(first=0, n=4, resume="false"), 2, "1.0") != same
+    assert key(config.format(first=0, n=4, resume="false"), 3, "1.1") != same
