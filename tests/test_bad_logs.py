@@ -83,6 +83,14 @@ def test_the_same_file_through_several_paths_is_read_once(sweep_dir, good):
     assert len(df) == 1 and left_out.empty
 
 
+def test_hidden_directories_and_files_are_not_looked_into(sweep_dir, good):
+    (sweep_dir / ".fuzzynav" / "resume").mkdir(parents=True)
+    shutil.copy(good, sweep_dir / ".fuzzynav" / "resume" / "held.mcap")
+    shutil.copy(good, sweep_dir / "0" / ".in-flight.mcap")
+    assert find_logs([sweep_dir]) == [sweep_dir / "0" / good.name]
+    assert find_logs([sweep_dir / ".fuzzynav" / "resume"]) == [sweep_dir / ".fuzzynav" / "resume" / "held.mcap"]
+
+
 def test_a_copy_of_an_episode_is_counted_once_and_listed(sweep_dir, good):
     shutil.copy(good, sweep_dir / "copy.mcap")
     df, left_out = metrics_table([sweep_dir])
