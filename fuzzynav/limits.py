@@ -89,7 +89,7 @@ MAX_SPEED_CM_S = 1_000.0  # speeds: robot limits, the speed output's universe, p
 
 # -- runs ---------------------------------------------------------------------------------------------------
 MAX_EPISODES_PER_RUN = 10_000
-MAX_SEED = 2**53 - 1  # seeds stay exact as float64 (pandas tables of the analysis)
+MAX_SEED = 9_007_199_254_740_991  # 2^53 - 1: seeds stay exact as float64 (pandas tables of the analysis)
 MAX_LAUNCHER_JOBS = 256
 
 SIZE_LIMITS: tuple[Limit, ...] = (
@@ -130,6 +130,7 @@ SIZE_LIMITS: tuple[Limit, ...] = (
 
 _CM = "cm"
 _M = "a margin or distance in cm; 10 m is far beyond the sensors"
+_R = "a distance in cm, at most the longest sensor range (100 m)"
 _S = "a speed in cm/s; the robot drives 10-40 cm/s"
 _N = "a noise standard deviation in cm; beyond 10 m it swamps every reading"
 
@@ -154,9 +155,9 @@ FIELD_RANGES: dict[str, Range] = {
     "perception.tracker.cluster_gap_cm": Range(0, 1_000, _CM, _M, lo_open=True),
     "perception.tracker.min_points": Range(3, 3_600, "", "a circle fit needs 3 points; at most every beam",
                                            integer=True),
-    "perception.tracker.max_radius_cm": Range(0, 10_000, _CM, _M, lo_open=True),
+    "perception.tracker.max_radius_cm": Range(0, 10_000, _CM, _R, lo_open=True),
     "perception.tracker.max_fit_rms_cm": Range(0, 1_000, _CM, _M, lo_open=True),
-    "perception.tracker.gate_cm": Range(0, 10_000, _CM, _M, lo_open=True),
+    "perception.tracker.gate_cm": Range(0, 10_000, _CM, _R, lo_open=True),
     "perception.tracker.min_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", _S),
     "perception.tracker.max_missed": Range(0, 1_000, "frames", "frames a lost track is kept", integer=True),
     "perception.tracker.velocity_alpha": Range(0, 1, "", "smoothing factor", lo_open=True),
@@ -174,7 +175,7 @@ FIELD_RANGES: dict[str, Range] = {
     "planner.cruise_speed": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
     "planner.plan_tolerance_cm": Range(0, 1_000, _CM, _M, lo_open=True),
     "planner.plan_check_margin_cm": Range(0, 1_000, _CM, _M),
-    "navigator.static_near_cm": Range(0, 10_000, _CM, _M),
+    "navigator.static_near_cm": Range(0, 10_000, _CM, _R),
     "navigator.direct_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
     "navigator.clear_path_margin_cm": Range(0, 1_000, _CM, _M),
 }

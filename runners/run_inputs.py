@@ -13,6 +13,7 @@ Ranges and size limits come from :mod:`fuzzynav.limits`.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,7 @@ from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
 
 DATA_GROUPS = ("scenario", "controller")  # config groups whose options are data files of fuzzynav's own parsers
 
+_ANNOUNCE_SCENARIOS = 1_000  # a run generating this many scenarios up front says so
 _EVALUATORS: dict[ControllerSpec, FastEvaluator] = {}  # one evaluator per controller and worker process
 
 
@@ -193,7 +195,11 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
     check_controller_fits(evaluator.spec, ep_cfg, runtime)
     data = plain.get("scenario")
     if isinstance(data, Mapping) and "generator" in data:
-        scenarios = {seed: load_scenario(plain, seed, runtime) for seed in (seeds if all_seeds else seeds[:1])}
+        todo = seeds if all_seeds else seeds[:1]
+        if len(todo) >= _ANNOUNCE_SCENARIOS:  # about 6 ms each: a long silent start otherwise
+            print(f"generating and validating {len(todo):,} scenarios before the first episode (about "
+                  f"{len(todo) * 0.006:.0f} s)", file=sys.stderr)
+        scenarios = {seed: load_scenario(plain, seed, runtime) for seed in todo}
     else:
         scenario = load_scenario(plain, seeds[0], runtime)
         scenarios = dict.fromkeys(seeds, scenario)

@@ -51,7 +51,8 @@ def test_typo_and_wrong_type_fail_at_composition(tmp_path):
     out = cli("runners.run", "planner.h_wait=two", f"hydra.run.dir={tmp_path}")
     assert out.returncode == 2 and "planner.h_wait" in out.stderr and "Traceback" not in out.stderr
     out = cli("runners.run", "planner.h_wait=-1", f"hydra.run.dir={tmp_path}")
-    assert out.returncode == 2 and out.stderr.strip() == "error: config: planner.h_wait: must be >= 0, got -1"
+    assert out.returncode == 2 and out.stderr.strip() == ("error: config: planner.h_wait: must be in [0, 1,000] steps, "
+                                                          "got -1")
     out = cli("runners.sweep", "sweep=quick", "planner=auto,nope", f"hydra.sweep.dir={tmp_path / 's'}")
     assert out.returncode == 2 and "no config 'planner/nope'" in out.stderr and not (tmp_path / "s").exists()
 
