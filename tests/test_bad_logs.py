@@ -219,3 +219,20 @@ def test_rejected_paths_keep_their_reason_in_worker_processes(sweep_dir, monkeyp
     monkeypatch.setattr(analysis.logs, "PARALLEL_MIN_LOGS", 1)  # 2 paths over 2 workers
     df, left_out = metrics_table([sweep_dir], jobs=2)
     assert len(df) == 1 and list(left_out["reason"]) == [f"{rejected}: {rejected.reason}"]
+
+
+@pytest.fixture
+def mount(tmp_path):
+    from tests.tmpfs import tmpfs_mounter
+
+    yield from tmpfs_mounter(tmp_path)
+
+
+def test_report_into_a_read_only_or_full_file_system_is_one_line(mount, good):
+    read_only, full = mount("64k", read_only=True), mount("24k")
+    for out, code, expect in ((read_only / "rep", 2, "cannot write: Read-only file system"),
+                              (full / "rep", 1, "cannot write the report: No space left on device (incomplete)")):
+        res = subprocess.run([sys.executable, "-m", "analysis.report", str(good), "--jobs", "1", "--out", str(out)],
+                             cwd=ROOT, capture_output=True, text=True, timeout=300)
+        assert res.returncode == code and expect in one_error_line(res.stderr), res.stderr
+        assert str(out) in res.stderr
