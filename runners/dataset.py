@@ -246,6 +246,12 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
         raise DatasetError(f"{path}: episodes: missing (run: python -m runners.dataset build {name})")
     if overrides:
         manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
+        # a bad override is one line before any episode runs (not a traceback from every worker)
+        from runners.precheck import precheck
+
+        problem = precheck(jobs(manifest)[0]["overrides"])
+        if problem:
+            raise DatasetError(problem)
     if seeds is not None:
         _select_seeds(manifest, seeds, path)
     out = Verification(compared=len(manifest["episodes"]))

@@ -115,6 +115,14 @@ def test_seeds_that_select_nothing_are_an_error(root, capsys, seeds, problem):
         assert "has seeds 0:2" in err
 
 
+@pytest.mark.parametrize(("override", "field"), [("planner.h_wait=abc", "planner.h_wait"),
+                                                 ("planner.safety_margin_cm=nan", "planner.safety_margin_cm")])
+def test_a_bad_override_is_one_line_before_anything_runs(root, capsys, override, field):
+    code, out, err = run(capsys, "verify", "tiny", override, "--root", str(root))
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and field in err, err
+
+
 # -- the classification, on edited copies of the kept log (no simulation) -----------------------------------
 Edit = Callable[[str, int, dict[str, Any]], dict[str, Any] | None]
 
