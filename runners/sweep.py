@@ -173,7 +173,10 @@ class SweepProgress(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
-        sweep_control.begin_or_exit(sweep_dir)
+        run = sweep_control.begin_or_exit(sweep_dir)
+        if run.removed_partials:
+            print(f"{run.removed_partials} partial log(s) of episodes killed in an earlier sweep removed (their "
+                  "episodes run again)")
         try:
             if config.get("resume", False):
                 _PLANS[str(sweep_dir)] = sweep_resume.prepare(sweep_dir, jobs=-1)

@@ -37,20 +37,18 @@ from runners.sweep_paths import partial_logs, stop_file
 class SweepRun:
     """One sweep, in its launching process. ``started``: wall-clock time (s since the epoch) when it began, to tell
     the logs it wrote from older ones; ``signum``: the stop signal received, if any; ``errors``: one line per
-    failure; ``lost``: the launcher lost jobs (a worker died), so a resume is needed."""
+    failure; ``removed_partials``: partial logs of killed episodes of an earlier sweep, removed at the start."""
 
     sweep_dir: Path
     started: float
     signum: int | None = None
     errors: list[str] = field(default_factory=list)
-    lost: bool = False
     removed_partials: int = 0
 
-    def fail(self, line: str, lost: bool = False) -> None:
+    def fail(self, line: str) -> None:
         """Note a failure (once per distinct line) and ask the jobs still running to stop."""
         if line not in self.errors:
             self.errors.append(line)
-        self.lost = self.lost or lost
         stop.request_sweep_stop(self.sweep_dir, 0, f"sweep stopped: {line}")
 
     def stop_requested(self) -> bool:
@@ -190,13 +188,13 @@ def launcher_failed(run: SweepRun, err: Exception) -> None:
         # not be written named it in the stop file, and it is usually the same cause
         request = stop.read_sweep_stop(stop_file(run.sweep_dir)) if not err.filename else None
         named = request[1].removeprefix("sweep stopped: ") if request and request[0] == 0 else ""
-        run.fail(named if named.startswith(str(run.sweep_dir)) else io_line(err, run.sweep_dir), lost=True)
+        run.fail(named if named.startswith(str(run.sweep_dir)) else io_line(err, run.sweep_dir))
         return
     text = str(err)
     codes = re.search(r"exit codes of the workers are (\{[^}]*\})", text)  # loky names the signal: SIGKILL(-9)
     first = (text.strip().splitlines() or [""])[0][:200]
     detail = f"exit codes {codes.group(1)}" if codes else first
-    run.fail(f"a worker process was lost ({type(err).__name__}{': ' + detail if detail else ''})", lost=True)
+    run.fail(f"a worker process was lost ({type(err).__name__}{': ' + detail if detail else ''})")
 
 
 def _is_lost_worker(err: BaseException) -> bool:
