@@ -12,13 +12,9 @@ import pytest
 
 from tests.conftest import ROOT
 
-_RECORDED: list[Path] = []  # one recording per session: each module importing the fixture gets its own copy of it
-
 
 @pytest.fixture(scope="session")
 def recorded_logs(tmp_path_factory) -> list[Path]:
-    if _RECORDED:
-        return list(_RECORDED)
     out = tmp_path_factory.mktemp("recorded")
     res = subprocess.run([sys.executable, "-m", "runners.run", "scenario=paper_fig5", "scenario.max_steps=14",
                           "episodes=2", f"hydra.run.dir={out}"], cwd=ROOT, capture_output=True, text=True,
@@ -26,5 +22,4 @@ def recorded_logs(tmp_path_factory) -> list[Path]:
     assert res.returncode == 0, res.stderr
     logs = sorted(out.glob("*.mcap"))
     assert len(logs) == 2
-    _RECORDED.extend(logs)
     return logs
