@@ -152,6 +152,8 @@ FIELD_RANGES: dict[str, Range] = {
     "sensors.laser.noise_std_cm": Range(0, 1_000, _CM, _N),
     "perception.position_noise_std_cm": Range(0, 1_000, _CM, _N),
     "perception.velocity_noise_std_cm_s": Range(0, 1_000, "cm/s", "a noise standard deviation in cm/s"),
+    "perception.confirm_frames": Range(1, 1_000, "frames", "ground truth reports an obstacle from this frame",
+                                       integer=True),
     "perception.tracker.cluster_gap_cm": Range(0, 1_000, _CM, _M, lo_open=True),
     "perception.tracker.min_points": Range(3, 3_600, "", "a circle fit needs 3 points; at most every beam",
                                            integer=True),

@@ -20,7 +20,10 @@ Our choices where the paper is silent (README, "Navigation loop"):
   when the plan would now come closer than ``plan_check_margin_cm`` (5 cm, half the planning margin, so
   that noisy re-estimates do not discard a good plan) or the robot is more than ``plan_tolerance_cm`` off
   it (``replan_every_step`` re-plans on every step instead).
-- The table predicts the robot at its present speed; standing still, at ``cruise_speed``.
+- The table predicts the robot at the speed the navigator will command next if no plan intervenes — the
+  direct speed or the fuzzy controller's (``planner.predict_speed = command``); a table that assumed the
+  present speed would predict a motion the robot does not make (``present``: the present speed, or
+  ``cruise_speed`` when standing).
 
 Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
 """
@@ -35,7 +38,14 @@ import numpy as np
 from fuzzynav.clearance import segment_point_clearance
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState, bearing_deg, wrap_deg
-from fuzzynav.planner import Plan, PlannerConfig, find_new_path, path_collides, plan_heading_change
+from fuzzynav.planner import (
+    Plan,
+    PlannerConfig,
+    find_new_path,
+    hold_to_horizon,
+    path_collides,
+    plan_heading_change,
+)
 from fuzzynav.portable_math import dist, sin_cos_deg
 from fuzzynav.tpt import TrajectoryPredictionTable, build_tpt
 from fuzzynav.tracking import Track
@@ -139,12 +149,17 @@ class Navigator:
         left, front, right = obs.sonar
         angle = included_angle_deg(s, obs.goal)
         inputs = (left, front, right, angle)
+        static_mode, static_dtheta, static_v = self._static_command(obs, angle)
         tpt = None
         if self.planner.strategy != "none" and obs.tracks:
-            speed = s.v if s.v > 0 else self.planner.cruise_speed
+            if self.planner.predict_speed == "command":
+                speed = static_v
+            else:
+                speed = s.v if s.v > 0 else self.planner.cruise_speed
             tpt = build_tpt((s.x, s.y), obs.goal, speed, obs.tracks, self.robot_radius, self.planner.n_traj,
                             self.dt, self.planner.safety_margin_cm, self.planner.swept_tpt)
-        if active is not None and (self.planner.replan_every_step or not self._still_valid(active, obs, tpt)):
+        if active is not None and (self.planner.replan_every_step
+                                   or (self.planner.recheck_plan and not self._still_valid(active, obs, tpt))):
             active = None
         new_plan = False
         if active is None and tpt is not None and tpt.any_collision:
@@ -164,14 +179,21 @@ class Navigator:
             mode = active.plan.strategy if active.plan.strategy in ("detour", "evade") else "wait"
             return Decision(mode, plan_heading_change(s.heading, here, target), step / self.dt, inputs, tpt,
                             active.plan, new_plan), carry
+        return Decision(static_mode, static_dtheta, static_v, inputs, tpt, None, False), None
+
+    def _static_command(self, obs: Observation, angle: float) -> tuple[str, float, float]:
+        """What the robot does when no plan intervenes: ``direct`` (turn to the goal, ``direct_speed_cm_s``,
+        slowing to land on it) or ``fuzzy`` (Table 1) — (mode, steering increment in degrees, speed in cm/s)."""
+        s = obs.state
         to_goal = dist((s.x, s.y), obs.goal)
         v = max(self.limits.v_min, min(self.config.direct_speed_cm_s, self.limits.v_max, to_goal / self.dt))
         dtheta = wrap_deg(bearing_deg(s.x, s.y, *obs.goal) - s.heading)
         near = self._static_near(obs.sonar, angle) and not self._goal_in_reach(obs, angle)
         if near or not self._direct_is_clear(obs, dtheta, v):
+            left, front, right = obs.sonar
             dtheta, v = self.fuzzy({"left": left, "front": front, "right": right, "angle": angle})
-            return Decision("fuzzy", dtheta, v, inputs, tpt, None, False), None
-        return Decision("direct", dtheta, v, inputs, tpt, None, False), None
+            return "fuzzy", dtheta, v
+        return "direct", dtheta, v
 
     def _direct_is_clear(self, obs: Observation, dtheta: float, v: float) -> bool:
         """Whether the straight move towards the goal stays clear of static laser returns (the sonar
@@ -210,5 +232,8 @@ class Navigator:
         if tpt is None:
             return True
         pts = obs.static_points if self.planner.avoid_static_points else None
-        return not path_collides(tpt, active.remaining, here, pts, self.robot_radius + self.planner.static_margin_cm,
+        remaining = active.remaining
+        if active.plan.strategy == "wait" and self.planner.wait_check_horizon:  # safe to stand there to the end
+            remaining = hold_to_horizon(remaining, tpt.n_traj)
+        return not path_collides(tpt, remaining, here, pts, self.robot_radius + self.planner.static_margin_cm,
                                  margin=self.planner.plan_check_margin_cm)

@@ -23,11 +23,15 @@ MODES = ("laser", "ground_truth")
 
 @dataclass(frozen=True)
 class PerceptionConfig:
-    """``mode``: laser | ground_truth. Ground-truth noise: position and velocity standard deviations."""
+    """``mode``: laser | ground_truth. Ground-truth noise: position and velocity standard deviations.
+    ``confirm_frames``: ground truth reports an obstacle from its n-th consecutive frame within range — 2
+    (default) gives it the laser tracker's latency (a track needs two frames for a velocity), so that the
+    ablation removes estimation error, not delay; 1 reports it at once."""
 
     mode: str = "laser"
     position_noise_std_cm: float = 0.0
     velocity_noise_std_cm_s: float = 0.0
+    confirm_frames: int = 2
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
 
     def __post_init__(self) -> None:
@@ -35,6 +39,8 @@ class PerceptionConfig:
             raise ValueError(f"perception.mode: unknown mode {self.mode!r} (known: {', '.join(MODES)})")
         if self.position_noise_std_cm < 0 or self.velocity_noise_std_cm_s < 0:
             raise ValueError("perception: noise standard deviations must be >= 0")
+        if self.confirm_frames < 1:
+            raise ValueError(f"perception.confirm_frames: must be >= 1, got {self.confirm_frames}")
 
 
 @dataclass(frozen=True)
@@ -56,20 +62,24 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
         return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
     ox, oy = scan.origin
     tracks = []
+    frames = {t.id: t.hits for t in state.tracks}  # consecutive frames each obstacle has been in range
+    in_range = []
     for k in range(len(truth_radii)):
         p = np.array(truth_positions[k], dtype=float)
         if hypot(float(p[0]) - ox, float(p[1]) - oy) - truth_radii[k] > scan.range_cm:
             continue
+        seen = frames.get(k + 1, 0) + 1
+        in_range.append(tracking.seen_frames(k + 1, seen, time_s))
         v = np.array(truth_velocities[k], dtype=float)
-        if not v.any():
-            continue  # a stopped obstacle is not a moving obstacle
+        if seen < config.confirm_frames or not v.any():
+            continue  # not confirmed yet, or stopped (a stopped obstacle is not a moving obstacle)
         if config.position_noise_std_cm > 0:
             p = p + noise.draw(0.0, config.position_noise_std_cm, 2)
         if config.velocity_noise_std_cm_s > 0:
             v = v + noise.draw(0.0, config.velocity_noise_std_cm_s, 2)
         tracks.append(Track(k + 1, float(p[0]), float(p[1]), float(v[0]), float(v[1]), float(truth_radii[k])))
     moving = scan.returned & (scan.labels > 0)
-    return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
+    return TrackerState(tuple(in_range)), Perceived(tuple(tracks), moving, static_points(scan, moving))
 
 
 def static_points(scan: LaserScan, moving_beams: np.ndarray) -> np.ndarray:

@@ -10,7 +10,10 @@ A plan is the list of positions the robot should occupy at steps 1, 2, ..., L.
 
 - **Wait** (line 17): follow the predicted robot trajectory to ``rS = rTraj(tS)`` and stay there until
   step ``tG - 1`` (``wait_time`` steps of waiting). Chosen when ``wait_time < h_wait`` or
-  ``tG == n_traj + 1``, and the robot standing at ``rS`` collides with nothing during the wait.
+  ``tG == n_traj + 1``, and the robot standing at ``rS`` collides with nothing during the wait — and,
+  with ``wait_check_horizon`` (ours, default), nor standing there until the end of the table: ``tG`` is
+  computed for the *moving* robot, and a robot that stands in an oncoming obstacle's path is hit after
+  ``tG - 1``.
 - **Detour** (lines 19-35): back up one step (``tS' = tS - 1`` if ``tS > 1``), follow ``rTraj`` to
   ``rS' = rTraj(tS')``, then repeatedly move to the successor with minimal ``f = g + h`` (``g``: step
   length, ``h``: distance to ``rG = rTraj(tG)``; a successor whose move collides costs ∞) until within
@@ -24,11 +27,16 @@ Choices where the listing is silent (documented in the README, tested):
   with ``avoid_static_points``, closer than the robot radius plus ``static_margin_cm`` to a laser return
   that is not a moving obstacle. With ``respect_turn_limit`` a successor that needs a sharper turn than
   the robot can make in one step also costs ∞ (so that every plan is executable).
-- Ties in ``f`` go to the first successor in the listing's order (speeds outer, headings inner).
-- The detour fails when no successor is finite or ``rG`` is not reached within ``detour_max_steps``.
-  Then ``auto`` waits at ``rS`` if that is collision-free (whatever ``h_wait`` says), else stops for one
-  step; ``detour`` stops for one step. ``wait`` waits at ``rS``, else in place, else stops for one step.
-  A stop is a one-step plan at the present position; the robot re-plans on the next step.
+- Ties in ``f``: moves straight at ``rG`` all have ``f = |rG - r|``; ``tie_break = fastest`` (ours, what
+  the text asks: "the robot has to move faster") takes the fastest of them, ``listing`` the first
+  successor in the listing's order (speeds outer, headings inner).
+- The listing's loop does not end when ``rG`` is never reached: the detour fails when no successor is
+  finite or ``rG`` is not reached within ``detour_max_steps``. Then, with ``fallbacks`` (ours, default),
+  ``auto`` waits at ``rS`` if that is safe (whatever ``h_wait`` says), else in place, else evades (below),
+  else stops for one step; ``detour`` waits in place, else evades, else stops; ``wait`` waits at ``rS``,
+  else in place, else stops. A stop is a one-step plan at the present position; the robot re-plans on the
+  next step. Without ``fallbacks`` there is no new path (line 10): the robot goes on as if no collision
+  were predicted, and plans again on the next table.
 - ``φLow``: ``phi_low_rule = paper`` is lines 39-49 literally. Its 19 headings span the half-plane on
   one side of the obstacle's line of motion, so a robot that has stepped off that line can never come
   back to it: with a head-on obstacle (rG on the obstacle's line) no detour can reach rG. The literal
@@ -55,6 +63,8 @@ from fuzzynav.tpt import TrajectoryPredictionTable
 STRATEGIES = ("auto", "wait", "detour", "none")
 PHI_LOW_RULES = ("paper", "target_side", "toward_goal")
 DETOUR_SEARCHES = ("greedy", "astar")
+TIE_BREAKS = ("fastest", "listing")
+PREDICT_SPEEDS = ("command", "present")
 
 
 @dataclass(frozen=True)
@@ -81,7 +91,12 @@ class PlannerConfig:
     plan_tolerance_cm: float = 10.0
     plan_check_margin_cm: float = 5.0
     replan_every_step: bool = False
+    recheck_plan: bool = True
     evade_when_blocked: bool = True
+    fallbacks: bool = True
+    wait_check_horizon: bool = True
+    tie_break: str = "fastest"
+    predict_speed: str = "command"
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -93,6 +108,11 @@ class PlannerConfig:
         if self.detour_search not in DETOUR_SEARCHES:
             raise ValueError(f"planner.detour_search: unknown search {self.detour_search!r} "
                              f"(known: {', '.join(DETOUR_SEARCHES)})")
+        if self.tie_break not in TIE_BREAKS:
+            raise ValueError(f"planner.tie_break: unknown rule {self.tie_break!r} (known: {', '.join(TIE_BREAKS)})")
+        if self.predict_speed not in PREDICT_SPEEDS:
+            raise ValueError(f"planner.predict_speed: unknown rule {self.predict_speed!r} "
+                             f"(known: {', '.join(PREDICT_SPEEDS)})")
         if self.astar_max_expansions < 1:
             raise ValueError(f"planner.astar_max_expansions: must be >= 1, got {self.astar_max_expansions}")
         if self.h_wait < 0:
@@ -222,6 +242,16 @@ def path_collides(tpt: TrajectoryPredictionTable, path: np.ndarray, start: np.nd
     return False
 
 
+def hold_to_horizon(path: np.ndarray, n_steps: int) -> np.ndarray:
+    """``path`` (positions at steps 1..L, cm) followed by standing at its last position up to step
+    ``n_steps``: what a wait must survive, since the robot is still standing there when the wait ends and
+    an oncoming obstacle may reach it after ``tG - 1``."""
+    path = np.asarray(path, dtype=float).reshape(-1, 2)
+    if len(path) >= n_steps:
+        return path
+    return np.concatenate([path, np.repeat(path[-1:], n_steps - len(path), axis=0)])
+
+
 def _wait_path(tpt: TrajectoryPredictionTable, t_s: int, t_g: int) -> np.ndarray:
     """Line 17: rTraj(1 -> tS-1), then stay at rTraj(tS) up to step tG-1."""
     steps = [tpt.robot_at(min(k, t_s)) for k in range(1, max(t_g, 2))]
@@ -269,7 +299,7 @@ def _greedy(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.nda
             return None, first_low or 0.0, f"rG not reached within {config.detour_max_steps} steps"
         succ, heads, f, low = expand(current, heading, time)
         first_low = low if first_low is None else first_low
-        best = _argmin_prefer_fast(f, norm2(succ - current))
+        best = _argmin_prefer_fast(f, norm2(succ - current)) if config.tie_break == "fastest" else int(np.argmin(f))
         if not np.isfinite(f[best]):
             return None, first_low, f"no collision-free successor at step {time + 1}"
         current, heading = succ[best], float(heads[best])
@@ -337,7 +367,9 @@ def _bearing(p: np.ndarray, goal: Sequence[float], default: float) -> float:
 def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading_deg: float,
                   static_points: np.ndarray | None = None, robot_radius: float | None = None,
                   max_turn_deg: float = 120.0) -> Plan | None:
-    """Lines 1-37: plan around the first predicted collision of ``tpt``; None when none is predicted.
+    """Lines 1-37: plan around the first predicted collision of ``tpt``; None when none is predicted, or
+    when every option failed and ``config.fallbacks`` is off (the listing then has no new path).
+    ``Plan.reason`` states the rule that decided and, when an option was rejected, why.
 
     ``heading_deg`` is the robot's present heading; ``static_points`` (P, 2) cm are laser returns that
     are not moving obstacles (used when ``config.avoid_static_points``)."""
@@ -356,45 +388,74 @@ def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading
         return Plan(strategy=strategy, path=path, tc=tc, tS=t_s, tG=t_g, wait_time=wait_time,
                     obstacle_id=oid, reason=reason, **kw)
 
+    def stands_safely(path: np.ndarray) -> bool:
+        """The listing's "no collision during waiting"; with ``wait_check_horizon`` (ours) the robot must
+        also stay clear standing at the end of the wait until the end of the table."""
+        check = hold_to_horizon(path, tpt.n_traj) if config.wait_check_horizon else path
+        return not path_collides(tpt, check, here, pts, clearance)
+
     def wait_plan() -> np.ndarray | None:
         path = _wait_path(tpt, t_s, t_g)
-        return None if path_collides(tpt, path, here, pts, clearance) else path
+        return path if stands_safely(path) else None
 
-    def fallback(why: str, evade: bool) -> Plan:
-        """Stand still until tG - 1 if that is safe; else (auto/detour) evade; else stop for one step."""
+    def detour(why: str) -> Plan | None:
+        path, t_s1, low, failed = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
+        if path is not None:
+            return make("detour", path, f"{why}: detour from tS' = {t_s1}", detour_start=t_s1, phi_low_deg=low)
+        nonlocal detour_failure
+        detour_failure = failed
+        return None
+
+    def fallback(why: str, evade: bool) -> Plan | None:
+        """Ours, after every listed option failed: stand still if that is safe; else (auto/detour) evade;
+        else stop for one step. Without ``fallbacks`` (the listing) there is no plan."""
+        if not config.fallbacks:
+            return None
         in_place = np.repeat(here[None, :], max(t_g - 1, 1), axis=0)
-        if not path_collides(tpt, in_place, here, pts, clearance):
+        if stands_safely(in_place):
             return make("wait", in_place, f"{why}: wait in place")
+        why = f"{why}, standing still collides"
         if evade and config.evade_when_blocked:
             target = _evade(tpt, here, heading_deg, config, pts, clearance, max_turn_deg)
             if target is not None:
-                return make("evade", target[None, :], f"{why}, standing still collides: evade")
-        return make("stop", here[None, :].copy(), f"{why}: stand still and re-plan")
+                return make("evade", target[None, :], f"{why}: evade")
+        return make("stop", here[None, :].copy(), f"{why}: stop and re-plan")
 
+    detour_failure = ""
     strategy = config.strategy
-    if strategy == "auto":
-        if wait_time < config.h_wait or t_g == tpt.n_traj + 1:
-            path = wait_plan()
-            if path is not None:
-                return make("wait", path, f"waitTime {wait_time} < hWait {config.h_wait}"
-                            if wait_time < config.h_wait else "collision lasts to the end of the table")
-        path, t_s1, low, why = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
-        if path is not None:
-            return make("detour", path, f"waitTime {wait_time} >= hWait {config.h_wait}: detour",
-                        detour_start=t_s1, phi_low_deg=low)
-        path = wait_plan()
-        if path is not None:
-            return make("wait", path, f"detour failed ({why}): wait instead")
-        return fallback(f"detour failed ({why}), waiting at rS collides", evade=True)
     if strategy == "wait":
         path = wait_plan()
         if path is not None:
-            return make("wait", path, "wait strategy")
+            return make("wait", path, "wait strategy: wait at rS")
         return fallback("wait strategy: waiting at rS collides", evade=False)
-    path, t_s1, low, why = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
-    if path is not None:
-        return make("detour", path, "detour strategy", detour_start=t_s1, phi_low_deg=low)
-    return fallback(f"detour failed ({why})", evade=True)
+    if strategy == "detour":
+        return detour("detour strategy") or fallback(f"detour strategy: detour failed ({detour_failure})",
+                                                     evade=True)
+    # auto: lines 16-17, else 19-35
+    if t_g == tpt.n_traj + 1:
+        rule = f"collision lasts to the end of the table (tG = {t_g})"
+    elif wait_time < config.h_wait:
+        rule = f"waitTime {wait_time} < hWait {config.h_wait}"
+    else:
+        rule = ""
+    if rule:
+        path = wait_plan()
+        if path is not None:
+            return make("wait", path, f"{rule}: wait at rS")
+        plan = detour(f"{rule} but waiting at rS collides")
+        if plan is not None:
+            return plan
+        return fallback(f"{rule} but waiting at rS collides, detour failed ({detour_failure})", evade=True)
+    rule = f"waitTime {wait_time} >= hWait {config.h_wait}"
+    plan = detour(rule)
+    if plan is not None:
+        return plan
+    if config.fallbacks:
+        path = wait_plan()
+        if path is not None:
+            return make("wait", path, f"{rule}, detour failed ({detour_failure}): wait at rS instead")
+        return fallback(f"{rule}, detour failed ({detour_failure}), waiting at rS collides", evade=True)
+    return None
 
 
 def _evade(tpt: TrajectoryPredictionTable, here: np.ndarray, heading_deg: float, config: PlannerConfig,

@@ -1,14 +1,17 @@
 """Trajectory Prediction Table (paper section III.C, Table 2).
 
 Row ``k`` (k = 1 .. n_traj) is the prediction for time ``now + k·dt``; row 0 holds the present. The
-robot is predicted to move straight towards the target at its current speed (stopping on it); every
-tracked obstacle at constant velocity. ``collide[k, j]`` is True when robot and obstacle j are closer than
-the sum of their radii plus ``safety_margin_cm`` at step k, as in the paper's table. With ``swept``
-(default, ours) a collision that happens only *between* two samples — neither step k-1 nor step k is
-marked, but the discs come too close in between (both move straight within a step, so the closest
-approach is exact) — marks step k too: sampling alone misses an obstacle passing the robot between two
-steps (at 1 s steps, a 30 cm/s obstacle meeting a 40 cm/s robot closes 70 cm per step). Collisions the
-samples see keep exactly the paper's rows. Units: cm, s, cm/s.
+robot is predicted to move straight towards the target at ``speed`` — the speed the navigator will command
+next if no plan intervenes (stopping on the target); every tracked obstacle at constant velocity.
+``collide[k, j]`` is True when robot and obstacle j are closer than the sum of their radii plus
+``safety_margin_cm`` at step k, as in the paper's table. With ``swept`` (default, ours) a collision that
+happens only *between* two samples — the discs come too close between step k-1 and step k although
+neither sample is marked (both move straight within a step, so the closest approach is exact) — marks
+step k too: sampling alone misses an obstacle passing the robot between two steps (at 1 s steps, a
+30 cm/s obstacle meeting a 40 cm/s robot closes 70 cm per step). Collisions the samples see keep exactly
+the paper's rows. Row 0 (the present) is not a predicted row: a robot already inside the margin has
+step 1 marked (the motion from now to step 1 starts too close), so the planner moves it out instead of
+seeing an empty table. Units: cm, s, cm/s.
 """
 
 from __future__ import annotations
@@ -108,7 +111,9 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
         dd = dot2(d, d)
         s = np.clip(-dot2(rel[:-1], d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
         between = norm2(rel[:-1] + s[..., None] * d) < limit
-        collide[1:] |= between & ~collide[:-1] & ~collide[1:]
+        earlier = collide[:-1].copy()  # a pass that starts in a marked predicted row is already in the table
+        earlier[0] = False  # ... but row 0 is the present, not a prediction
+        collide[1:] |= between & ~earlier
     return TrajectoryPredictionTable(
         robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
         obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),

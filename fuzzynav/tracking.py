@@ -89,6 +89,12 @@ class _Tracked:
     missed: int
 
 
+def seen_frames(obstacle_id: int, frames: int, time_s: float) -> _Tracked:
+    """A ground-truth obstacle's record in :class:`TrackerState` (``perception.mode=ground_truth``): only its
+    id and the number of consecutive frames it has been in range (``hits``) are used."""
+    return _Tracked(obstacle_id, 0.0, 0.0, 0.0, 0.0, 0.0, time_s, frames, 0)
+
+
 @dataclass(frozen=True)
 class TrackerState:
     """Everything the tracker remembers between frames."""

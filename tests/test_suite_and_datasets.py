@@ -33,36 +33,56 @@ def composed(scenario: str, **extra) -> dict:
 
 def test_suite_has_the_named_scenarios():
     for name in ("paper_fig5", "head_on", "crossing_left", "crossing_right", "overtaking", "multi_crossing",
-                 "corridor", "static_clutter", "mixed", "u_trap", "random_mixed"):
+                 "corridor", "static_clutter", "mixed", "u_trap", "random_mixed", "fast_head_on", "slow_crossing",
+                 "cyclist_crossing"):
         assert name in SCENARIOS, name
+
+
+LITERAL = {k: v for k, v in yaml.safe_load((CONF / "planner" / "paper_literal.yaml").read_text()).items()
+           if k != "defaults"}
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_every_scenario_runs_under_every_strategy(scenario):
-    for strategy in ("auto", "wait", "detour", "none"):
-        cfg = composed(scenario, planner={"strategy": strategy})
+    for planner in ({"strategy": "auto"}, {"strategy": "wait"}, {"strategy": "detour"}, {"strategy": "none"},
+                    LITERAL, {**LITERAL, "strategy": "wait"}, {**LITERAL, "strategy": "detour"}):
+        cfg = composed(scenario, planner=planner)
         ep = Episode(load_scenario(cfg, 0), EVALUATOR, episode_config(cfg), seed=0)
         records = list(ep.run())
         assert ep.outcome in ("goal", "collision", "timeout") and records
+        if planner.get("fallbacks") is False:  # literal: no plan outside the listing's wait and detour
+            assert all(r.decision.plan is None or r.decision.plan.strategy in ("wait", "detour") for r in records)
+            assert all(r.decision.mode != "evade" for r in records)
 
 
-@pytest.mark.parametrize("h_wait, strategy", [(2, "detour"), (4, "wait")])
-def test_paper_fig5_reproduces_table2(h_wait, strategy):
-    """The paper's worked example is noise-free: with an exact laser the first table is Table 2. (With the
-    default 1 cm range noise the first velocity estimate, hence the table, depends on the seed: 12 of 20
-    seeds give Table 2, the others a collision also at step 9 or one step earlier or later.)"""
-    sensors = yaml.safe_load((CONF / "sensors" / "default.yaml").read_text())
-    sensors["laser"]["noise_std_cm"] = 0.0
-    cfg = composed("paper_fig5", planner={"h_wait": h_wait}, sensors=sensors)
-    ep = Episode(load_scenario(cfg), EVALUATOR, episode_config(cfg), seed=0)
-    first = next(r for r in ep.run() if r.decision.tpt is not None)
-    tpt = first.decision.tpt
-    assert tpt.n_traj == 9
-    assert [k for k in range(1, 10) if tpt.collide[k].any()] == [6, 7, 8]
-    plan = first.decision.plan
-    assert (plan.tc, plan.tS, plan.tG, plan.wait_time) == (6, 5, 9, 3)
-    assert plan.strategy == strategy
-    assert abs(tpt.obstacle_angles_deg[0]) < 10 or abs(tpt.obstacle_angles_deg[0] - 360) < 10  # moving at ~0°
+@pytest.mark.parametrize("perception", ["ground_truth", "laser_exact"])
+@pytest.mark.parametrize("h_wait, strategy", [(1, "detour"), (2, "detour"), (3, "detour"), (4, "wait"), (6, "wait")])
+def test_paper_fig5_reproduces_table2_on_every_seed(h_wait, strategy, perception):
+    """The first table is Table 2 (collisions at steps 6-8 of 9: tc 6, tS 5, tG 9, waitTime 3) and the choice
+    is the paper's on seeds 0-19: h_wait 1-3 detour from tS' = 4, h_wait >= 4 wait at rS. Ground truth
+    reports an obstacle from its second frame in range, as the tracker does; the laser is exact (with the
+    default 1 cm range noise the first velocity, from a disc cut by the range limit, is off by up to 7 cm/s,
+    and the table with it: README, "The worked example")."""
+    extra = {}
+    if perception == "ground_truth":
+        extra["perception"] = yaml.safe_load((CONF / "perception" / "ground_truth.yaml").read_text())
+    else:
+        sensors = yaml.safe_load((CONF / "sensors" / "default.yaml").read_text())
+        sensors["laser"]["noise_std_cm"] = 0.0
+        extra["sensors"] = sensors
+    cfg = composed("paper_fig5", planner={"h_wait": h_wait}, **extra)
+    for seed in range(20):
+        ep = Episode(load_scenario(cfg, seed), EVALUATOR, episode_config(cfg), seed=seed)
+        first = next(r for r in ep.run() if r.decision.tpt is not None and r.decision.tpt.any_collision)
+        tpt, plan = first.decision.tpt, first.decision.plan
+        assert tpt.n_traj == 9 and first.decision.new_plan
+        assert [k for k in range(1, 10) if tpt.collide[k].any()] == [6, 7, 8], seed
+        assert [k for k in range(1, 10) if tpt.collide[k, 0]] == [6, 7, 8], seed  # obstacle 1 only
+        assert (plan.tc, plan.tS, plan.tG, plan.wait_time) == (6, 5, 9, 3), seed
+        assert plan.strategy == strategy, (seed, plan.reason)
+        if strategy == "detour":
+            assert plan.detour_start == 4
+        assert abs((tpt.obstacle_angles_deg[0] + 180) % 360 - 180) < 10  # moving at ~0°
 
 
 def test_random_mixed_is_seeded_and_valid_by_construction():
