@@ -139,7 +139,7 @@ def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], 
             step = msg.get("step") if isinstance(msg, dict) else None
             at = f"at step {step}" if type(step) is int else f"number {len(times[topic])}"
             what = f"missing field '{err.where}'" if err.problem == "missing" else str(err)
-            raise LogError(f"{log.path}: {topic} message {at} does not match its schema: {what}") from None
+            raise LogError(f"{log.path}: {topic} message {at} does not match its schema: {what}", "schema") from None
         times[topic].append(t)
         if topic == "/scene":
             _read_scene(log, msg)
@@ -174,14 +174,14 @@ def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> Epi
     try:
         config, dt = check_metadata(meta)
     except CheckError as err:
-        raise LogError(f"{path}: metadata {err}") from None
+        raise LogError(f"{path}: metadata {err}", "metadata") from None
     log = EpisodeLog(path=path, meta=meta, config=config, complete=source.complete, dt=math.nan)
     times: dict[str, list[int]] = {topic: [] for topic in topics}
     try:
         _read_messages(log, source.raw_messages(topics), times)
         check_episode(log, times, dt)
     except CheckError as err:
-        raise LogError(f"{path}: {err}") from None
+        raise LogError(f"{path}: {err}", "episode") from None  # the messages together (check_episode)
     if log.states:
         log.robot_radius = float(log.states[0]["radius_cm"])
     return log

@@ -20,7 +20,6 @@ Each raises :class:`CheckError` (:mod:`analysis.json_checks`) with the field and
 
 from __future__ import annotations
 
-import hashlib
 import math
 import re
 from collections.abc import Mapping
@@ -50,6 +49,7 @@ from analysis.json_checks import (
     points,
     string,
 )
+from fuzzynav.episode_identity import config_hash  # the hash runners.run records: one definition
 
 __all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash"]
 
@@ -194,12 +194,6 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
             digest != config_hash(meta.get("config", ""), meta["seed"], meta["fuzzynav_version"]):
         raise CheckError("config_hash", "is not the hash of the config and seed (edited or damaged metadata)")
     return config, dt
-
-
-def config_hash(config_yaml: str, seed: str, fuzzynav_version: str) -> str:
-    """``runners.run.config_hash`` for a recorded config, seed and fuzzynav version (a test keeps them equal)."""
-    body = "\n".join(line for line in config_yaml.splitlines() if not line.startswith("resume:"))
-    return hashlib.sha256(f"{body}\nseed={seed}\nfuzzynav={fuzzynav_version}".encode()).hexdigest()
 
 
 def _parse_config(text: str) -> dict[str, Any]:

@@ -9,10 +9,14 @@
    or a directory that cannot be listed is never opened: it comes back as a :class:`RejectedLog` whose reason
    the analysis lists with the logs left out.
 3. The same file reached twice (``D`` and ``D/0``, a symlink, a hard link, a path given twice) is read once.
-4. The same episode — the same config hash and seed, written by the same code (fuzzynav version, git commit,
-   library versions) — in two different files is compared: when their verified content is the same (apart from
-   the decision compute times, which no run reproduces) the first is read and the others are left out as copies;
-   when it differs, every one of them is left out, listing the others, because nothing says which is right.
+4. The same episode — the same :func:`fuzzynav.episode_identity.episode_key` (config without the seed batching,
+   seed, fuzzynav version: the identity the sweep's resume uses), written by the same code (git commit, library
+   versions) — in two different files is compared: when their verified content is the same (apart from the
+   decision compute times, which no run reproduces, and the config's batching keys and ``config_hash``, which say
+   how the seeds were split into jobs) the first is read and the others are left out as copies; when it differs,
+   every one of them is left out, listing the others, because nothing says which is right. Only logs that pass
+   every check are compared: a damaged copy is left out for its damage and does not cast doubt on the good log.
+   So ``seed=0 episodes=4`` in one directory and ``seed=0,2 episodes=2`` in another are four episodes, not eight.
 """
 
 from __future__ import annotations
@@ -26,8 +30,9 @@ from pathlib import Path
 
 from analysis.logs import RUN_METADATA, LogError, LogFile, RejectedLog, file_kind
 from analysis.mcap_verify import peek_metadata
+from fuzzynav.episode_identity import episode_key_of
 
-_SHA256 = re.compile(r"[0-9a-f]{64}")
+_BATCHING_METADATA = ("config", "config_hash")  # depend on the seed batching: the episode key stands for them
 
 
 def is_provenance_key(key: str) -> bool:
@@ -49,12 +54,12 @@ def collect_logs(paths: Iterable[str | Path]) -> list[Path]:
             try:
                 st = os.stat(path)
             except OSError as err:
-                path = RejectedLog.with_reason(path, f"cannot read: {err.strerror or err}")
+                path = RejectedLog.with_reason(path, f"cannot read: {err.strerror or err}", "cannot-read")
                 key = str(path)
             else:
                 if not stat.S_ISREG(st.st_mode):
                     path = RejectedLog.with_reason(path, f"{file_kind(st.st_mode)}, not a regular file: skipped, "
-                                                         "not opened")
+                                                         "not opened", "not-regular-file")
                     key = str(path)
                 else:
                     key = (st.st_dev, st.st_ino)
@@ -75,7 +80,7 @@ def _expand(paths: Iterable[str | Path]) -> list[Path]:
 
         def failed(err: OSError, unlistable: list[Path] = unlistable) -> None:
             unlistable.append(RejectedLog.with_reason(err.filename, f"directory cannot be listed: "
-                                                                    f"{err.strerror or err}"))
+                                                                    f"{err.strerror or err}", "cannot-read"))
 
         for root, dirs, files in os.walk(p, onerror=failed):
             base = Path(root)
@@ -87,29 +92,38 @@ def _expand(paths: Iterable[str | Path]) -> list[Path]:
     return out
 
 
-def _identity(path: Path) -> tuple[str, ...] | None:
-    """(config hash, seed, provenance...) from the unverified metadata, or None (no SHA-256 config hash,
+def _identity(path: Path) -> tuple[tuple[str, ...], str] | None:
+    """((episode key, provenance...), seed) from the unverified metadata, or None (no config, seed or version;
     unreadable): only used to choose which files to compare."""
     try:
         with open(path, "rb") as f:
             meta = peek_metadata(f, RUN_METADATA)
     except OSError:
         return None
-    if not meta or not _SHA256.fullmatch(meta.get("config_hash", "")) or "seed" not in meta:
+    key = episode_key_of(meta)
+    if meta is None or key is None:
         return None
-    return (meta["config_hash"], meta["seed"], *sorted(f"{k}={v}" for k, v in meta.items() if is_provenance_key(k)))
+    return (key, *sorted(f"{k}={v}" for k, v in meta.items() if is_provenance_key(k))), meta["seed"]
 
 
 def _content_digest(path: Path) -> str | None:
-    """SHA-256 of a complete, verified log's metadata and messages, compute times masked; None when the log is
-    truncated or unreadable (its own reading reports it)."""
+    """SHA-256 of a complete, verified log's metadata and messages, compute times masked and the config's seed
+    batching replaced by the episode key; None when the log is truncated, unreadable or fails a check (its own
+    reading reports it): a damaged or edited log is never believed, so it must not make a good log of the same
+    episode a conflict."""
+    from analysis.episode_log import load_episode
+
     try:
+        load_episode(path)  # every check the analysis makes (metadata, messages, the episode as a whole)
         log = LogFile(path)
         if not log.complete:
             return None
         digest = hashlib.sha256()
-        for key, value in sorted(log.metadata().items()):
-            digest.update(f"{key}={value}\0".encode())
+        meta = log.metadata()
+        digest.update(f"episode={episode_key_of(meta)}\0".encode())
+        for key, value in sorted(meta.items()):
+            if key not in _BATCHING_METADATA:
+                digest.update(f"{key}={value}\0".encode())
         for topic, log_time, data in log.raw_messages():
             digest.update(f"{topic}@{log_time}\0".encode())
             digest.update(_COMPUTE_TIME.sub(b'"compute_time_us":0', data) if topic == "/planner/decision" else data)
@@ -120,11 +134,13 @@ def _content_digest(path: Path) -> str | None:
 
 def _one_per_episode(paths: list[Path]) -> list[Path]:
     groups: dict[tuple[str, ...], list[int]] = {}
+    seeds: dict[tuple[str, ...], str] = {}
     for i, path in enumerate(paths):
         if not isinstance(path, RejectedLog):
-            identity = _identity(path)
-            if identity is not None:
-                groups.setdefault(identity, []).append(i)
+            found = _identity(path)
+            if found is not None:
+                groups.setdefault(found[0], []).append(i)
+                seeds[found[0]] = found[1]
     out = list(paths)
     for identity, members in groups.items():
         if len(members) < 2:
@@ -133,15 +149,15 @@ def _one_per_episode(paths: list[Path]) -> list[Path]:
         compared = [i for i in members if digests[i] is not None]
         if len(compared) < 2:
             continue
-        episode = f"config hash {identity[0][:12]}…, seed {identity[1]}"
+        episode = f"episode key {identity[0][:12]}…, seed {seeds[identity]}"
         first = compared[0]
         if len({digests[i] for i in compared}) == 1:
             for i in compared[1:]:
                 out[i] = RejectedLog.with_reason(paths[i], f"a copy of {paths[first]} (the same episode: {episode}, "
-                                                           "same content): counted once")
+                                                           "same content): counted once", "duplicate")
             continue
         for i in compared:
             others = ", ".join(str(paths[j]) for j in compared if j != i)
             out[i] = RejectedLog.with_reason(paths[i], f"the same episode ({episode}, same code) as {others}, but "
-                                                       "different content: none of them is counted")
+                                                       "different content: none of them is counted", "conflict")
     return out

@@ -25,25 +25,68 @@ RUN_METADATA = "fuzzynav.run"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
+LEFT_OUT_KINDS = {
+    # the log was not read, on purpose
+    "not-regular-file": "a FIFO, device, socket or directory named *.mcap: never opened",
+    "duplicate": "a copy of another log of the same episode: counted once",
+    "conflict": "the same episode as another log, with different content: none of them counted",
+    # the log could not be read or believed
+    "cannot-read": "missing, no permission, or a directory that cannot be listed",
+    "too-large": "larger than any episode log",
+    "not-mcap": "not an MCAP file",
+    "crc": "a chunk, data-section or summary CRC does not match: damaged content",
+    "damaged": "the MCAP structure is broken (records, sizes, compression)",
+    "metadata": "the fuzzynav.run metadata is missing or fails its checks",
+    "schema": "a message is not JSON, or a field the analysis reads is missing, mistyped or out of range",
+    "episode": "the messages disagree with each other (steps, times, positions, counts)",
+    # the log was read, its episode did not finish
+    "truncated": "the file ends before the MCAP summary (a killed run or a cut copy)",
+    "incomplete": "no /episode outcome",
+    "error": "the episode raised",
+    "interrupted": "the episode was stopped",
+}
+"""Why a log is left out of the statistics: the ``kind`` of each row of the report's *Logs left out* table."""
+SKIPPED_KINDS = ("not-regular-file", "duplicate", "conflict")  # left out without being read
+
+
 class LogError(Exception):
-    """A log cannot be read as a fuzzynav episode; the message names the file and what is wrong."""
+    """A log cannot be read as a fuzzynav episode; the message names the file and what is wrong, ``kind`` says
+    which check failed (a key of :data:`LEFT_OUT_KINDS`)."""
+
+    def __init__(self, message: str, kind: str = "damaged") -> None:
+        super().__init__(message)
+        self.kind = kind
+
+    def __reduce__(self):  # type: ignore[override]  # keep the kind across processes (Exception pickles args)
+        return LogError, (str(self), self.kind)
+
+
+def mcap_error_kind(message: str) -> str:
+    """The :data:`LEFT_OUT_KINDS` key of an :class:`analysis.mcap_verify.McapError` message."""
+    if message.startswith("not an MCAP file"):
+        return "not-mcap"
+    if "CRC mismatch" in message:
+        return "crc"
+    return "too-large" if "larger than any episode log" in message else "damaged"
 
 
 class RejectedLog(type(Path())):  # type: ignore[misc]  # the concrete Path class of this platform
     """A path that :func:`find_logs` will not let the analysis read (not a regular file, the same episode as
-    another log, ...), with the reason; opening it raises :class:`LogError` with that reason. It survives
-    pickling (the analysis's worker processes receive paths)."""
+    another log, ...), with the reason and its ``kind`` (:data:`LEFT_OUT_KINDS`); opening it raises
+    :class:`LogError` with both. It survives pickling (the analysis's worker processes receive paths)."""
 
     reason: str
+    kind: str
 
     @classmethod
-    def with_reason(cls, path: str | Path, reason: str) -> RejectedLog:
+    def with_reason(cls, path: str | Path, reason: str, kind: str = "cannot-read") -> RejectedLog:
         rejected = cls(path)
         rejected.reason = reason
+        rejected.kind = kind
         return rejected
 
     def __reduce__(self):  # type: ignore[override]
-        return RejectedLog.with_reason, (str(self), self.reason)
+        return RejectedLog.with_reason, (str(self), self.reason, self.kind)
 
 
 def file_kind(mode: int) -> str:
@@ -57,38 +100,44 @@ def file_kind(mode: int) -> str:
 
 def regular_file_problem(path: Path) -> str | None:
     """Why ``path`` cannot be read as a log without opening it (missing, not a regular file), or None."""
+    problem = _file_problem(path)
+    return problem[1] if problem else None
+
+
+def _file_problem(path: Path) -> tuple[str, str] | None:
+    """(kind, reason) of :func:`regular_file_problem`, or None."""
     try:
         st = os.stat(path)
     except OSError as err:
-        return f"cannot read: {err.strerror or err}"
+        return "cannot-read", f"cannot read: {err.strerror or err}"
     if not stat.S_ISREG(st.st_mode):
-        return f"{file_kind(st.st_mode)}, not a regular file: skipped, not opened"
+        return "not-regular-file", f"{file_kind(st.st_mode)}, not a regular file: skipped, not opened"
     return None
 
 
 def read_log_bytes(path: Path) -> bytes:
     """The whole file, after checking that it is a regular file of a plausible size; :class:`LogError`."""
     if isinstance(path, RejectedLog):
-        raise LogError(f"{path}: {path.reason}")
-    problem = regular_file_problem(path)
+        raise LogError(f"{path}: {path.reason}", path.kind)
+    problem = _file_problem(path)
     if problem:
-        raise LogError(f"{path}: {problem}")
+        raise LogError(f"{path}: {problem[1]}", problem[0])
     try:
         # O_NONBLOCK: should the path have become a FIFO since the check, opening it still returns at once
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as err:
-        raise LogError(f"{path}: cannot read: {err.strerror or err}") from None
+        raise LogError(f"{path}: cannot read: {err.strerror or err}", "cannot-read") from None
     with os.fdopen(fd, "rb") as f:
         st = os.fstat(f.fileno())
         if not stat.S_ISREG(st.st_mode):
-            raise LogError(f"{path}: {file_kind(st.st_mode)}, not a regular file: skipped")
+            raise LogError(f"{path}: {file_kind(st.st_mode)}, not a regular file: skipped", "not-regular-file")
         if st.st_size > MAX_FILE_BYTES:
             raise LogError(f"{path}: {st.st_size / 2**20:.0f} MB, larger than any episode log "
-                           f"({MAX_FILE_BYTES // 2**20} MB)")
+                           f"({MAX_FILE_BYTES // 2**20} MB)", "too-large")
         try:
             return f.read(MAX_FILE_BYTES + 1)
         except OSError as err:
-            raise LogError(f"{path}: cannot read: {err.strerror or err}") from None
+            raise LogError(f"{path}: cannot read: {err.strerror or err}", "cannot-read") from None
 
 
 def is_complete(path: Path) -> bool:
@@ -124,7 +173,7 @@ class LogFile:
             self._content: McapContent = read_mcap(data, None if topics is None else frozenset(topics))
         except McapError as err:
             damaged = "" if str(err).startswith("not an MCAP file") else "damaged MCAP file: "
-            raise LogError(f"{self.path}: {damaged}{err}") from None
+            raise LogError(f"{self.path}: {damaged}{err}", mcap_error_kind(str(err))) from None
         self.complete = self._content.complete
         self._topics = {cid: topic for cid, (topic, _sid, _enc) in self._content.channels.items()}
         self._check_channels()
@@ -143,25 +192,27 @@ class LogFile:
         seen: set[str] = set()
         for topic, sid, encoding in self._content.channels.values():
             if topic in seen:
-                raise LogError(f"{self.path}: two channels carry {topic}")
+                raise LogError(f"{self.path}: two channels carry {topic}", "schema")
             seen.add(topic)
             expected = TOPIC_SCHEMAS.get(topic)
             if expected is None:
                 continue
             if encoding != "json":
-                raise LogError(f"{self.path}: {topic} is encoded as {encoding!r}, not json")
+                raise LogError(f"{self.path}: {topic} is encoded as {encoding!r}, not json", "schema")
             if sid:
                 name = self._content.schemas[sid][0]
                 if name != expected:
-                    raise LogError(f"{self.path}: {topic} declares schema {name!r}, expected {expected!r}")
+                    raise LogError(f"{self.path}: {topic} declares schema {name!r}, expected {expected!r}",
+                                   "schema")
 
     def metadata(self) -> dict[str, str]:
         """The ``fuzzynav.run`` metadata record (exactly one)."""
         records = [m for name, m in self._content.metadata if name == RUN_METADATA]
         if not records:
-            raise LogError(f"{self.path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)")
+            raise LogError(f"{self.path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)", "metadata")
         if len(records) > 1:
-            raise LogError(f"{self.path}: {len(records)} '{RUN_METADATA}' metadata records (expected one)")
+            raise LogError(f"{self.path}: {len(records)} '{RUN_METADATA}' metadata records (expected one)",
+                           "metadata")
         return dict(records[0])
 
     def raw_messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
@@ -195,7 +246,7 @@ def decode(path: Path, topic: str, data: bytes) -> Any:
     try:
         return orjson.loads(data)
     except orjson.JSONDecodeError as err:
-        raise LogError(f"{path}: a {topic} message is not valid JSON ({err})") from None
+        raise LogError(f"{path}: a {topic} message is not valid JSON ({err})", "schema") from None
 
 
 PARALLEL_MIN_LOGS = 200  # fewer logs are read in this process: starting worker processes costs about a second
@@ -227,7 +278,7 @@ def episode_summary(path: Path) -> dict[str, Any]:
     try:
         check_metadata(meta)
     except CheckError as err:
-        raise LogError(f"{path}: metadata {err}") from None
+        raise LogError(f"{path}: metadata {err}", "metadata") from None
     row: dict[str, Any] = {"log": str(path), "scenario": meta["scenario"], "strategy": meta["strategy"],
                            "h_wait": int(meta["h_wait"]), "controller": meta["controller"],
                            "perception": meta["perception"], "seed": int(meta["seed"]),
@@ -236,6 +287,6 @@ def episode_summary(path: Path) -> dict[str, Any]:
         try:
             check_message(topic, msg)
         except CheckError as err:
-            raise LogError(f"{path}: /episode message does not match its schema: {err}") from None
+            raise LogError(f"{path}: /episode message does not match its schema: {err}", "schema") from None
         row.update(outcome=msg["outcome"], steps=msg["steps"], time_s=msg["time_s"], contacts=msg["contacts"])
     return row

@@ -1,8 +1,10 @@
 """Per-episode metrics computed from a log alone (definitions in the README, units in the column names).
 
-``metrics_table(paths)`` gives one row per readable, finished episode plus a list of the logs left out
-(unreadable, truncated, or outcome ``error``/``interrupted``) with the reason. ``analyse_logs(paths)`` adds
-each episode's group (:mod:`analysis.run_parameters`): what the report and the sweep's summary pool.
+``metrics_table(paths)`` gives one row per readable, finished episode plus a list of the logs left out, each
+with its ``kind`` (:data:`analysis.logs.LEFT_OUT_KINDS`: a copy of another log, not a regular file, a CRC or
+schema check that failed, truncated, outcome ``error``/``interrupted``, ...) and the reason.
+``analyse_logs(paths)`` adds each episode's group (:mod:`analysis.run_parameters`): what the report and the
+sweep's summary pool.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import pandas as pd
 import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
-from analysis.logs import LogError, find_logs, read_logs
+from analysis.logs import SKIPPED_KINDS, LogError, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from fuzzynav.portable_math import dist, dot2, norm2
 
@@ -206,8 +208,9 @@ def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
 
 
 def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:
-    """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with their outcome
-    (``unreadable`` when there is none) and the reason. Each row and left-out log whose metadata could be read
+    """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with their outcome (when
+    unread: ``skipped`` on purpose — a copy, a conflict, not a regular file — else ``unreadable``), their ``kind``
+    and the reason. Each row and left-out log whose metadata could be read
     carries its run parameters as JSON text in ``RUN_PARAMETERS``: identical texts (episodes of one
     configuration) are one object, so a worker sends each configuration once per chunk."""
     rows, excluded = [], []
@@ -227,11 +230,13 @@ def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[lis
         try:
             log = load_episode(path)
         except LogError as err:
-            excluded.append({"log": str(path), "outcome": "unreadable", "reason": str(err)})
+            excluded.append({"log": str(path), "outcome": "skipped" if err.kind in SKIPPED_KINDS else "unreadable",
+                             "kind": err.kind, "reason": str(err)})
             continue
         if not log.complete:
             excluded.append({"log": str(path), "outcome": log.outcome, RUN_PARAMETERS: parameters(log),
-                             "seed": seed(log), "reason": "truncated: the file ends before the MCAP summary "
+                             "seed": seed(log), "kind": "truncated",
+                             "reason": "truncated: the file ends before the MCAP summary "
                              f"(killed run or damaged copy; {log.steps} steps readable, outcome {log.outcome})"})
             continue
         if log.outcome in EXCLUDED_OUTCOMES:
@@ -239,7 +244,7 @@ def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[lis
                    "error": f"episode raised: {(log.episode or {}).get('reason', '')}",
                    "interrupted": "episode interrupted"}[log.outcome]
             excluded.append({"log": str(path), "outcome": log.outcome, RUN_PARAMETERS: parameters(log),
-                             "seed": seed(log), "reason": why})
+                             "seed": seed(log), "kind": log.outcome, "reason": why})
             continue
         row = episode_metrics(log, options)
         row[RUN_PARAMETERS] = parameters(log)
@@ -260,15 +265,16 @@ def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = N
     (:func:`analysis.logs.read_logs`); the result is the same as with ``jobs=1``."""
     rows, excluded = _read(paths, options, jobs)
     table = pd.DataFrame(rows)
-    return table.drop(columns=[RUN_PARAMETERS], errors="ignore"), pd.DataFrame(excluded, columns=["log", "reason"])
+    return (table.drop(columns=[RUN_PARAMETERS], errors="ignore"),
+            pd.DataFrame(excluded, columns=["log", "kind", "reason"]))
 
 
 @dataclass
 class Analysis:
     """Episodes of a set of logs with their groups: ``episodes`` has the metrics, each group dimension's value
     (full key), ``scenario_label``, ``variant`` and ``setting`` (see :class:`Grouping`), rows in the groups'
-    natural order then by seed; ``excluded`` the logs left out (log, outcome, reason, and their labels when
-    the metadata was readable); ``runs`` one parameter dict per episode row."""
+    natural order then by seed; ``excluded`` the logs left out (log, outcome, kind, reason, and their labels
+    when the metadata was readable); ``runs`` one parameter dict per episode row."""
 
     episodes: pd.DataFrame
     excluded: pd.DataFrame
@@ -290,9 +296,18 @@ def analyse_logs(paths: Iterable[str | Path], options: MetricOptions | None = No
     episodes = pd.DataFrame([{**{k: v for k, v in r.items() if k != RUN_PARAMETERS}, **labels[r[RUN_PARAMETERS]]}
                              for r in rows])
     left_out = pd.DataFrame([{"log": e["log"], "outcome": e["outcome"], **_left_out_labels(e, distinct, labels),
-                              "reason": e["reason"]} for e in excluded],
-                            columns=["log", "outcome", *EPISODE_PARAMETERS, "scenario_label", "variant", "reason"])
+                              "kind": e["kind"], "reason": e["reason"]} for e in excluded],
+                            columns=["log", "outcome", *EPISODE_PARAMETERS, "scenario_label", "variant", "kind",
+                                     "reason"])
     return Analysis(episodes, left_out, grouping, runs)
+
+
+def left_out_counts(excluded: pd.DataFrame) -> str:
+    """How many logs were left out of each kind, most first: ``2 duplicate, 1 crc`` (empty when none)."""
+    if excluded.empty or "kind" not in excluded:
+        return ""
+    counts = excluded["kind"].value_counts(sort=False)
+    return ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
 def _left_out_labels(entry: dict, distinct: dict[str, dict], labels: dict[str, dict]) -> dict[str, Any]:

@@ -4,8 +4,9 @@ Writes ``report.md`` and ``report.html`` with PNG plots beside them, ``episodes.
 episode, every metric, its group's labels), ``groups.csv`` (mean and 95 % bootstrap interval of every metric
 per group) and ``paired.csv`` (paired differences between variants on the same scenario and seed). A group is
 every combination of the run parameters whose values differ among the logs (:mod:`analysis.run_parameters`):
-two settings of any parameter are never pooled. Logs that cannot be used (unreadable, truncated, outcome
-``error``) are listed with the reason and left out of the statistics. Everything is computed from the logs.
+two settings of any parameter are never pooled. Logs that are not used (a copy of another log of the same
+episode, not a regular file, damaged, failing a check, truncated, outcome ``error``/``interrupted``) are listed
+with their kind and reason and left out of the statistics. Everything is computed from the logs.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import pandas as pd
 
 from analysis import plots
 from analysis.cli_args import OneLineParser, jobs, number_in, unwritable_dir
-from analysis.metrics import Analysis, MetricOptions, analyse_logs
+from analysis.metrics import Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 
@@ -226,10 +227,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     sources = [str(p) for p in paths]
     analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance)
     df, grouping = analysis.episodes, analysis.grouping
-    excluded = analysis.excluded[["log", "outcome", "scenario_label", "variant", "reason"]].rename(
+    excluded = analysis.excluded[["log", "kind", "outcome", "scenario_label", "variant", "reason"]].rename(
         columns={"scenario_label": "scenario"})
     report = Report("fuzzynav report")
-    report.add("p", f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out.")
+    kinds = left_out_counts(analysis.excluded)
+    report.add("p", f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out"
+                    + (f" ({kinds})." if kinds else "."))
     if df.empty:
         report.add("h2", "Logs left out")
         report.add("table", excluded)
@@ -326,7 +329,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
     if len(analysis.excluded):
-        print(f"{len(analysis.excluded)} log(s) left out, each with its reason: see 'Logs left out' in the report")
+        print(f"{len(analysis.excluded)} log(s) left out ({left_out_counts(analysis.excluded)}), each with its "
+              "reason: see 'Logs left out' in the report")
     return 0
 
 

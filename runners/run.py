@@ -11,7 +11,6 @@ directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per 
 from __future__ import annotations
 
 import functools
-import hashlib
 import logging
 import os
 import signal
@@ -27,6 +26,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from fuzzynav import episode_identity
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.scenario import Scenario
@@ -128,17 +128,16 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
 
 
 def config_hash(config_yaml: str, seed: int) -> str:
-    """What makes an episode the same episode: resolved config (minus ``resume``), seed, fuzzynav version."""
+    """The ``config_hash`` a log records (:func:`fuzzynav.episode_identity.config_hash`: resolved config minus
+    ``resume``, seed, this fuzzynav version); an integrity check of the metadata, not the episode's identity."""
     from runners.provenance import provenance
 
-    body = "\n".join(line for line in config_yaml.splitlines() if not line.startswith("resume:"))
-    text = f"{body}\nseed={seed}\nfuzzynav={provenance()['fuzzynav_version']}"
-    return hashlib.sha256(text.encode()).hexdigest()
+    return episode_identity.config_hash(config_yaml, seed, provenance()["fuzzynav_version"])
 
 
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory. With ``resume=true`` an
-    episode (:func:`runners.sweep_resume.episode_key`: config, seed, fuzzynav version) whose log passes a full
+    episode (:func:`fuzzynav.episode_identity.episode_key`: config, seed, fuzzynav version) whose log passes a full
     verification and ended goal/collision/timeout is kept (:func:`runners.sweep_resume.keep`); the others run
     again.
 
@@ -166,7 +165,7 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
             scenario = inputs.scenarios[seed]
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
-            key = sweep_resume.episode_key(config_yaml, seed, version)  # identity whatever the seed batching
+            key = episode_identity.episode_key(config_yaml, seed, version)  # identity whatever the seed batching
             kept = sweep_resume.keep(path, key, sweep_dir) if plain.get("resume") else None
             if kept is not None:
                 kept.update(kept=True, reason="resumed: complete log kept")

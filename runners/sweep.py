@@ -179,7 +179,9 @@ class SweepProgress(Callback):
                   "episodes run again)")
         try:
             if config.get("resume", False):
-                _PLANS[str(sweep_dir)] = sweep_resume.prepare(sweep_dir, jobs=-1)
+                plan = _PLANS[str(sweep_dir)] = sweep_resume.prepare(sweep_dir, jobs=-1)
+                for line in plan.skipped:  # e.g. a FIFO named x.mcap: left alone, never opened
+                    print(f"resume: skipped {line}")
             else:
                 sweep_resume.restore(sweep_dir)
                 existing = sum(1 for p in job_logs(sweep_dir) if is_complete(p))
@@ -237,8 +239,8 @@ def summarise(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = None
     ``analysis``, the same logs already analysed) and outcomes per group (scenario label × variant).
 
     Success is the metrics' ``success`` column (:func:`analysis.run_parameters.is_success`): the summary and
-    the report cannot disagree. Logs left out of the statistics (unreadable, truncated, outcome ``error`` or
-    ``interrupted``) are rows with their outcome and reason, and ``left_out`` in their group's row."""
+    the report cannot disagree. Logs left out of the statistics (a copy, damaged, truncated, outcome ``error`` or
+    ``interrupted``, ...) are rows with their outcome, kind and reason, and ``left_out`` in their group's row."""
     import pandas as pd
 
     from analysis.metrics import analyse_logs
@@ -247,7 +249,7 @@ def summarise(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = None
     ok, bad = analysis.episodes, analysis.excluded
     dims = [k for k in analysis.grouping.dimensions if k not in ("controller", "perception")]
     columns = ["log", "scenario", "strategy", "h_wait", "controller", "perception", *dims, "scenario_label",
-               "variant", "seed", *SUMMARY_COLUMNS, "reason"]
+               "variant", "seed", *SUMMARY_COLUMNS, "kind", "reason"]
     parts = [frame.reindex(columns=columns) for frame in (ok, bad) if not frame.empty]
     if not parts:
         return pd.DataFrame(columns=columns), pd.DataFrame()
@@ -272,7 +274,7 @@ def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = No
     """Write ``summary.csv`` (one row per episode log) and print the outcome table."""
     import pandas as pd
 
-    from analysis.metrics import analyse_logs
+    from analysis.metrics import analyse_logs, left_out_counts
     from analysis.run_parameters import provenance_warning
 
     analysis = analysis or analyse_logs([sweep_dir], jobs=jobs)
@@ -283,9 +285,9 @@ def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = No
     write_whole(sweep_dir / "summary.csv", lambda f: episodes.to_csv(f, index=False))  # whole or absent
     with pd.option_context("display.width", 200, "display.max_rows", 500, "display.max_colwidth", 80):
         print(table.to_string(index=False, na_rep="-", float_format=lambda x: f"{x:.2f}" if not math.isnan(x) else "-"))
-    unreadable = int((episodes["outcome"] == "unreadable").sum())
-    print(f"{len(episodes)} episode logs in {sweep_dir}" + (f" ({unreadable} unreadable)" if unreadable else "")
-          + f"; rows in {sweep_dir / 'summary.csv'}")
+    kinds = left_out_counts(analysis.excluded)
+    print(f"{len(episodes)} episode logs in {sweep_dir}" + (f" ({len(analysis.excluded)} left out: {kinds})" if kinds
+                                                            else "") + f"; rows in {sweep_dir / 'summary.csv'}")
     warning = provenance_warning(analysis.grouping, analysis.runs)
     if warning:
         print(warning)

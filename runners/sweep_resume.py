@@ -1,11 +1,10 @@
 """Resuming a sweep: every episode once, each kept log verified in full, failed episodes run again.
 
-An episode is identified by :func:`episode_key`, computed from its ``fuzzynav.run`` metadata: the resolved
-config, its seed and the fuzzynav version — like the ``config_hash`` stored there, but without the keys that only
-say how seeds were batched into jobs (``seed``, the job's first seed, and ``episodes``), so that ``seed=0
-episodes=4`` and ``seed=0,2 episodes=2`` run the same four episodes. Not by where its log lies: a resume whose
-jobs are numbered or batched differently from the earlier sweep's (an overlapping but different sweep into the
-same directory) must still find each episode, and must not count it twice.
+An episode is identified by :func:`fuzzynav.episode_identity.episode_key`, computed from its ``fuzzynav.run``
+metadata (the resolved config without the seed-batching keys, its seed and the fuzzynav version) — the same
+identity by which the analysis counts each episode once. Not by where its log lies: a resume whose jobs are
+numbered or batched differently from the earlier sweep's (an overlapping but different sweep into the same
+directory) must still find each episode, and must not count it twice.
 
 Before any job runs, the launching process (holding the directory's lock) verifies every log of the sweep
 directory in full — every chunk's CRC, the summary, the metadata and every message against its schema
@@ -17,7 +16,9 @@ directory in full — every chunk's CRC, the summary, the metadata and every mes
 - ``<episode key>.rerun``: the log of an episode to run again (outcome ``error`` or ``interrupted``, truncated,
   damaged); removed when the episode has been run again;
 - other logs of an episode that has a log above (copies) are removed; logs whose metadata cannot be read at all
-  stay where they are (a re-run of the same name replaces them).
+  stay where they are (a re-run of the same name replaces them);
+- something named ``*.mcap`` that is not a regular file (a FIFO, a device, a directory) is never opened — opening
+  a FIFO blocks until someone writes to it — and stays where it is; :attr:`ResumePlan.skipped` says why.
 
 At the end of the sweep (:func:`restore`) what no job took back — episodes the sweep does not include — returns
 to where it was, or to ``earlier/<that path>`` if a log of this sweep now has that name. ``index.json`` in the
@@ -28,68 +29,61 @@ into the directory restores them first.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from fuzzynav.episode_identity import episode_key_of
 from runners.sweep_paths import holding_dir, job_logs
 
 FINAL_OUTCOMES = ("goal", "collision", "timeout")  # the outcomes a resume keeps; error/interrupted run again
-BATCHING_KEYS = ("seed:", "episodes:", "resume:")  # top-level config lines that do not change an episode
 INDEX = "index.json"
 EARLIER = "earlier"
 
 
 @dataclass(frozen=True)
 class Verdict:
-    """What a full verification of one log found: ``key`` (its :func:`episode_key`, None when not even the
-    metadata is readable), ``ok`` (complete, intact, valid, with a final outcome) and otherwise ``reason``."""
+    """What a full verification of one log found: ``key`` (its episode key, None when not even the
+    metadata is readable), ``ok`` (complete, intact, valid, with a final outcome) and otherwise ``reason``;
+    ``skipped``: not a regular file, never opened."""
 
     path: Path
     key: str | None
     ok: bool
     outcome: str | None = None
     reason: str = ""
+    skipped: bool = False
 
 
 @dataclass(frozen=True)
 class ResumePlan:
     """Counts of :func:`prepare`: logs set aside to keep, episodes to run again, copies removed, logs left in
-    place because they are unreadable."""
+    place because they are unreadable; ``skipped``: one line for each path that is not a regular file (left in
+    place, not opened)."""
 
     kept: int
     rerun: int
     removed: int
     unreadable: int
-
-
-def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:
-    """SHA-256 of what makes an episode the same episode: the resolved config without the seed-batching keys
-    (``BATCHING_KEYS``, top-level lines of the YAML), the episode's seed and the fuzzynav version."""
-    body = "\n".join(line for line in config_yaml.splitlines() if not line.startswith(BATCHING_KEYS))
-    return hashlib.sha256(f"{body}\nseed={seed}\nfuzzynav={fuzzynav_version}".encode()).hexdigest()
-
-
-def _key_of(meta: dict[str, str] | None) -> str | None:
-    if not meta or not all(isinstance(meta.get(k), str) for k in ("config", "seed", "fuzzynav_version")):
-        return None
-    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"])
+    skipped: tuple[str, ...] = ()
 
 
 def verify(path: Path) -> Verdict:
     """Read one log in full and decide whether a resume may keep it (see :class:`Verdict`)."""
     from analysis.log_check import CheckError, check_message, check_metadata
-    from analysis.logs import LogError, LogFile
+    from analysis.logs import LogError, LogFile, regular_file_problem
 
+    problem = regular_file_problem(path)  # before anything opens it: opening a FIFO blocks
+    if problem:
+        return Verdict(path, None, False, None, problem, skipped=True)
     key = _peek_key(path)
     try:
         log = LogFile(path)  # every chunk decompressed and CRC-checked, the summary CRC-checked
         meta = log.metadata()
         check_metadata(meta)  # includes: the config hash is the hash of the config and seed
-        key = _key_of(meta)
+        key = episode_key_of(meta)
         if not log.complete:
             return Verdict(path, key, False, None, "truncated (no MCAP summary)")
         outcome = None
@@ -113,15 +107,19 @@ def _verify_all(paths: list[Path]) -> list[Verdict]:
 def _peek_key(path: Path) -> str | None:
     """The episode key from the unverified metadata: which episode a damaged log belongs to (never believed for
     anything else)."""
-    from analysis.logs import RUN_METADATA
+    from analysis.logs import RUN_METADATA, regular_file_problem
     from analysis.mcap_verify import peek_metadata
 
+    if regular_file_problem(path):  # never open a FIFO (it blocks) or a device
+        return None
     try:
-        with open(path, "rb") as f:
+        # O_NONBLOCK: should the path have become a FIFO since the check, opening it still returns at once
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        with os.fdopen(fd, "rb") as f:
             meta = peek_metadata(f, RUN_METADATA)
     except Exception:  # unverified bytes: whatever goes wrong, the answer is "unknown"
         return None
-    return _key_of(meta)
+    return episode_key_of(meta)
 
 
 # -- the launching process -----------------------------------------------------------------------------------------
@@ -137,7 +135,10 @@ def prepare(sweep_dir: Path, jobs: int = 1) -> ResumePlan:
     verdicts = [v for chunk in read_logs(_verify_all, job_logs(sweep_dir), jobs) for v in chunk]
     by_episode: dict[str, list[Verdict]] = {}
     unreadable = 0
+    skipped = tuple(f"{v.path}: {v.reason}" for v in verdicts if v.skipped)
     for verdict in verdicts:
+        if verdict.skipped:
+            continue
         if verdict.key is None:
             unreadable += 1
         else:
@@ -156,7 +157,7 @@ def prepare(sweep_dir: Path, jobs: int = 1) -> ResumePlan:
                 other.path.unlink()
                 removed += 1
     _write_index(hold, index)
-    return ResumePlan(kept, rerun, removed, unreadable)
+    return ResumePlan(kept, rerun, removed, unreadable, skipped)
 
 
 def restore(sweep_dir: Path) -> tuple[int, int]:

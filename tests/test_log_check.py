@@ -5,6 +5,10 @@ verified reader reads a truncated log up to its last whole record and refuses da
 from __future__ import annotations
 
 import copy
+import os
+import re
+import shutil
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -14,6 +18,7 @@ from analysis.logs import LogFile
 from analysis.mcap_verify import McapError, read_mcap
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
+from tests.conftest import ROOT
 from tests.log_surgery import record_offsets
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
@@ -121,3 +126,38 @@ def test_a_closed_log_with_a_changed_byte_is_refused_wherever_the_byte_is(record
         except McapError:
             continue
         assert not content.complete, f"a changed byte at {at} went unnoticed"  # the closing magic itself
+
+
+BAD_LOGS = ROOT / "tests" / "bad_inputs" / "logs"
+BAD_LOG_KINDS = {"empty.mcap": "not-mcap", "random_bytes.mcap": "not-mcap", "no_run_metadata.mcap": "metadata",
+                 "message_off_schema.mcap": "schema", "x_cm_null.mcap": "schema", "outcome_unknown.mcap": "schema",
+                 "chunk_crc_digit.mcap": "crc", "data_crc.mcap": "crc", "summary_crc.mcap": "crc",
+                 "trailing_bytes.mcap": "damaged", "config_bad_yaml.mcap": "metadata", "h_wait_abc.mcap": "metadata",
+                 "tpt_ragged.mcap": "schema", "truncated_mid_chunk.mcap": "truncated"}
+
+
+def test_left_out_logs_carry_the_kind_of_check_that_failed(tmp_path, recorded_logs, capsys):  # noqa: F811
+    """Each left-out log says what it is (a copy, not a regular file) or which check it failed, in the table and
+    in the report's counts, not just "unreadable"."""
+    from analysis import report
+    from analysis.metrics import analyse_logs
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for name in BAD_LOG_KINDS:
+        shutil.copy(BAD_LOGS / name, logs / name)
+    shutil.copy(recorded_logs[0], logs / "good.mcap")
+    shutil.copy(recorded_logs[0], logs / "good_copy.mcap")
+    os.mkfifo(logs / "fifo.mcap")
+    analysis = analyse_logs([logs])
+    left_out = analysis.excluded.assign(name=[Path(p).name for p in analysis.excluded["log"]]).set_index("name")
+    assert left_out["kind"].to_dict() == {**BAD_LOG_KINDS, "good_copy.mcap": "duplicate",
+                                          "fifo.mcap": "not-regular-file"}
+    assert left_out.loc["good_copy.mcap", "outcome"] == left_out.loc["fifo.mcap", "outcome"] == "skipped"
+    assert left_out.loc["chunk_crc_digit.mcap", "outcome"] == "unreadable"
+    assert len(analysis.episodes) == 1
+    assert report.main([str(logs), "--out", str(tmp_path / "report")]) == 0
+    assert ("16 log(s) left out (4 schema, 3 crc, 3 metadata, 2 not-mcap, 1 damaged, 1 duplicate, "
+            "1 not-regular-file, 1 truncated)") in capsys.readouterr().out
+    markdown = (tmp_path / "report" / "report.md").read_text()
+    assert re.search(r"\|\s*log\s*\|\s*kind\s*\|", markdown) and "not-regular-file" in markdown

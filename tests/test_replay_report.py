@@ -6,6 +6,7 @@ import shutil
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
 
 from analysis.report import build_report
@@ -138,3 +139,23 @@ def test_report_html_renders_in_headless_chromium(small_sweep):
                           page.as_uri()], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr[-2000:]
     assert "<title>report: ok</title>" in res.stdout, res.stdout[:500]
+
+
+def test_the_same_episodes_batched_differently_in_two_sweeps_are_counted_once(tmp_path):
+    """Sweep A runs seeds 0-1 in one job (``seed=0 episodes=2``), sweep B the same two episodes in two jobs
+    (``seed=0,1 episodes=1``): their logs' config and ``config_hash`` differ (the batching is in the config), the
+    episodes do not. ``analysis.report A B`` counts two episodes, lists B's two logs as duplicates and says so."""
+    common = ["-m", "runners.sweep", "sweep=quick", "scenario=head_on", "planner=auto", "hydra.launcher.n_jobs=2"]
+    dirs = {"a": (tmp_path / "a", ["seed=0", "episodes=2"]), "b": (tmp_path / "b", ["seed=0,1", "episodes=1"])}
+    for sweep_dir, batching in dirs.values():
+        done = subprocess.run([sys.executable, *common, *batching, f"hydra.sweep.dir={sweep_dir}"], cwd=ROOT,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr[-2000:]
+    out = tmp_path / "report"
+    done = subprocess.run([sys.executable, "-m", "analysis.report", str(dirs["a"][0]), str(dirs["b"][0]), "--out",
+                           str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert "2 log(s) left out (2 duplicate)" in done.stdout, done.stdout
+    episodes = pd.read_csv(out / "episodes.csv")
+    assert sorted(episodes["seed"]) == [0, 1] and all(str(dirs["a"][0]) in log for log in episodes["log"])
+    assert "2 episodes analysed, 2 left out (2 duplicate)" in (out / "report.md").read_text()

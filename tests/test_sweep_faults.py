@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from analysis.logs import LogFile, episode_summary, is_complete, read_metadata
-from runners import sweep_resume
+from fuzzynav.episode_identity import episode_key_of
 from tests.conftest import ROOT, load_controller, load_scenario
 from tests.tmpfs import tmpfs_mounter
 
@@ -83,8 +83,8 @@ def problem_lines(stderr: str) -> list[str]:
 
 
 def identities(paths: list[Path]) -> list[str]:
-    """Each log's episode (config without the seed batching, seed, version: runners.sweep_resume.episode_key)."""
-    return [sweep_resume._key_of(read_metadata(p)) for p in paths]
+    """Each log's episode (config without the seed batching, seed, version: fuzzynav.episode_identity)."""
+    return [episode_key_of(read_metadata(p)) for p in paths]
 
 
 def test_second_sweep_is_refused_and_sigterm_stops_submitit_jobs(tmp_path):

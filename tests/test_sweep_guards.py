@@ -20,6 +20,7 @@ from omegaconf import OmegaConf
 
 from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
 from fuzzynav.config import episode_config_from_dict
+from fuzzynav.episode_identity import episode_key, episode_key_of
 from fuzzynav.fuzzy_fast import FastEvaluator
 from runners import stop, sweep_control, sweep_lock, sweep_resume
 from runners.mcap_log import SDK_LOGGER, EpisodeLogWriter, LogWriteError, partial_path
@@ -191,7 +192,7 @@ def test_resume_sets_logs_aside_each_episode_once_and_restores_the_others(tmp_pa
     copy.parent.mkdir()
     shutil.copy2(a, copy)
     c.write_bytes(c.read_bytes()[: c.stat().st_size // 2])
-    key = {p.stem: sweep_resume._key_of(read_metadata(p)) for p in (a, b)}
+    key = {p.stem: episode_key_of(read_metadata(p)) for p in (a, b)}
     key["c"] = sweep_resume._peek_key(c)  # from the unverified metadata of the truncated log
     assert key["c"] is not None and len(set(key.values())) == 3
 
@@ -208,7 +209,7 @@ def test_resume_sets_logs_aside_each_episode_once_and_restores_the_others(tmp_pa
     assert sweep_resume.held_count(sweep_dir) == 1
     assert sweep_resume.restore(sweep_dir) == (0, 1)  # b is not part of this sweep: kept, under earlier/
     assert is_complete(sweep_dir / "earlier" / "1" / "b.mcap") and not c.exists()
-    assert sweep_resume._key_of(read_metadata(sweep_dir / "earlier" / "1" / "b.mcap")) == key["b"]
+    assert episode_key_of(read_metadata(sweep_dir / "earlier" / "1" / "b.mcap")) == key["b"]
 
 
 def test_the_launcher_does_not_start_jobs_after_a_stop(tmp_path):
@@ -227,9 +228,35 @@ def test_an_episode_is_the_same_whatever_the_seed_batching():
     """``seed=0 episodes=4`` and ``seed=2 episodes=2`` both run the episode of seed 3: one key; any other change
     of the config, the seed or the version is another episode."""
     config = "scenario:\n  name: head_on\nseed: {first}\nepisodes: {n}\nresume: {resume}\ndt: 1.0\n"
-    key = sweep_resume.episode_key
+    key = episode_key
     same = key(config.format(first=0, n=4, resume="false"), 3, "1.0")
     assert key(config.format(first=2, n=2, resume="true"), 3, "1.0") == same
     assert key(config.format(first=0, n=4, resume="false").replace("dt: 1.0", "dt: 0.5"), 3, "1.0") != same
     assert key(config.format(first=0, n=4, resume="false"), 2, "1.0") != same
     assert key(config.format(first=0, n=4, resume="false"), 3, "1.1") != same
+    import analysis.log_inputs
+
+    assert analysis.log_inputs.episode_key_of is sweep_resume.episode_key_of  # one identity: resume and analysis
+
+
+def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
+    """A FIFO named ``x.mcap`` in the sweep directory: opening it would block until someone writes to it. The
+    resume skips it with a line naming it, leaves it in place, and sets the real log aside. Run in a subprocess
+    under a timeout, so that a regression fails instead of hanging the suite."""
+    log = tmp_path / "0" / "a.mcap"
+    episode(log, 0)
+    fifo = tmp_path / "1" / "x.mcap"
+    fifo.parent.mkdir()
+    os.mkfifo(fifo)
+    code = ("import sys; from pathlib import Path; from runners.sweep_resume import prepare; "
+            "plan = prepare(Path(sys.argv[1])); print(plan.kept, plan.rerun, plan.unreadable); "
+            "print(*plan.skipped, sep='\\n')")
+    try:
+        done = subprocess.run([sys.executable, "-c", code, str(tmp_path)], cwd=ROOT, capture_output=True, text=True,
+                              timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the resume blocked on the FIFO")
+    assert done.returncode == 0 and not done.stderr, done.stderr
+    assert done.stdout.splitlines() == ["1 0 0", f"{fifo}: a FIFO, not a regular file: skipped, not opened"]
+    assert fifo.is_fifo() and not log.exists() and sweep_resume.held_count(tmp_path) == 1
+    assert sweep_resume.restore(tmp_path) == (1, 0) and is_complete(log)

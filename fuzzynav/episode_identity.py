@@ -1,0 +1,50 @@
+"""What makes two logs the same episode: one definition for the sweep's resume and the analysis.
+
+Pure functions over a log's ``fuzzynav.run`` metadata (or the values it is written from): the resolved config
+as YAML text, the episode's seed and the fuzzynav version.
+
+* :func:`episode_key` — the episode's identity: the config without the top-level keys that only say how seeds
+  were batched into jobs (``seed``, a job's first seed, ``episodes``, and ``resume``), plus the episode's own seed
+  and the fuzzynav version. ``seed=0 episodes=4`` and ``seed=0,2 episodes=2`` run the same four episodes, so the
+  resume keeps each once and the analysis counts each once, whatever the directories and batching.
+* :func:`config_hash` — the ``config_hash`` written into every log (the config without ``resume`` only, so it
+  still depends on the batching). It is kept as it is because the datasets' manifests hash the logs' content; it
+  serves as the metadata's integrity check (:func:`analysis.log_check.check_metadata`), not as the identity.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Mapping
+from typing import Any
+
+BATCHING_KEYS = ("seed", "episodes", "resume")  # top-level config keys that do not change an episode
+HASH_IGNORED_KEYS = ("resume",)  # what the logged config_hash leaves out (unchanged: logs must stay the same)
+IDENTITY_FIELDS = ("config", "seed", "fuzzynav_version")  # the metadata fields the identity is computed from
+
+
+def _digest(config_yaml: str, ignored: tuple[str, ...], seed: int | str, fuzzynav_version: str) -> str:
+    """SHA-256 of the config's lines except the top-level ``<key>:`` lines of ``ignored`` (nested keys are
+    indented, so a ``seed`` inside a section is kept), the seed and the version."""
+    prefixes = tuple(f"{key}:" for key in ignored)
+    body = "\n".join(line for line in config_yaml.splitlines() if not line.startswith(prefixes))
+    return hashlib.sha256(f"{body}\nseed={seed}\nfuzzynav={fuzzynav_version}".encode()).hexdigest()
+
+
+def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:
+    """The identity of the episode of ``seed`` run with the resolved config ``config_yaml`` by this fuzzynav
+    version, whatever the seed batching (see the module docstring)."""
+    return _digest(config_yaml, BATCHING_KEYS, seed, fuzzynav_version)
+
+
+def episode_key_of(meta: Mapping[str, Any] | None) -> str | None:
+    """:func:`episode_key` of a ``fuzzynav.run`` metadata record, or None when it lacks the config, the seed or
+    the fuzzynav version as text (a hand-written or damaged record: no identity, never merged with another)."""
+    if not meta or not all(isinstance(meta.get(field), str) for field in IDENTITY_FIELDS):
+        return None
+    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"])
+
+
+def config_hash(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:
+    """The ``config_hash`` a log records: the config without ``resume``, the seed and the version."""
+    return _digest(config_yaml, HASH_IGNORED_KEYS, seed, fuzzynav_version)
