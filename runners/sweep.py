@@ -165,6 +165,29 @@ def prewarm_workers(config: DictConfig) -> None:
     threading.Thread(target=warm, daemon=True).start()
 
 
+HYDRA_BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
+FAULT_TOLERANT_SWEEPER = "hydra_plugins.fuzzynav_sweeper.FaultTolerantSweeper"
+
+
+def fault_tolerant_sweeper(config: DictConfig) -> None:
+    """With ``hydra/sweeper=basic``, sweep with :class:`hydra_plugins.fuzzynav_sweeper.FaultTolerantSweeper`:
+    Hydra's basic sweeper, every job's config composed up front as the user chose, but a lost worker or a failed
+    job noted as one line (the summary and the resume command follow) instead of a traceback from inside Hydra,
+    where nothing of the sweep could report it. Called before Hydra instantiates the sweeper from this config."""
+    if config.hydra.sweeper.get("_target_") != HYDRA_BASIC_SWEEPER:
+        return
+    from hydra.core.plugins import Plugins
+    from omegaconf import open_dict, read_write
+
+    try:
+        from hydra_plugins.fuzzynav_sweeper import FaultTolerantSweeper
+    except ImportError:  # fuzzynav not installed as a package: Hydra's sweeper as it is
+        return
+    Plugins.instance().register(FaultTolerantSweeper)
+    with read_write(config.hydra), open_dict(config.hydra):
+        config.hydra.sweeper._target_ = FAULT_TOLERANT_SWEEPER
+
+
 class SweepProgress(Callback):
     """Owns the sweep directory for the sweep (:mod:`runners.sweep_control`), prepares a resume, shows a progress
     bar over episodes, and at the end writes the summary and the report and reports what went wrong. Hydra turns
@@ -173,6 +196,7 @@ class SweepProgress(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
+        fault_tolerant_sweeper(config)
         run = sweep_control.begin_or_exit(sweep_dir)
         if run.removed_partials:
             print(f"{run.removed_partials} partial log(s) of episodes killed in an earlier sweep removed (their "
@@ -221,13 +245,7 @@ class SweepProgress(Callback):
                 raise
             run.errors.append(sweep_control.io_line(err) if isinstance(err, OSError) else
                               f"writing the summary failed: {type(err).__name__}: {err}")
-        sweep_control.print_errors(run)
-        signum = run.stop_signal()
-        sweep_control.end(run)
-        if signum is not None:
-            sys.exit(128 + signum)
-        if run.errors:
-            sys.exit(1)
+        sweep_control.finish(run)
 
 
 SUMMARY_COLUMNS = ["outcome", "success", "steps", "time_to_goal_s", "collisions_static", "collisions_dynamic"]

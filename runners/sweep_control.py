@@ -222,5 +222,19 @@ def print_errors(run: SweepRun) -> None:
         print(f"error: also: {run.errors[1][:200]}{more}", file=sys.stderr)
 
 
+def finish(run: SweepRun) -> None:
+    """The last act of a sweep's launching process, whoever ends the sweep (``runners.sweep``'s callback, or
+    fuzzynav's sweeper when there is no callback): the failures on stderr (:func:`print_errors`), the directory
+    given up (:func:`end`), and exit 128 + the signal after a stop, 1 after a failure; returns only when the
+    sweep completed."""
+    print_errors(run)
+    signum = run.stop_signal()
+    end(run)
+    if signum is not None:
+        sys.exit(128 + signum)
+    if run.errors:
+        sys.exit(1)
+
+
 def debug_requested() -> bool:
     return os.environ.get("HYDRA_FULL_ERROR") == "1"

@@ -113,7 +113,8 @@ def test_hydra_basic_sweeper_still_selectable(tmp_path):
               f"hydra.sweep.dir={tmp_path}")
     assert out.returncode == 0, out.stderr[-2000:]
     assert len(find_logs([tmp_path])) == 4
-    assert "BasicSweeper" in (tmp_path / "multirun.yaml").read_text()
+    # Hydra's sweeper with fuzzynav's fault handling (runners.sweep.fault_tolerant_sweeper)
+    assert "hydra_plugins.fuzzynav_sweeper.FaultTolerantSweeper" in (tmp_path / "multirun.yaml").read_text()
 
 
 def test_parallel_summary_equals_the_serial_one(tmp_path, monkeypatch):

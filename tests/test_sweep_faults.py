@@ -6,12 +6,13 @@ left behind, and that every episode is in the directory once: nothing lost, noth
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -32,6 +33,17 @@ def start(args: list[str]) -> subprocess.Popen:
     process of the sweep (loky and Submitit do not start sessions of their own)."""
     return subprocess.Popen([sys.executable, "-m", "runners.sweep", *args], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+@contextlib.contextmanager
+def running(args: list[str]) -> Iterator[subprocess.Popen]:
+    """:func:`start` the sweep; on leaving, whatever happened, kill every process of it that is still alive."""
+    proc = start(args)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
 
 
 def sweep(args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
@@ -85,6 +97,23 @@ def problem_lines(stderr: str) -> list[str]:
 def identities(paths: list[Path]) -> list[str]:
     """Each log's episode (config without the seed batching, seed, version: fuzzynav.episode_identity)."""
     return [episode_key_of(read_metadata(p)) for p in paths]
+
+
+def kill_a_worker_mid_episode(args: list[str], sweep_dir: Path, long_running: str) -> None:
+    """Start the sweep, SIGKILL one of its two loky workers while both run a ``long_running`` episode, and check
+    the outcome: exit 1, one line naming the lost worker (two at most), no traceback and no process left, the lost
+    episodes and the resume command on stdout."""
+    with running(args) as proc:
+        assert wait_for(lambda: len(partials(sweep_dir, long_running)) == 2), "the episodes did not start"
+        workers = [pid for pid, cmd in group(proc.pid) if "popen_loky_posix" in cmd]
+        assert len(workers) == 2, group(proc.pid)
+        os.kill(workers[0], signal.SIGKILL)
+        out, err = proc.communicate(timeout=90)
+    assert proc.returncode == 1, err[-2000:]
+    lines = problem_lines(err)
+    assert "Traceback" not in err and 1 <= len(lines) <= 2 and "a worker process was lost" in lines[0], err
+    assert not orphans(proc.pid)
+    assert "lost: " in out and "to complete the sweep: python -m runners.sweep" in out and "resume=true" in out
 
 
 def test_second_sweep_is_refused_and_sigterm_stops_submitit_jobs(tmp_path):
@@ -152,21 +181,7 @@ def test_sigint_then_a_killed_worker_then_resume_completes_every_episode_once(tm
     kept = {p: p.stat().st_mtime_ns for p in logs(sweep_dir) if p.name.startswith("head_on")}
     assert len(kept) == 2
 
-    proc = start([*args, "resume=true"])
-    try:
-        assert wait_for(lambda: len(partials(sweep_dir, long_running)) == 2)
-        workers = [pid for pid, cmd in group(proc.pid) if "popen_loky_posix" in cmd]
-        assert len(workers) == 2, group(proc.pid)
-        os.kill(workers[0], signal.SIGKILL)
-        out, err = proc.communicate(timeout=90)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 1, err[-2000:]
-    lines = problem_lines(err)
-    assert "Traceback" not in err and 1 <= len(lines) <= 2 and "a worker process was lost" in lines[0], err
-    assert not orphans(proc.pid)
-    assert "lost: " in out and "to complete the sweep: python -m runners.sweep" in out and "resume=true" in out
+    kill_a_worker_mid_episode([*args, "resume=true"], sweep_dir, long_running)
     assert 1 <= len(partials(sweep_dir)) <= 2  # the killed worker's episode, and the other if loky killed it too
     assert all(is_complete(p) for p in logs(sweep_dir))  # a killed episode never leaves a log that looks complete
 
@@ -181,6 +196,17 @@ def test_sigint_then_a_killed_worker_then_resume_completes_every_episode_once(tm
     assert sorted(summary["outcome"]) == ["goal", "goal", "timeout", "timeout"]
     assert (sweep_dir / "report" / "report.html").exists()
     print(f"loky: SIGINT to exit {took:.1f} s")
+
+
+def test_hydra_basic_sweeper_also_reports_a_killed_worker_in_one_line(tmp_path):
+    """``hydra/sweeper=basic``: Hydra's sweeper composes every job up front, and a worker killed with SIGKILL is
+    the same outcome as with fuzzynav's sweeper: exit 1, one line naming the lost worker, no traceback, the lost
+    episodes and the resume command."""
+    sweep_dir = tmp_path / "s"
+    kill_a_worker_mid_episode(["sweep=quick", SEARCH, "scenario=endless_corridor", "planner=auto,none", "episodes=1",
+                               "hydra/sweeper=basic", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep_dir}"],
+                              sweep_dir, "endless_corridor")
+    assert "FaultTolerantSweeper" in (sweep_dir / "multirun.yaml").read_text()
 
 
 def _flip_a_byte_inside_a_chunk(path: Path) -> None:

@@ -16,14 +16,15 @@ package; ``pyproject.toml`` maps this directory there) and selected in ``conf/co
    writes the summary of the episodes that completed and says how to resume. After a stop request (a signal, or a
    job's stop file) no new job or batch is handed out.
 
-Everything else (batches, ``params``, ``max_batch_size``) is the basic sweeper's. ``hydra/sweeper=basic`` brings
-Hydra's back (then a lost worker is a traceback again).
+Everything else (batches, ``params``, ``max_batch_size``) is the basic sweeper's. :class:`FaultTolerantSweeper` is
+Hydra's ``BasicSweeper`` with difference 2 only: ``runners.sweep`` uses it when ``hydra/sweeper=basic`` is chosen
+(:func:`runners.sweep.fault_tolerant_sweeper`), so that every job's config is composed up front as Hydra does,
+and a lost worker is still one line, the summary and the resume command, never a traceback.
 """
 
 from __future__ import annotations
 
 import logging
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,21 +38,14 @@ from omegaconf import OmegaConf
 from runners import sweep_control, sweep_resume
 from runners.precheck import representative_jobs
 
-__all__ = ["FuzzynavSweeper", "representative_jobs"]
+__all__ = ["FaultTolerantSweeper", "FuzzynavSweeper", "representative_jobs"]
 
 log = logging.getLogger(__name__)
 
 
-class FuzzynavSweeper(BasicSweeper):
-    """Hydra's ``BasicSweeper``, validating only :func:`representative_jobs` of each batch before launching, and
-    noting launcher and job failures instead of raising them (see the module docstring)."""
-
-    def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
-        tic = time.perf_counter()
-        jobs = representative_jobs(batch)
-        for overrides in jobs:
-            self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
-        log.debug(f"Validated {len(jobs)} of {len(batch)} job configs in {time.perf_counter() - tic:.2f} s")
+class FaultTolerantSweeper(BasicSweeper):
+    """Hydra's ``BasicSweeper`` (every job's config composed before launching), noting launcher and job failures
+    instead of raising them (difference 2 of the module docstring)."""
 
     def sweep(self, arguments: list[str]) -> Any:
         assert self.config is not None and self.launcher is not None and self.hydra_context is not None
@@ -91,17 +85,23 @@ class FuzzynavSweeper(BasicSweeper):
         return _finish(run, self.config, returns)
 
 
+class FuzzynavSweeper(FaultTolerantSweeper):
+    """:class:`FaultTolerantSweeper`, validating only :func:`representative_jobs` of each batch before launching
+    (difference 1 of the module docstring)."""
+
+    def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
+        tic = time.perf_counter()
+        jobs = representative_jobs(batch)
+        for overrides in jobs:
+            self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
+        log.debug(f"Validated {len(jobs)} of {len(batch)} job configs in {time.perf_counter() - tic:.2f} s")
+
+
 def _finish(run: sweep_control.SweepRun, config: Any, returns: list[Sequence[Any]]) -> list[Sequence[Any]]:
     """Without ``runners.sweep``'s callback (a plain ``runners.run --multirun``) nobody else reports failures and
     stops: report them here, one line each, and exit non-zero (128 + the signal after a stop)."""
     callbacks = OmegaConf.to_container(config.hydra.get("callbacks") or {}, resolve=False)
     if "runners.sweep.SweepProgress" in str(callbacks):
         return returns
-    sweep_control.print_errors(run)
-    signum = run.stop_signal()
-    sweep_control.end(run)
-    if signum is not None:
-        sys.exit(128 + signum)
-    if run.errors:
-        sys.exit(1)
+    sweep_control.finish(run)
     return returns
