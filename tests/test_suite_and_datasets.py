@@ -102,7 +102,7 @@ def test_dataset_list_and_manifests():
     names = {row["name"]: row for row in dataset.list_datasets()}
     assert names["paper_fig5"]["episodes"] == 7 * 20 and names["paper_fig5"]["built"]
     assert names["paper_fig5"]["committed_logs"] == 21 and names["paper_fig5"]["logs_MB"] < 5
-    assert names["suite_v1"]["episodes"] == 11 * 4 * 10 and names["suite_v1"]["built"]
+    assert names["suite_v1"]["episodes"] == 14 * 4 * 10 and names["suite_v1"]["built"]
     for name in ("paper_fig5", "suite_v1"):
         m = dataset.load_manifest(name)
         assert len(m["episodes"]) == len(dataset.jobs(m)) and len(m["metrics_sha256"]) == 64
@@ -120,7 +120,7 @@ def test_paper_fig5_dataset_verifies():
 
 
 def test_suite_v1_dataset_verifies_on_its_first_seeds():
-    """All eleven scenarios and four strategies, seeds 0-1: catches a change of behaviour (or of floating-point
+    """Every suite scenario and four strategies, seeds 0-1: catches a change of behaviour (or of floating-point
     summation order) that the paper_fig5 dataset alone would not exercise."""
     out = run_dataset("verify", "suite_v1", "--seeds", "0:2")
     assert out.returncode == 0, out.stdout + out.stderr[-2000:]
