@@ -78,3 +78,19 @@ def record_offsets(data: bytes) -> list[tuple[int, int, int]]:
         out.append((opcode, pos, length))
         pos += 9 + length
     return out
+
+
+def message_paths(node: Any, last_item: bool = False, prefix: tuple = ()) -> list[tuple]:
+    """Paths (keys and list indices) to every value in a JSON message; of each list, its first item and, with
+    ``last_item``, its last."""
+    out = []
+    if isinstance(node, dict):
+        for k, v in node.items():
+            out.append((*prefix, k))
+            out.extend(message_paths(v, last_item, (*prefix, k)))
+    elif isinstance(node, list) and node:
+        for i in sorted({0, len(node) - 1}) if last_item else (0,):
+            if last_item:
+                out.append((*prefix, i))
+            out.extend(message_paths(node[i], last_item, (*prefix, i)))
+    return out

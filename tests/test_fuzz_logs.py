@@ -34,7 +34,7 @@ from analysis.metrics import metrics_table
 from runners import replay
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
-from tests.log_surgery import DROP, Twice, rewrite
+from tests.log_surgery import DROP, Twice, message_paths, rewrite
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
 EXAMPLES = int(os.environ.get("FUZZNAV_FUZZ_EXAMPLES", "0"))
@@ -301,20 +301,6 @@ def _field_schema(schema: dict[str, Any], path: tuple) -> dict[str, Any] | None:
     return node
 
 
-def _paths(node: Any, prefix: tuple = ()) -> list[tuple]:
-    """Paths to every value in a JSON message (list items: the first and the last)."""
-    out = []
-    if isinstance(node, dict):
-        for k, v in node.items():
-            out.append((*prefix, k))
-            out.extend(_paths(v, (*prefix, k)))
-    elif isinstance(node, list) and node:
-        for i in sorted({0, len(node) - 1}):
-            out.append((*prefix, i))
-            out.extend(_paths(node[i], (*prefix, i)))
-    return out
-
-
 def invalid_values(schema: dict[str, Any] | None) -> list[Any]:
     """Values the schema forbids at a field: every other JSON type, a string outside an enum, -1 where the
     minimum is 0, and numbers beyond every documented range (±1e300; schemas leave numbers unbounded, the
@@ -358,7 +344,7 @@ def test_bad_messages_are_refused(baselines, tmp_path, data):
             return data.draw(st.sampled_from([None, [], "text", 7, [msg]]))
         if action == "repeat":
             return Twice(msg)
-        paths = [p for p in _paths(msg) if action in ("value", "extra") or (
+        paths = [p for p in message_paths(msg, last_item=True) if action in ("value", "extra") or (
             action == "delete" and not isinstance(p[-1], int)) or (
             action == "shorten" and isinstance(p[-1], str) and p[-1] in _TIED)]
         if not paths:

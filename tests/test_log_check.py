@@ -19,7 +19,7 @@ from analysis.mcap_verify import McapError, read_mcap
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.conftest import ROOT
-from tests.log_surgery import record_offsets
+from tests.log_surgery import message_paths, record_offsets
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
 SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
@@ -41,17 +41,6 @@ def _schema_at(schema: dict[str, Any], path: tuple) -> tuple[dict[str, Any], dic
         holder = parent
         parent = parent["items"] if isinstance(key, int) else parent["properties"][key]
     return holder, parent
-
-
-def _paths(node: Any, prefix: tuple = ()) -> list[tuple]:
-    out = []
-    if isinstance(node, dict):
-        for k, v in node.items():
-            out.append((*prefix, k))
-            out.extend(_paths(v, (*prefix, k)))
-    elif isinstance(node, list) and node:
-        out.extend(_paths(node[0], (*prefix, 0)))
-    return out
 
 
 def _edit(msg: dict[str, Any], path: tuple, value: Any = None, delete: bool = False) -> dict[str, Any]:
@@ -80,7 +69,7 @@ def test_every_field_the_check_demands_is_required_by_the_schema_and_typed_alike
     msg = _richest(recorded_logs[0], topic)
     check_message(topic, msg)
     demanded = []
-    for path in _paths(msg):
+    for path in message_paths(msg):
         if isinstance(path[-1], int) or not _rejects(topic, _edit(msg, path, delete=True)):
             continue
         demanded.append(path)

@@ -46,6 +46,14 @@ def running(args: list[str]) -> Iterator[subprocess.Popen]:
             os.killpg(proc.pid, signal.SIGKILL)
 
 
+def stop_with(proc: subprocess.Popen, sig: signal.Signals) -> tuple[str, str, float]:
+    """Send ``sig`` to the launching process only; its stdout, stderr and the seconds it took to exit."""
+    tic = time.monotonic()
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=90)
+    return out, err, time.monotonic() - tic
+
+
 def sweep(args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "runners.sweep", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout)
@@ -120,9 +128,8 @@ def test_second_sweep_is_refused_and_sigterm_stops_submitit_jobs(tmp_path):
     """The Submitit launcher (every job its own process): the lock names the holder; SIGTERM to the launcher
     ends the episodes in flight as interrupted, writes the summary, exits 143 and leaves no process."""
     sweep_dir = tmp_path / "s"
-    proc = start(["sweep=quick", SEARCH, "scenario=endless_corridor", "planner=auto,none", "episodes=2",
-                  "hydra/launcher=local_processes", f"hydra.sweep.dir={sweep_dir}"])
-    try:
+    with running(["sweep=quick", SEARCH, "scenario=endless_corridor", "planner=auto,none", "episodes=2",
+                  "hydra/launcher=local_processes", f"hydra.sweep.dir={sweep_dir}"]) as proc:
         assert wait_for(lambda: len(partials(sweep_dir)) == 2), "the episodes did not start"
         second = sweep(["sweep=quick", "scenario=head_on", "planner=auto", "episodes=1",
                         f"hydra.sweep.dir={sweep_dir}"])
@@ -131,13 +138,7 @@ def test_second_sweep_is_refused_and_sigterm_stops_submitit_jobs(tmp_path):
         assert len(lines) == 1 and "is in use by another sweep" in lines[0] and f"pid {proc.pid} on " in lines[0], \
             second.stderr
         assert "endless_corridor" in (sweep_dir / "multirun.yaml").read_text()  # the first sweep's, untouched
-        tic = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=90)
-        took = time.monotonic() - tic
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        out, err, took = stop_with(proc, signal.SIGTERM)
     assert proc.returncode == 143, err[-2000:]
     assert "Traceback" not in err and len(problem_lines(err)) == 1  # "SIGTERM: stopping the sweep ..."
     assert not orphans(proc.pid)
@@ -162,16 +163,9 @@ def test_sigint_then_a_killed_worker_then_resume_completes_every_episode_once(tm
             "seed=0,1", "episodes=1", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep_dir}"]
     long_running = "endless_corridor"
 
-    proc = start(args)
-    try:
+    with running(args) as proc:
         assert wait_for(lambda: len(partials(sweep_dir, long_running)) == 2)
-        tic = time.monotonic()
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=90)
-        took = time.monotonic() - tic
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        out, err, took = stop_with(proc, signal.SIGINT)
     assert proc.returncode == 130, err[-2000:]
     assert "Traceback" not in err and not orphans(proc.pid)
     assert "stopped by SIGINT: 2 episode(s) finished, 2 interrupted, 0 lost, 0 not run (of 4)" in out, out[-2000:]
