@@ -68,6 +68,8 @@ MAX_DATA_FILE_BYTES = 1_000_000
 MAX_YAML_NODES = 10_000  # after alias expansion
 MAX_YAML_DEPTH = 32
 MAX_TEXT_CHARS = 10_000  # a free-text field (description)
+MAX_MANIFEST_BYTES = 20_000_000  # a dataset manifest: about 1.3 kB per episode (suite_v1: 560 episodes, 0.7 MB)
+MAX_MANIFEST_NODES = 1_000_000  # about 40 per episode
 
 # -- scenarios ----------------------------------------------------------------------------------------------
 MAX_COORD_CM = 1e9  # |x| of every scenario number (coordinates, radii, speeds)
@@ -100,6 +102,10 @@ SIZE_LIMITS: tuple[Limit, ...] = (
           "Hydra's OmegaConf builds about 5,000 nodes per second, several times per run; aliases (&a / *a) "
           "can expand exponentially (\"billion laughs\")"),
     Limit("YAML nesting depth", MAX_YAML_DEPTH, "the parsers recurse once per level"),
+    Limit("dataset manifest size (bytes)", MAX_MANIFEST_BYTES,
+          "checked before it is parsed, like a scenario file; about 15,000 episodes"),
+    Limit("dataset manifest YAML nodes after alias expansion", MAX_MANIFEST_NODES,
+          "about 40 per episode; no YAML tags or interpolations either"),
     Limit("name (scenario, controller, obstacle id; characters)", NAME_MAX_CHARS,
           "names become log file names: letters, digits, _ - . only, not starting with ."),
     Limit("description (characters)", MAX_TEXT_CHARS, "stored in every log's metadata"),

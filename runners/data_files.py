@@ -19,6 +19,7 @@ The scanner and composer are libyaml's (C) when available: linear in the file si
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
@@ -36,6 +37,23 @@ class DataFileError(ValueError):
     """A data file is not plain, bounded data; the message starts with the file (and line or field)."""
 
 
+@dataclass(frozen=True)
+class DataKind:
+    """A kind of data file: its size limits (bytes; YAML nodes once aliases are expanded) and how messages name
+    it (``one``: "a scenario or controller file"; ``all``: "scenario and controller files")."""
+
+    one: str
+    all: str
+    max_bytes: int
+    max_nodes: int
+
+
+SCENARIO_OR_CONTROLLER = DataKind("a scenario or controller file", "scenario and controller files",
+                                  limits.MAX_DATA_FILE_BYTES, limits.MAX_YAML_NODES)
+#: dataset manifests (runners.dataset) hold a few dozen nodes per episode: larger limits, the same rules
+MANIFEST = DataKind("a dataset manifest", "dataset manifests", limits.MAX_MANIFEST_BYTES, limits.MAX_MANIFEST_NODES)
+
+
 def check_data_file(path: Path) -> None:
     """Check a scenario or controller file on disk (size first: a huge file is never read)."""
     try:
@@ -51,12 +69,13 @@ def check_data_file(path: Path) -> None:
     check_data_text(raw, str(path))
 
 
-def check_data_text(raw: bytes | str, source: str) -> None:
-    """Check the text of a data file named ``source`` (see the module docstring)."""
+def check_data_text(raw: bytes | str, source: str, kind: DataKind | None = None) -> None:
+    """Check the text of a data file named ``source`` (see the module docstring); ``kind``: its limits and how
+    messages name it (default: a scenario or controller file)."""
+    kind = kind or SCENARIO_OR_CONTROLLER
     size = len(raw.encode() if isinstance(raw, str) else raw)
-    if size > limits.MAX_DATA_FILE_BYTES:
-        raise DataFileError(f"{source}: {size:,} bytes, more than the limit of {limits.MAX_DATA_FILE_BYTES:,} "
-                            "for a scenario or controller file")
+    if size > kind.max_bytes:
+        raise DataFileError(f"{source}: {size:,} bytes, more than the limit of {kind.max_bytes:,} for {kind.one}")
     if isinstance(raw, bytes):
         try:
             text = raw.decode("utf-8")
@@ -65,7 +84,7 @@ def check_data_text(raw: bytes | str, source: str) -> None:
     else:
         text = raw
     try:
-        _Events(source).check(yaml.parse(text, Loader=_LOADER))
+        _Events(source, kind).check(yaml.parse(text, Loader=_LOADER))
     except yaml.MarkedYAMLError as err:
         raise DataFileError(f"{source}{_yaml_error(err)}") from None
     except yaml.reader.ReaderError as err:  # a character YAML does not allow: say where
@@ -102,8 +121,8 @@ class _Events:
     document, bounded nesting, no ``${``, and the node count with every alias expanded (an anchor's size is
     known when its node ends, so an alias costs one addition: "billion laughs" is counted, not built)."""
 
-    def __init__(self, source: str) -> None:
-        self.source = source
+    def __init__(self, source: str, kind: DataKind) -> None:
+        self.source, self.kind = source, kind
         self.stack: list[_Frame] = [_Frame("", False, None)]
         self.anchors: dict[str, int] = {}
         self.documents = 0
@@ -129,8 +148,8 @@ class _Events:
         parent.want_key = not parent.want_key
         parent.index += 1
         parent.size += size
-        if parent.size > limits.MAX_YAML_NODES:
-            self.fail(event, parent.field, f"more than {limits.MAX_YAML_NODES:,} YAML nodes once aliases are "
+        if parent.size > self.kind.max_nodes:
+            self.fail(event, parent.field, f"more than {self.kind.max_nodes:,} YAML nodes once aliases are "
                                            "expanded (the limit)")
 
     def check(self, events) -> None:
@@ -142,14 +161,13 @@ class _Events:
             elif isinstance(event, yaml.ScalarEvent | yaml.SequenceStartEvent | yaml.MappingStartEvent):
                 field = self.field()
                 if len(self.stack) == 1 and not isinstance(event, yaml.MappingStartEvent):
-                    self.fail(event, "", "expected a mapping (a scenario or controller file is a YAML mapping)")
+                    self.fail(event, "", f"expected a mapping ({self.kind.one} is a YAML mapping)")
                 if event.tag is not None:
-                    self.fail(event, field, f"YAML tag {event.tag!r} is not allowed: scenario and controller "
-                                            "files are data")
+                    self.fail(event, field, f"YAML tag {event.tag!r} is not allowed: {self.kind.all} are data")
                 if isinstance(event, yaml.ScalarEvent):
                     if "${" in event.value:
-                        self.fail(event, field, f"interpolation {_short(event.value)} is not allowed: scenario "
-                                                "and controller files are data")
+                        self.fail(event, field, f"interpolation {_short(event.value)} is not allowed: "
+                                                f"{self.kind.all} are data")
                     if event.anchor is not None:
                         self.anchors[event.anchor] = 1
                     self.add(event, 1, event.value)
@@ -165,7 +183,7 @@ class _Events:
             elif isinstance(event, yaml.AliasEvent):
                 field = self.field()
                 if len(self.stack) == 1:
-                    self.fail(event, "", "expected a mapping (a scenario or controller file is a YAML mapping)")
+                    self.fail(event, "", f"expected a mapping ({self.kind.one} is a YAML mapping)")
                 if event.anchor not in self.anchors:
                     opened = any(f.anchor == event.anchor for f in self.stack)
                     self.fail(event, field, "recursive alias" if opened else f"undefined alias *{event.anchor}")

@@ -37,8 +37,12 @@ from typing import Any
 
 import yaml
 
+from analysis.cli_args import MAX_JOBS, OneLineParser
+from analysis.cli_args import jobs as cli_jobs
 from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
+from fuzzynav import limits
+from runners.data_files import MANIFEST, DataFileError, check_data_text
 from runners.log_diff import EpisodeDiff, diff_logs, diff_records
 from runners.log_fields import TIMING_FIELDS, BehaviourRecord
 from runners.verify_report import detail_lines, episode_line, summary_lines
@@ -63,9 +67,21 @@ def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
         known = ", ".join(sorted(p.parent.name for p in root.glob("*/manifest.yaml"))) or "none"
         raise DatasetError(f"{path}: no such dataset (known: {known})")
     try:
-        data = yaml.safe_load(path.read_text())
+        size = path.stat().st_size
+        if size > limits.MAX_MANIFEST_BYTES:  # never read a huge file whole
+            raise DatasetError(f"{path}: {size:,} bytes, more than the limit of {limits.MAX_MANIFEST_BYTES:,} for "
+                               "a dataset manifest")
+        raw = path.read_bytes()
+        # a manifest is data, like a scenario file: no tags (!!python/... would be one traceback or worse), no
+        # interpolations, bounded aliases; one line naming the line and the field
+        check_data_text(raw, str(path), MANIFEST)
+        data = yaml.safe_load(raw)
+    except DataFileError as err:
+        raise DatasetError(str(err)) from None
+    except OSError as err:
+        raise DatasetError(f"{path}: cannot read: {err.strerror or err}") from None
     except yaml.YAMLError as err:
-        raise DatasetError(f"{path}: not valid YAML ({err})") from None
+        raise DatasetError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(data, dict):
         raise DatasetError(f"{path}: expected a mapping")
     sweep = data.get("sweep")
@@ -81,7 +97,94 @@ def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
     for key in ("scenarios", "variants"):
         if not isinstance(sweep[key], list) or not sweep[key]:
             raise DatasetError(f"{path}: sweep.{key}: expected a non-empty list")
+    _check_episodes(data.get("episodes"), path)
     return data
+
+
+def _check_episodes(episodes: Any, path: Path) -> None:
+    """The recorded episodes, if any: a mapping of log file name to a mapping holding at least its SHA-256 (a
+    wrong type would otherwise surface as a traceback after every episode has been regenerated)."""
+    if episodes is None:
+        return
+    if not isinstance(episodes, dict):
+        raise DatasetError(f"{path}: episodes: expected a mapping of log file names, got {type(episodes).__name__}")
+    for file, entry in episodes.items():
+        if not isinstance(entry, dict):
+            raise DatasetError(f"{path}: episodes.{file}: expected a mapping, got {entry!r:.40}")
+        if not isinstance(entry.get("sha256"), str):
+            raise DatasetError(f"{path}: episodes.{file}.sha256: missing or not a string")
+
+
+def _variant_overrides(variant: Any) -> list[str]:
+    """A variant's overrides: one string or a list of them."""
+    return [variant] if isinstance(variant, str) else list(variant)
+
+
+def _check_override(text: Any, where: str, path: Path) -> None:
+    """One override of a manifest (``where`` names its field): a single ``key=value`` of the run config.
+
+    A sweep list (``planner=auto,wait``) would be a multirun inside one episode job (Hydra's traceback), and a
+    ``hydra.*`` key is no part of the episode: it was silently ignored while its text became part of the log's
+    file name (``hydra.run.dir=/tmp/x``)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    if not isinstance(text, str):
+        raise DatasetError(f"{path}: {where}: expected an override key=value (a string), got {text!r:.60}")
+    try:
+        (override,) = OverridesParser.create().parse_overrides([text])
+    except Exception as err:  # Hydra's parser errors have several types and lines
+        raise DatasetError(f"{path}: {where}: cannot read {text!r:.60}: {str(err).splitlines()[0]}") from None
+    key = override.get_key_element().lstrip("+~")
+    if override.is_sweep_override():
+        raise DatasetError(f"{path}: {where}: {text!r:.60} is a sweep; a dataset runs one value per variant "
+                           "(list each value as its own variant)")
+    if key == "hydra" or key.startswith(("hydra.", "hydra/")):
+        raise DatasetError(f"{path}: {where}: {key}: hydra settings are not allowed in a dataset (the dataset "
+                           "decides where its episodes run)")
+
+
+def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = None) -> None:
+    """Check the manifest's sweep before any episode runs (one line naming the field): every override is one
+    ``key=value`` of the run config (see :func:`_check_override`), every scenario a name, and each scenario,
+    variant, override and ``extra`` override composes and validates (:func:`runners.precheck.precheck`, as
+    ``runners.run`` checks its command line) with the first scenario, variant and seed. Otherwise a bad entry
+    was a traceback from every worker."""
+    from runners.precheck import precheck
+
+    sweep = manifest["sweep"]
+    common = sweep.get("overrides") or []
+    if not isinstance(common, list):
+        raise DatasetError(f"{path}: sweep.overrides: expected a list")
+    for i, name in enumerate(sweep["scenarios"]):
+        if not (isinstance(name, str) and limits.NAME_PATTERN.fullmatch(name)):
+            raise DatasetError(f"{path}: sweep.scenarios[{i}]: {name!r:.60} is not a scenario name")
+    for i, variant in enumerate(sweep["variants"]):
+        if not isinstance(variant, str | list):
+            raise DatasetError(f"{path}: sweep.variants[{i}]: expected an override or a list of them")
+        parts = _variant_overrides(variant)
+        for k, text in enumerate(parts):
+            _check_override(text, f"sweep.variants[{i}]" + (f"[{k}]" if len(parts) > 1 else ""), path)
+    for i, text in enumerate(common):
+        _check_override(text, f"sweep.overrides[{i}]", path)
+    extra = extra or []
+    first = [f"seed={sweep['seeds'][0]}"]
+    scenarios, variants = sweep["scenarios"], [_variant_overrides(v) for v in sweep["variants"]]
+
+    def fail_if(where: str, overrides: list[str]) -> None:
+        problem = precheck(overrides)
+        if problem:
+            raise DatasetError(f"{where}: {problem.removeprefix('config: ')}" if where else problem)
+
+    # in this order each check adds one entry to entries already found good, so the first failure is that entry's
+    fail_if(f"{path}: sweep.scenarios[0]", [f"scenario={scenarios[0]}", *first])
+    for i, parts in enumerate(variants):
+        fail_if(f"{path}: sweep.variants[{i}]", [f"scenario={scenarios[0]}", *parts, *first])
+    for i in range(len(common)):
+        fail_if(f"{path}: sweep.overrides[{i}]", [f"scenario={scenarios[0]}", *variants[0], *common[:i + 1], *first])
+    for i in range(len(extra)):  # the command line's: the precheck's message names the override's key
+        fail_if("", [f"scenario={scenarios[0]}", *variants[0], *common, *extra[:i + 1], *first])
+    for i, name in enumerate(scenarios[1:], start=1):
+        fail_if(f"{path}: sweep.scenarios[{i}]", [f"scenario={name}", *variants[0], *common, *extra, *first])
 
 
 def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
@@ -91,7 +194,7 @@ def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
     out = []
     for scenario in sweep["scenarios"]:
         for variant in sweep["variants"]:
-            extra = [variant] if isinstance(variant, str) else list(variant)
+            extra = _variant_overrides(variant)
             for seed in range(*sweep["seeds"]):
                 overrides = [f"scenario={scenario}", *extra, *common, f"seed={seed}"]
                 tag = "__".join(o.replace("=", "-").replace("/", "-") for o in [*extra])
@@ -175,6 +278,7 @@ EPISODE_FIELDS = ("outcome", "steps", "sha256", "decision_digest", "discrete_dig
 def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:
     """Record the dataset and write the hashes into its manifest; keep the logs of the ``keep_logs`` seeds."""
     manifest = load_manifest(name, root)
+    check_sweep(manifest, manifest_path(name, root))
     keep = set(manifest.get("keep_logs") or [])
     log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
@@ -210,6 +314,8 @@ def parse_seeds(text: str) -> tuple[int, int]:
         first, end = (int(x) for x in text.split(":"))
     except ValueError:
         raise DatasetError(f"--seeds: expected FIRST:END (two integers, END excluded), got {text!r}") from None
+    if first < 0:  # seeds are non-negative (numpy's); -1:1 silently verified seed 0 only
+        raise DatasetError(f"--seeds {text}: FIRST must be 0 or more (seeds are non-negative)")
     if first >= end:
         raise DatasetError(f"--seeds {text}: selects no seed (FIRST must be below END)")
     return first, end
@@ -244,14 +350,10 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
     path = manifest_path(name, root)
     if not manifest.get("episodes"):
         raise DatasetError(f"{path}: episodes: missing (run: python -m runners.dataset build {name})")
+    # a bad entry or override is one line before any episode runs (not a traceback from every worker)
+    check_sweep(manifest, path, overrides)
     if overrides:
         manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
-        # a bad override is one line before any episode runs (not a traceback from every worker)
-        from runners.precheck import precheck
-
-        problem = precheck(jobs(manifest)[0]["overrides"])
-        if problem:
-            raise DatasetError(problem)
     if seeds is not None:
         _select_seeds(manifest, seeds, path)
     out = Verification(compared=len(manifest["episodes"]))
@@ -313,7 +415,8 @@ def _print_verification(name: str, result: Verification, detail: bool) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    # one line per bad argument, as analysis.report (the subcommands' parsers are of the same class)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     lister = sub.add_parser("list", help="datasets with episode counts and sizes")
     b = sub.add_parser("build", help="record a dataset and write its hashes")
@@ -325,7 +428,8 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("--detail", action="store_true",
                    help="under each differing episode, every differing numeric field with its largest |Δ|")
     for p in (b, v):
-        p.add_argument("--jobs", type=int, default=-1, help="parallel workers (default: all cores)")
+        p.add_argument("--jobs", type=cli_jobs, default=-1,
+                       help=f"parallel workers: -1 (default: all cores) or 1 to {MAX_JOBS}")
     for p in (lister, b, v):
         p.add_argument("--root", type=Path, default=DATASETS,
                        help="directory holding the datasets (default: datasets/ of the repository)")

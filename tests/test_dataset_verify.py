@@ -104,11 +104,12 @@ def test_a_behaviour_change_is_named(root, capsys):
     ("50:60", "--seeds 50:60: selects no episode"),
     ("3:1", "--seeds 3:1: selects no seed"),
     ("1:1", "--seeds 1:1: selects no seed"),
+    ("-1:1", "--seeds -1:1: FIRST must be 0 or more"),
     ("a:b", "--seeds: expected FIRST:END"),
     ("1:2:3", "--seeds: expected FIRST:END"),
 ])
 def test_seeds_that_select_nothing_are_an_error(root, capsys, seeds, problem):
-    code, out, err = run(capsys, "verify", "tiny", "--seeds", seeds, "--root", str(root))
+    code, out, err = run(capsys, "verify", "tiny", f"--seeds={seeds}", "--root", str(root))  # = for -1:1
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and err.startswith(f"error: {problem}"), err
     if seeds == "50:60":
@@ -121,6 +122,63 @@ def test_a_bad_override_is_one_line_before_anything_runs(root, capsys, override,
     code, out, err = run(capsys, "verify", "tiny", override, "--root", str(root))
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and field in err, err
+
+
+@pytest.mark.parametrize("jobs", ["0", "-5", "two"])
+def test_bad_jobs_is_one_line(root, capsys, jobs):
+    with pytest.raises(SystemExit) as exit_:
+        dataset.main(["verify", "tiny", "--seeds", "0:1", "--root", str(root), "--jobs", jobs])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: argument --jobs: "), err
+
+
+def _bad_manifest(root: Path, sweep: dict[str, Any] | None = None, text: str | None = None, **top: Any) -> None:
+    """A manifest ``bad`` under ``root``: TINY with ``sweep`` entries and top-level fields replaced, or ``text``."""
+    (root / "bad").mkdir(exist_ok=True)
+    data = {**TINY, "sweep": {**TINY["sweep"], **(sweep or {})}, **top}
+    (root / "bad" / "manifest.yaml").write_text(text if text is not None else yaml.safe_dump(data, sort_keys=False))
+
+
+BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently accepted
+    ({"scenarios": ["no_such_world"]}, "sweep.scenarios[0]: no config 'scenario/no_such_world'"),
+    ({"scenarios": ["paper_fig5", "no_such_world"]}, "sweep.scenarios[1]: no config 'scenario/no_such_world'"),
+    ({"scenarios": ["../x"]}, "sweep.scenarios[0]: '../x' is not a scenario name"),
+    ({"overrides": ["planner.h_wait=nan"]}, "sweep.overrides[0]: planner.h_wait: "),
+    ({"overrides": ["planner.safety_margin_cm=nan"]}, "sweep.overrides[0]: planner.safety_margin_cm: must be finite"),
+    ({"variants": ["planner=auto,wait"]}, "sweep.variants[0]: 'planner=auto,wait' is a sweep"),
+    ({"variants": ["planner=auto_h2", "planner=nope"]}, "sweep.variants[1]: no config 'planner/nope'"),
+    ({"variants": ["hydra.run.dir=/tmp/x"]}, "sweep.variants[0]: hydra.run.dir: hydra settings are not allowed"),
+    ({"overrides": ["hydra.sweep.dir=/tmp/x"]}, "sweep.overrides[0]: hydra.sweep.dir: hydra settings are not allowed"),
+    ({"variants": [["planner=auto_h2", "hydra/launcher=basic"]]}, "sweep.variants[0][1]: hydra/launcher: hydra"),
+]
+
+
+@pytest.mark.parametrize("command", ["build", "verify"])
+@pytest.mark.parametrize("sweep, problem", BAD_SWEEPS, ids=[p for _, p in BAD_SWEEPS])
+def test_a_bad_manifest_sweep_is_one_line_before_anything_runs(tmp_path, capsys, monkeypatch, command, sweep, problem):
+    monkeypatch.setattr(dataset, "record_all", lambda *a, **k: pytest.fail("episodes ran"))
+    _bad_manifest(tmp_path, sweep, episodes={"x.mcap": {"sha256": "0" * 64}})
+    code, out, err = run(capsys, command, "bad", "--root", str(tmp_path))
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"error: {tmp_path / 'bad' / 'manifest.yaml'}: {problem}"), err
+
+
+@pytest.mark.parametrize("top, text, problem", [
+    ({"episodes": {"a.mcap": 5}}, None, "manifest.yaml: episodes.a.mcap: expected a mapping, got 5"),
+    ({"episodes": {"a.mcap": {"outcome": "goal"}}}, None, "manifest.yaml: episodes.a.mcap.sha256: missing"),
+    ({"episodes": [1, 2]}, None, "manifest.yaml: episodes: expected a mapping of log file names, got list"),
+    ({}, "name: x\nversion: !!python/object/apply:os.system [id]\n",
+     "manifest.yaml:2: version: YAML tag 'tag:yaml.org,2002:python/object/apply:os.system' is not allowed"),
+    ({}, "name: x\nversion: !!str 1\n", "manifest.yaml:2: version: YAML tag 'tag:yaml.org,2002:str' is not allowed"),
+])
+def test_a_malformed_manifest_is_one_line(tmp_path, capsys, monkeypatch, top, text, problem):
+    monkeypatch.setattr(dataset, "record_all", lambda *a, **k: pytest.fail("episodes ran"))
+    _bad_manifest(tmp_path, text=text, **top)
+    code, out, err = run(capsys, "verify", "bad", "--root", str(tmp_path), "--seeds", "0:1")
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and problem in err, err
 
 
 # -- the classification, on edited copies of the kept log (no simulation) -----------------------------------
