@@ -10,6 +10,8 @@ import contextlib
 import os
 import signal
 import subprocess
+import threading
+import time
 from pathlib import Path
 
 
@@ -47,3 +49,33 @@ def kill_descendants() -> int:
             os.kill(pid, signal.SIGKILL)
             count += 1
     return count
+
+
+_WATCHDOG: list[threading.Thread] = []
+PARENT_POLL_S = 0.5  # how often a worker looks for its launcher (s): it is gone at most this long after it died
+
+
+def exit_with_parent(poll_s: float = PARENT_POLL_S) -> None:
+    """End this process (SIGKILL) as soon as its parent has died; started once per process, in a sweep's worker.
+
+    A launcher killed with SIGKILL cannot stop its workers, and loky's idle workers ignore SIGINT/SIGTERM (see
+    ``runners.sweep._import_runner``): they lived on for ever, holding the caller's stdout and stderr open. A
+    daemon thread compares ``os.getppid()`` with the parent it had at the start: a process whose parent dies is
+    re-parented (to init or a subreaper), so the pid changes. Linux's ``prctl(PR_SET_PDEATHSIG)`` is not used:
+    it fires when the *thread* that started the worker ends, and loky starts workers from short-lived threads
+    (``runners.sweep.prewarm_workers``, its executor manager), so workers would die with them. The same test works
+    on macOS and other POSIX systems; not on Windows, where a process keeps its parent's pid. The episode in flight
+    is killed like by a second signal to the launcher: its log stays ``.*.mcap.partial`` and the next sweep into
+    the directory removes it (``resume=true`` runs it again)."""
+    if _WATCHDOG or os.name != "posix":
+        return
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll_s)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    thread = threading.Thread(target=watch, name="fuzzynav-exit-with-parent", daemon=True)
+    _WATCHDOG.append(thread)
+    thread.start()

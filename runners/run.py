@@ -30,7 +30,7 @@ from fuzzynav import episode_identity
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.scenario import Scenario
-from runners import schema, stop, sweep_resume
+from runners import process_tree, schema, stop, sweep_resume
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
 from runners.provenance import provenance
 
@@ -150,7 +150,10 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     sweep_dir = Path(hydra_cfg.sweep.dir).absolute() if hydra_cfg.mode == RunMode.MULTIRUN else None
     # a worker between two jobs ignores SIGINT/SIGTERM: a terminal's Ctrl-C reaches every process of the sweep,
     # and a loky worker killed by it while idle would break the pool (and kill the others' episodes mid-log)
-    idle = signal.SIG_IGN if sweep_dir is not None and not stop.is_launcher() else None
+    in_worker = sweep_dir is not None and not stop.is_launcher()
+    idle = signal.SIG_IGN if in_worker else None
+    if in_worker:  # a worker whose launcher was killed (SIGKILL: it could not stop them) ends too
+        process_tree.exit_with_parent()
     restore = stop.install(sweep_dir, idle)
     results: list[dict[str, Any]] = []
     try:

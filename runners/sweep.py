@@ -123,6 +123,9 @@ def _import_runner() -> int:
     import scipy.optimize  # noqa: F401
 
     import runners.run  # noqa: F401
+    from runners.process_tree import exit_with_parent
+
+    exit_with_parent()  # a launcher killed with SIGKILL leaves no idle worker behind
 
     # idle workers ignore SIGINT/SIGTERM (each job handles them while it runs, see runners.run.run_job): a
     # terminal's Ctrl-C reaches every process of the sweep, and a worker that died of it would break the pool

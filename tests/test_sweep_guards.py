@@ -5,6 +5,7 @@ tests/test_sweep_faults.py."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import logging
 import os
@@ -260,3 +261,32 @@ def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
     assert done.stdout.splitlines() == ["1 0 0", f"{fifo}: a FIFO, not a regular file: skipped, not opened"]
     assert fifo.is_fifo() and not log.exists() and sweep_resume.held_count(tmp_path) == 1
     assert sweep_resume.restore(tmp_path) == (1, 0) and is_complete(log)
+
+
+@pytest.mark.parametrize("phase", ["in_flight", "idle"])
+def test_a_launcher_killed_with_sigkill_leaves_no_process(tmp_path, phase):
+    """issue 14: kill -9 of the sweep's launching process left its loky workers (which ignore SIGTERM when idle)
+    and their resource trackers alive for ever, holding the caller's pipes. Workers now end within a second of
+    their launcher (runners.process_tree.exit_with_parent): with episodes in flight, and idle after their jobs."""
+    from tests.test_sweep_faults import SEARCH, group, partials, running, wait_for
+
+    sweep_dir = tmp_path / "s"
+    scenario = "endless_corridor" if phase == "in_flight" else "head_on"
+    # idle: two quick jobs, then the sweep waits on a third (one worker idle, the other busy; both must go)
+    seeds = "0,1" if phase == "in_flight" else "0,1,2"
+    args = ["sweep=quick", SEARCH, f"scenario={scenario}", "planner=auto", f"seed={seeds}", "episodes=1",
+            "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep_dir}"]
+    with running(args) as proc:
+        if phase == "in_flight":
+            assert wait_for(lambda: len(partials(sweep_dir, scenario)) == 2), "the episodes did not start"
+        else:
+            assert wait_for(lambda: len(list(sweep_dir.rglob("head_on*.mcap"))) >= 2), "the episodes did not end"
+        workers = [pid for pid, cmd in group(proc.pid) if "popen_loky_posix" in cmd]
+        assert len(workers) == 2, group(proc.pid)
+        os.kill(proc.pid, signal.SIGKILL)
+        try:
+            proc.communicate(timeout=30)  # returns only once no process holds the pipes any more
+            assert wait_for(lambda: not group(proc.pid), 10.0), group(proc.pid)
+        finally:  # whatever happened, leave nothing behind (running() only kills a live launcher's group)
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
