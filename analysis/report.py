@@ -84,17 +84,22 @@ def _factors(df: pd.DataFrame, grouping: Grouping) -> dict[str, tuple]:
 
 def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
     """Mean paired difference (A − B) with a 95 % bootstrap interval between variants that differ in one
-    factor only — the strategy (wait vs detour, each of them vs every auto(h); auto against auto is in the
-    plots against h_wait) or one other differing parameter — run on the same scenario group and seed.
-    Strategy ``none`` (the ablation) is not compared. Episodes repeated on a seed within a group are averaged."""
+    factor only — the strategy (wait vs detour, each of them vs every auto(h)), h_wait between neighbouring
+    settings of auto (h=1 vs h=2, h=2 vs h=3, ...: the effect of one more step of tolerated waiting; every
+    setting is in the plots against h_wait) or one other differing parameter — run on the same scenario group
+    and seed. Strategy ``none`` (the ablation) is not compared. Episodes repeated on a seed within a group are
+    averaged."""
     factors = _factors(df, grouping)
     rows = []
     for scenario, sub in df[df["strategy"] != "none"].groupby("scenario_label", sort=False):
         per_seed = {v: g.groupby(PAIR_KEY)[PAIRED_METRICS].mean() for v, g in sub.groupby("variant", sort=False)}
+        h_values = sorted({float(factors[v][0][1]) for v in per_seed
+                           if factors[v][0][0] == "auto" and factors[v][0][1]})
         for a, b in itertools.combinations(per_seed, 2):
             changed = [i for i, (x, y) in enumerate(zip(factors[a], factors[b], strict=True)) if x != y]
             both_auto = factors[a][0][0] == factors[b][0][0] == "auto"
-            if len(changed) != 1 or (changed == [0] and both_auto):
+            if len(changed) != 1 or (changed == [0] and both_auto
+                                     and not _neighbours(factors[a][0][1], factors[b][0][1], h_values)):
                 continue
             left, right = per_seed[a], per_seed[b]
             common = left.index.intersection(right.index)
@@ -107,6 +112,14 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
                              "mean A−B": mean, "ci_low": lo, "ci_high": hi, "excludes_zero": excludes_zero(lo, hi)})
     return pd.DataFrame(rows, columns=["scenario", "A", "B", "metric", "pairs", "mean A−B", "ci_low", "ci_high",
                                        "excludes_zero"])
+
+
+def _neighbours(h_a: str, h_b: str, h_values: list[float]) -> bool:
+    """Whether two shown h_wait values are next to each other among the settings of this scenario group."""
+    if not h_a or not h_b:
+        return False
+    i, j = h_values.index(float(h_a)), h_values.index(float(h_b))
+    return abs(i - j) == 1
 
 
 def parameter_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:

@@ -226,6 +226,26 @@ def test_two_margins_are_two_groups_in_every_table(tmp_path, monkeypatch):
     assert list(table["episodes"]) == [3, 3]
 
 
+def test_neighbouring_h_wait_settings_are_paired_and_distant_ones_are_not(tmp_path, monkeypatch):
+    """auto with h_wait 1, 2 and 4 on three seeds: the report pairs h=1 with h=2 and h=2 with h=4 (the next
+    setting present), not h=1 with h=4; the robot of h=1 passes the obstacle 10 cm closer than the others."""
+    monkeypatch.setattr(plots, "_save", lambda fig, path: plt.close(fig) or path)
+    poses = [(0.0, 0.0, 0.0), (50.0, 0.0, 0.0), (100.0, 0.0, 0.0)]
+    for h in (1, 2, 4):
+        y = 20 + 10 + (30.0 if h == 1 else 40.0)
+        for seed in range(3):
+            write_log(tmp_path / f"h{h}_s{seed}.mcap", poses, goal=(100.0, 0.0),
+                      obstacles=[[("o", 0, y, 50, y, 10)], [("o", 50, y, 100, y, 10)]],
+                      meta=meta(setter("planner.h_wait", h), seed=seed))
+    build_report([tmp_path], tmp_path / "rep")
+    paired = pd.read_csv(tmp_path / "rep" / "paired.csv")
+    assert set(zip(paired["A"], paired["B"], strict=True)) == {("auto(h=1)", "auto(h=2)"), ("auto(h=2)", "auto(h=4)")}
+    clearance = paired[paired["metric"] == "min_clearance_dynamic_cm"].set_index("A")
+    assert clearance.loc["auto(h=1)", "mean A−B"] == pytest.approx(-10.0)
+    assert clearance.loc["auto(h=1)", "excludes_zero"]
+    assert clearance.loc["auto(h=2)", "mean A−B"] == pytest.approx(0.0)
+
+
 def test_summary_and_metrics_agree_on_success(tmp_path):
     """Logs where the two former definitions disagreed: a goal outcome with a contact seen only in the geometry
     (the simulator's flags and /episode say none), and a goal outcome whose positions never reach the goal."""

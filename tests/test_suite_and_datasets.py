@@ -40,13 +40,15 @@ def test_suite_has_the_named_scenarios():
 
 LITERAL = {k: v for k, v in yaml.safe_load((CONF / "planner" / "paper_literal.yaml").read_text()).items()
            if k != "defaults"}
+LITERAL_NAVIGATOR = {k: v for k, v in yaml.safe_load((CONF / "navigator" / "paper_literal.yaml").read_text()).items()
+                     if k != "defaults"}
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_every_scenario_runs_under_every_strategy(scenario):
     for planner in ({"strategy": "auto"}, {"strategy": "wait"}, {"strategy": "detour"}, {"strategy": "none"},
                     LITERAL, {**LITERAL, "strategy": "wait"}, {**LITERAL, "strategy": "detour"}):
-        cfg = composed(scenario, planner=planner)
+        cfg = composed(scenario, planner=planner, navigator=LITERAL_NAVIGATOR if planner is LITERAL else {})
         ep = Episode(load_scenario(cfg, 0), EVALUATOR, episode_config(cfg), seed=0)
         records = list(ep.run())
         assert ep.outcome in ("goal", "collision", "timeout") and records
