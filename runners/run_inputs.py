@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -171,6 +171,24 @@ def check_launcher(hydra_node: Any) -> None:
         raise ValueError("hydra.launcher.n_jobs: must not be 0 (a number of worker processes; -1 = all cores)")
 
 
+def check_job_dir(hydra_node: Any) -> None:
+    """``hydra.sweep.subdir``, a sweep job's directory inside ``hydra.sweep.dir``: a relative path without ``..``
+    (as written, interpolations unresolved). ``../../x`` wrote the job's logs and snapshot outside the sweep
+    directory, where neither the summary, the report nor a resume looks, and the sweep said it succeeded; an
+    empty subdir put every job's files into the sweep directory itself."""
+    sweep = hydra_node.get("sweep") if hydra_node is not None else None
+    if sweep is None:
+        return
+    raw = (OmegaConf.to_container(sweep, resolve=False) if isinstance(sweep, DictConfig) else dict(sweep)).get("subdir")
+    if raw is None:
+        return
+    text = str(raw)
+    parts = PurePosixPath(text).parts
+    if text.startswith(("/", "~")) or ".." in parts or not parts or "\\" in text:
+        raise ValueError(f"hydra.sweep.subdir: {text[:60]!r} is not a directory inside the sweep directory (a "
+                         "relative path, without '..')")
+
+
 @dataclass(frozen=True)
 class RunInputs:
     """Everything a run needs, validated: seeds, episode config, evaluator, the scenario of each seed."""
@@ -188,6 +206,7 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
     check_data_nodes(cfg, runtime)
     if "hydra" in cfg:
         check_launcher(cfg.hydra)
+        check_job_dir(cfg.hydra)
     plain = plain_config(cfg)
     seeds = run_seeds(plain)
     ep_cfg = episode_config(plain)

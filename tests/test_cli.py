@@ -58,3 +58,26 @@ def test_bench_quick_writes_results(tmp_path):
         assert set(shape["phases_s"]) == {"start-up", "validation + workers", "episodes", "summary", "report"}
         assert shape["jobs"] * shape["episodes_per_job"] == data["sweep"]["episodes"]
     assert data["analysis"]["mean_steps"] > 80  # the target is stated for ~100-step episodes
+
+
+# -- issue 14: sweeps given malformed input ----------------------------------------------------------------------
+def run_sweep(*overrides: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on", "episodes=1",
+                           "hydra.launcher.n_jobs=1", *overrides], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
+
+
+def one_error_line(res: subprocess.CompletedProcess) -> str:
+    """The only stderr line of a refused command (exit 2, no traceback)."""
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode == 2 and len(lines) == 1 and "Traceback" not in res.stderr, res.stderr[-2000:]
+    return lines[0]
+
+
+def test_a_job_dir_outside_the_sweep_dir_is_refused(tmp_path):
+    """``hydra.sweep.subdir=../escaped`` wrote the job's logs outside the sweep directory, exit 0."""
+    for subdir in ("../escaped", str(tmp_path / "abs"), "a/../../escaped", "''"):
+        res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", f"hydra.sweep.subdir={subdir}", "planner=auto")
+        assert one_error_line(res).startswith("error: config: hydra.sweep.subdir: "), res.stderr
+        assert "is not a directory inside the sweep directory" in res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
