@@ -76,6 +76,16 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
         raise ScenarioError(f"params.width/height: at least 400 x 300 cm, got {w} x {h}")
     if v_lo <= 0 or r_lo <= 0 or size_lo <= 0:
         raise ScenarioError("params.speed/dynamic_radius/static_size: minimum must be > 0")
+    # sizes that can never fit the world: refused for every seed alike (they placed nothing, or put a moving
+    # obstacle's start far outside the bounds, without a word)
+    static_max = (h - 20) / 2  # a static obstacle keeps 10 cm from the top and bottom walls (see below)
+    if n_static > 0 and size_lo >= static_max:
+        raise ScenarioError(f"params.static_size: [{size_lo:g}, {size_hi:g}] cm does not fit the {w:g} x {h:g} cm "
+                            f"world (a radius or half side must be below (height - 20) / 2 = {static_max:g} cm)")
+    dynamic_max = min(w, h) / 2
+    if n_dynamic > 0 and r_hi > dynamic_max:
+        raise ScenarioError(f"params.dynamic_radius: [{r_lo:g}, {r_hi:g}] cm does not fit the {w:g} x {h:g} cm "
+                            f"world (a moving obstacle's radius must be at most {dynamic_max:g} cm)")
     rng = np.random.default_rng((int(seed), 7))
     start = np.array([100.0, h / 2])
     goal = np.array([w - 100.0, h / 2])
@@ -102,6 +112,10 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
                 x0, y0, x1, y1 = (round(float(v), 3) for v in (*centre - size, *centre + size))
                 statics.append({"polygon": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]})
             break
+    if len(statics) < n_static:  # a scenario labelled n_static=5 with fewer obstacles is a silent wrong result
+        raise ScenarioError(f"params.n_static: placed {len(statics)} of {n_static} static obstacles (static_size "
+                            f"[{size_lo:g}, {size_hi:g}] cm does not fit that many into the {w:g} x {h:g} cm world "
+                            "clear of start, goal and each other, in 200 tries each; ask for fewer or smaller)")
     dynamics = []
     for i in range(n_dynamic):
         radius = round(uniform(rng, r_lo, r_hi), 3)
