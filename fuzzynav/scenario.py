@@ -193,10 +193,9 @@ def _static(data: Any, path: str) -> StaticObstacle:
 def _dynamic(data: Any, path: str) -> DynamicObstacle:
     data = _mapping(data, path)
     _keys(data, {"id", "radius", "start", "velocity", "waypoints", "speed", "loop"}, {"id", "radius"}, path)
-    oid = data["id"]
-    if isinstance(oid, bool) or not isinstance(oid, str | int) or str(oid) == "":
-        raise ScenarioError(f"{path}.id: expected a non-empty string or integer, got {show(oid)}")
-    check_name(str(oid), f"{path}.id", ScenarioError)
+    # an id is a name like the scenario's (it names the obstacle in logs and tables): a string, so that `id: 123`
+    # and `id: 0x7B` are not the same obstacle by accident
+    oid = check_name(data["id"], f"{path}.id", ScenarioError)
     radius = _positive(data["radius"], f"{path}.radius")
     has_cv = data.get("start") is not None or data.get("velocity") is not None
     has_wp = data.get("waypoints") is not None
@@ -339,6 +338,9 @@ def validate_geometry(s: Scenario) -> None:
                 raise ScenarioError(f"{path}.polygon: {what}")
             if geom.area <= 0:
                 raise ScenarioError(f"{path}.polygon: has zero area")
+        if not geom.intersects(area):  # a typo (a centre in mm, a swapped sign): it could never be met
+            shape = "circle" if obs.circle is not None else "polygon"
+            raise ScenarioError(f"{path}.{shape}: wholly outside bounds {list(s.bounds)}")
         if geom.contains(start) or geom.distance(start) < r:
             raise ScenarioError(f"{path}: overlaps the robot at robot.start (radius {r} cm)")
         if geom.covers(goal):

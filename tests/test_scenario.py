@@ -66,7 +66,23 @@ CASES = [
     (_set("bounds", [0, 0, -5, 600]), "bounds: need xmin < xmax"),
     (_set("max_steps", "lots"), "max_steps: expected a positive integer"),
     (_set("bounds", "wide"), "bounds: expected [xmin, ymin, xmax, ymax]"),
+    # issue 14: a static obstacle wholly outside the bounds, circle or polygon alike; ids are names (strings)
+    (_set("static_obstacles.1.circle.center", [5000, 5000]),
+     "static_obstacles[1].circle: wholly outside bounds [0.0, 0.0, 1000.0, 600.0]"),
+    (_set("static_obstacles.0.polygon", [[5000, 0], [5100, 0], [5100, 100]]),
+     "static_obstacles[0].polygon: wholly outside bounds"),
+    (_set("dynamic_obstacles.0.id", 123), "dynamic_obstacles[0].id: expected a name (string), got 123"),
+    (_set("dynamic_obstacles.0.id", 0x1F), "dynamic_obstacles[0].id: expected a name (string), got 31"),
 ]
+
+
+def test_obstacles_reaching_into_the_bounds_are_kept():
+    """Only obstacles that could never be met are refused: one that crosses or touches a wall is a wall's part."""
+    data = copy.deepcopy(BASE)
+    data["static_obstacles"] = [{"circle": {"center": [-30, 300], "radius": 40}},
+                                {"circle": {"center": [500, 640], "radius": 40}},
+                                {"polygon": [[1000, 0], [1100, 0], [1100, 100], [1000, 100]]}]
+    assert len(scenario_from_dict(data).static_obstacles) == 3
 
 
 @pytest.mark.parametrize("mutate, message", CASES, ids=[c[1].split(":")[0] + str(i) for i, c in enumerate(CASES)])
