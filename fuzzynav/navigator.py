@@ -229,11 +229,11 @@ class Navigator:
         here = np.array(obs.state.position)
         if expected is not None and dist(here, expected) > self.planner.plan_tolerance_cm:
             return False
-        if tpt is None:
-            return True
         pts = obs.static_points if self.planner.avoid_static_points else None
+        if tpt is None and pts is None:
+            return True
         remaining = active.remaining
-        if active.plan.strategy == "wait" and self.planner.wait_check_horizon:  # safe to stand there to the end
-            remaining = hold_to_horizon(remaining, tpt.n_traj)
+        if tpt is not None and active.plan.strategy == "wait" and self.planner.wait_check_horizon:
+            remaining = hold_to_horizon(remaining, tpt.n_traj)  # safe to stand there to the end of the table
         return not path_collides(tpt, remaining, here, pts, self.robot_radius + self.planner.static_margin_cm,
                                  margin=self.planner.plan_check_margin_cm)

@@ -215,15 +215,16 @@ def obstacle_gaps(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.nd
     return closest - tpt.robot_radius - tpt.obstacle_radii[None, :]
 
 
-def moves_collide(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.ndarray, step: int,
+def moves_collide(tpt: TrajectoryPredictionTable | None, start: np.ndarray, ends: np.ndarray, step: int,
                   static_points: np.ndarray | None, static_clearance: float,
                   margin: float | None = None) -> np.ndarray:
     """For moves from ``start`` (at step-1) to each of ``ends`` (at ``step``), True where the robot comes
     closer than the safety margin (the table's, unless ``margin`` is given) to a tracked obstacle during
-    the step, or closer than ``static_clearance`` to a static point."""
+    the step, or closer than ``static_clearance`` (cm) to a static point. ``tpt`` None: no moving obstacle
+    is perceived, only the static points count."""
     ends = np.atleast_2d(ends)
     out = np.zeros(len(ends), dtype=bool)
-    if len(tpt.obstacle_ids):
+    if tpt is not None and len(tpt.obstacle_ids):
         limit = tpt.safety_margin if margin is None else margin
         out |= (obstacle_gaps(tpt, start, ends, step) < limit).any(axis=1)
     if static_points is not None and len(static_points):
@@ -231,7 +232,7 @@ def moves_collide(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.nd
     return out
 
 
-def path_collides(tpt: TrajectoryPredictionTable, path: np.ndarray, start: np.ndarray,
+def path_collides(tpt: TrajectoryPredictionTable | None, path: np.ndarray, start: np.ndarray,
                   static_points: np.ndarray | None, static_clearance: float, margin: float | None = None) -> bool:
     """True if following ``path`` (positions at steps 1..L) from ``start`` collides at any step."""
     prev = np.asarray(start, dtype=float)

@@ -119,3 +119,18 @@ def test_reasons_of_the_worked_example():
         "waitTime 3 >= hWait 2: detour from tS' = 4"
     assert find_new_path(tpt, PlannerConfig(h_wait=4, safety_margin_cm=0.0), 90.0).reason == \
         "waitTime 3 < hWait 4: wait at rS"
+
+
+def test_a_plan_is_dropped_when_a_static_return_lies_on_it_although_no_obstacle_is_tracked():
+    """A track that was in fact a static disc (laser noise gave it 7 cm/s) makes a wait plan that drives at it;
+    when the track is gone its returns are static points, and the re-check must see them on the path."""
+    tracks = (Track(1, 0.0, 150.0, 7.0, 0.0, 20.0),)
+    tpt = build_tpt((0.0, 0.0), (0.0, 2000.0), 25.0, tracks, 20.0, 9, 1.0, 10.0)
+    plan = find_new_path(tpt, PlannerConfig(), 90.0)
+    assert plan is not None and len(plan.path) >= 4
+    wall = np.array([[0.0, 70.0], [5.0, 70.0]])  # on the plan's path, 70 cm ahead
+    obs = Observation(RobotState(0.0, 0.0, 90.0, 25.0), (0.0, 2000.0), (130.0, 130.0, 130.0), (), wall)
+    nav = _navigator()
+    assert not nav._still_valid(ActivePlan(plan, 0), obs, None)
+    assert _navigator(avoid_static_points=False)._still_valid(ActivePlan(plan, 0), obs, None)
+
