@@ -4,6 +4,7 @@ with one line ``error: <argument>: <problem>`` and exit status 2, never a traceb
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import sys
@@ -60,4 +61,20 @@ def unwritable_dir(path: Path) -> str | None:
         os.unlink(probe)
     except OSError as err:
         return f"{err.filename or path}: cannot write: {err.strerror or err}"
+    return None
+
+
+def path_problem(path: str) -> str | None:
+    """Why a path given on the command line cannot be read, as one line naming it, or None: a symlink loop or a
+    dangling link is said as such (``Path.exists`` is False for both, which was reported as "no such file")."""
+    try:
+        os.stat(path)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            return f"{path}: symlink loop (too many levels of symbolic links)"
+        if err.errno == errno.ENOENT and os.path.islink(path):
+            return f"{path}: dangling symlink (to {os.readlink(path)!r}, which does not exist)"
+        if err.errno == errno.ENOENT:
+            return f"{path}: no such file or directory"
+        return f"{path}: cannot read: {err.strerror or err}"
     return None

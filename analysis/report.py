@@ -12,10 +12,14 @@ with their kind and reason and left out of the statistics. Everything is compute
 from __future__ import annotations
 
 import argparse
+import contextlib
 import html
 import itertools
 import math
+import os
+import shutil
 import sys
+import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +27,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import plots
-from analysis.cli_args import OneLineParser, jobs, number_in, unwritable_dir
+from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
 from analysis.metrics import Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
@@ -309,6 +313,24 @@ def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, pair
     (out / "report.html").write_text(report.html())
 
 
+def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, analysis: Analysis) -> None:
+    """Write the report into ``out`` whole or not at all: built in a temporary directory inside ``out``, then each
+    file moved into place (a rename needs no space); on a failure (a full disk) the temporary directory is
+    removed and ``out`` holds what it held before, not a few plots of a report that does not exist."""
+    tmp = Path(tempfile.mkdtemp(prefix=".report.partial-", dir=out))
+    try:
+        build_report(paths, tmp, options, analysis=analysis)
+        for item in sorted(tmp.iterdir()):
+            os.replace(item, out / item.name)
+    except OSError as err:  # name the file as the user knows it, not inside the temporary directory
+        name = err.filename
+        if name is not None and Path(name).is_relative_to(tmp):
+            name = str(out / Path(name).relative_to(tmp))
+        raise OSError(err.errno, err.strerror or str(err), name) from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("paths", nargs="+", help="sweep directories and/or .mcap files")
@@ -322,22 +344,29 @@ def main(argv: list[str] | None = None) -> int:
                         help="logs written by different code (fuzzynav version, git commit, library versions) form "
                              "separate groups (default: pooled, with a warning)")
     args = parser.parse_args(argv)
-    missing = [p for p in args.paths if not Path(p).exists()]
-    if missing:
-        print(f"error: {missing[0]}: no such file or directory", file=sys.stderr)
+    problem = next((line for line in map(path_problem, args.paths) if line), None)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
         return 2
     first = Path(args.paths[0])
     out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
+    existed = out.exists()
     problem = unwritable_dir(out)  # before the analysis, not after it
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     options = MetricOptions(turn_threshold_deg=args.turn_threshold_deg)
     analysis = analyse_logs(args.paths, options, jobs=args.jobs, split_provenance=args.split_provenance)
+    if analysis.episodes.empty and analysis.excluded.empty:  # an empty report with exit 0 looked like a result
+        if not existed:
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        print(f"error: no logs found in {', '.join(args.paths)}", file=sys.stderr)
+        return 2
     try:
-        build_report(args.paths, out, options, analysis=analysis)
-    except OSError as err:  # disk full, or the directory changed under us: the report is incomplete
-        print(f"error: {err.filename or out}: cannot write the report: {err.strerror or err} (incomplete)",
+        write_whole(args.paths, out, options, analysis)
+    except OSError as err:  # disk full, or the directory changed under us: nothing of the report was written
+        print(f"error: {err.filename or out}: cannot write the report: {err.strerror or err} (nothing written)",
               file=sys.stderr)
         return 1
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")

@@ -45,6 +45,10 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
     analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
+    if analysis.episodes.empty and analysis.excluded.empty and not lost:
+        # nothing to summarise: an empty summary and report with exit 0 would look like a result
+        run.errors.append(f"no logs found in {sweep_dir}: the sweep ran no episode")
+        return
     if signum is None and not run.errors and not lost:
         write_summary(sweep_dir, analysis=analysis)
         report = write_report(sweep_dir, analysis)

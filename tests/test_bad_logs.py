@@ -231,8 +231,9 @@ def mount(tmp_path):
 def test_report_into_a_read_only_or_full_file_system_is_one_line(mount, good):
     read_only, full = mount("64k", read_only=True), mount("24k")
     for out, code, expect in ((read_only / "rep", 2, "cannot write: Read-only file system"),
-                              (full / "rep", 1, "cannot write the report: No space left on device (incomplete)")):
+                              (full / "rep", 1, "cannot write the report: No space left on device (nothing written)")):
         res = subprocess.run([sys.executable, "-m", "analysis.report", str(good), "--jobs", "1", "--out", str(out)],
                              cwd=ROOT, capture_output=True, text=True, timeout=300)
         assert res.returncode == code and expect in one_error_line(res.stderr), res.stderr
         assert str(out) in res.stderr
+        assert not list(out.rglob("*")) if out.exists() else True  # whole or nothing: no plots of a lost report

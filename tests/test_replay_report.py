@@ -159,3 +159,52 @@ def test_the_same_episodes_batched_differently_in_two_sweeps_are_counted_once(tm
     episodes = pd.read_csv(out / "episodes.csv")
     assert sorted(episodes["seed"]) == [0, 1] and all(str(dirs["a"][0]) in log for log in episodes["log"])
     assert "2 episodes analysed, 2 left out (2 duplicate)" in (out / "report.md").read_text()
+
+
+# -- issue 14 ----------------------------------------------------------------------------------------------------
+def report_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "analysis.report", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_a_report_on_no_logs_is_an_error(tmp_path):
+    """An empty directory gave an empty report, exit 0."""
+    (tmp_path / "empty").mkdir()
+    res = report_cli(str(tmp_path / "empty"), "--out", str(tmp_path / "out"))
+    assert res.returncode == 2 and res.stderr == f"error: no logs found in {tmp_path / 'empty'}\n", res.stderr
+    assert not (tmp_path / "out").exists()
+    res = report_cli(str(tmp_path / "empty"))  # the default --out (empty/report) is not left behind either
+    assert res.returncode == 2 and list((tmp_path / "empty").iterdir()) == []
+
+
+def test_a_symlink_loop_is_named_as_such(tmp_path):
+    (tmp_path / "x.mcap").symlink_to(tmp_path / "x.mcap")
+    (tmp_path / "d.mcap").symlink_to(tmp_path / "nowhere.mcap")
+    for name, problem in (("x.mcap", "symlink loop"), ("d.mcap", "dangling symlink"),
+                          ("n.mcap", "no such file or directory")):
+        res = report_cli(str(tmp_path / name), "--out", str(tmp_path / "out"))
+        assert res.returncode == 2 and res.stderr.startswith(f"error: {tmp_path / name}: {problem}"), res.stderr
+        assert len(res.stderr.splitlines()) == 1
+
+
+def test_a_failed_report_leaves_nothing_behind(fresh_log, tmp_path, monkeypatch, capsys):
+    """A report that fails (a full disk) after its plots were drawn left the PNGs in --out."""
+    import errno
+
+    from analysis import report
+
+    def disk_full(rep, out, *args):
+        raise OSError(errno.ENOSPC, "No space left on device", str(out / "report.md"))
+
+    out = tmp_path / "rep"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    monkeypatch.setattr(report, "_write", disk_full)
+    assert report.main([str(fresh_log), "--out", str(out), "--jobs", "1"]) == 1
+    assert f"error: {out / 'report.md'}: cannot write the report: No space left on device (nothing written)" in \
+        capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+    monkeypatch.undo()
+    assert report.main([str(fresh_log), "--out", str(out), "--jobs", "1"]) == 0
+    assert {"notes.txt", "report.md", "report.html", "episodes.csv"} <= {p.name for p in out.iterdir()}
+    assert list(out.glob("*.png")) and not list(out.glob(".report.partial*"))

@@ -290,3 +290,13 @@ def test_a_launcher_killed_with_sigkill_leaves_no_process(tmp_path, phase):
         finally:  # whatever happened, leave nothing behind (running() only kills a live launcher's group)
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, signal.SIGKILL)
+
+
+def test_a_sweep_that_wrote_no_log_does_not_report_success(tmp_path):
+    """issue 14: a sweep with no log at all wrote an empty summary and report and exited 0."""
+    from runners import sweep_end
+
+    run = sweep_control.SweepRun(tmp_path, time.time())
+    sweep_end.end_of_sweep(OmegaConf.create({}), run, None)
+    assert run.errors == [f"no logs found in {tmp_path}: the sweep ran no episode"]
+    assert not (tmp_path / "report").exists() and not (tmp_path / "summary.csv").exists()
