@@ -165,16 +165,29 @@ def check_composed(cfg: DictConfig) -> str | None:
     return None
 
 
+def _unreadable(parser: OverridesParser, overrides: list[str], err: Exception) -> str:
+    """The first override that does not parse, named with its key (Hydra's message names neither: ``planner=auto,``
+    was ``mismatched input '<EOF>' expecting ...``)."""
+    for text in overrides:
+        try:
+            parser.parse_overrides([text])
+        except Exception as one:
+            key = text.partition("=")[0] or text
+            return f"config: {key[:80]}: cannot read {text[:80]!r}: {str(one).splitlines()[0]}"
+    return f"config: cannot read the overrides: {str(err).splitlines()[0]}"
+
+
 def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = None) -> str | None:
     """One-line description of why these command-line overrides cannot be composed, or None.
 
     ``on_config`` is called with the first composed config, Hydra's node included (the sweep uses it to start
     its worker processes while the rest is checked and Hydra starts)."""
     overrides = [a for a in args if not a.startswith("-")]
+    parser = OverridesParser.create()
     try:
-        parsed = OverridesParser.create().parse_overrides(overrides)
+        parsed = parser.parse_overrides(overrides)
     except Exception as err:
-        return f"config: cannot read the overrides: {str(err).splitlines()[0]}"
+        return _unreadable(parser, overrides, err)
     base, variants = [], []
     for o in parsed:
         if not o.is_sweep_override():
@@ -183,6 +196,8 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
         if o.value_type == ValueType.GLOB_CHOICE_SWEEP:
             continue  # globs only select existing options
         values = list(o.sweep_string_iterator())
+        if not values and o.value_type != ValueType.INTERVAL_SWEEP:  # range(5,0): a sweep of no job, exit 0
+            return f"config: {o.get_key_element()}: {o.input_line.partition('=')[2]} selects no value (an empty sweep)"
         if o.value_type in (ValueType.RANGE_SWEEP, ValueType.INTERVAL_SWEEP):
             values = values[:1]  # numbers of one type: the first stands for all (without listing them all)
         prefix = "+" if o.is_add() else ""

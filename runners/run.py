@@ -10,6 +10,7 @@ directory (``outputs/<date>/<time>/`` for a run, one numbered job directory per 
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import os
@@ -227,12 +228,34 @@ def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
         sys.argv = [sys.argv[0], *args]
         os.environ["HYDRA_FULL_ERROR"] = "1"
     if not debug_requested(args) and "--help" not in args and "-h" not in args:
-        problem = precheck(args, on_config)
+        overrides, problem = hydra_overrides(args)
+        problem = problem or precheck(overrides, on_config)
         if problem:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)
     register_sweeper()
     main()
+
+
+def hydra_overrides(args: list[str]) -> tuple[list[str], str | None]:
+    """The config overrides among the command-line arguments (as Hydra's own parser reads them: ``--cfg job`` is
+    an option and its value), and one line about the first argument that looks like an option but is none of
+    Hydra's: Hydra printed its 8-line usage for ``--planner.h_wait=2``, a config override written with dashes."""
+    import io
+
+    from hydra._internal.utils import get_args_parser
+
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):  # a malformed Hydra option: Hydra's own message follows
+            known, unknown = get_args_parser().parse_known_args(args)
+    except SystemExit:
+        return [a for a in args if not a.startswith("-")], None
+    for arg in unknown:
+        if arg.startswith("-"):
+            bare = arg.lstrip("-")
+            hint = f" (a config override has no dashes: {bare[:80]})" if "=" in bare and bare else ""
+            return [], f"{arg[:80]}: unknown option{hint}; see --help"
+    return list(known.overrides) + [a for a in unknown if not a.startswith("-")], None
 
 
 def register_sweeper() -> None:

@@ -81,3 +81,22 @@ def test_a_job_dir_outside_the_sweep_dir_is_refused(tmp_path):
         assert one_error_line(res).startswith("error: config: hydra.sweep.subdir: "), res.stderr
         assert "is not a directory inside the sweep directory" in res.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_an_empty_sweep_is_refused(tmp_path):
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "seed=range(5,0)", "planner=auto")
+    assert one_error_line(res) == "error: config: seed: range(5,0) selects no value (an empty sweep)"
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_unreadable_override_names_its_key(tmp_path):
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "planner=auto,")
+    assert one_error_line(res).startswith("error: config: planner: cannot read 'planner=auto,': ")
+
+
+def test_an_override_written_as_an_option_is_one_line(tmp_path):
+    """``--planner.h_wait=2`` printed Hydra's 8-line usage."""
+    res = run_cli(tmp_path, "--planner.h_wait=2")
+    assert one_error_line(res) == ("error: --planner.h_wait=2: unknown option (a config override has no dashes: "
+                                   "planner.h_wait=2); see --help")
+    assert not list(tmp_path.glob("*.mcap"))
