@@ -190,6 +190,8 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
             raise err.inside("config dt") from None
         dt = float(dt)
     digest = meta.get("config_hash", "")
+    if digest and "config" not in meta:  # else the hash check below blamed the hash for the config's absence
+        raise CheckError("config", "missing (the metadata has a config_hash but no config)")
     if _SHA256.fullmatch(digest) and "fuzzynav_version" in meta and \
             digest != config_hash(meta.get("config", ""), meta["seed"], meta["fuzzynav_version"]):
         raise CheckError("config_hash", "is not the hash of the config and seed (edited or damaged metadata)")

@@ -90,6 +90,7 @@ def main() -> None:
     rewrite(good, OUT / "config_alias_bomb.mcap", metadata=lambda m: {**m, "config": BILLION_LAUGHS})
     rewrite(good, OUT / "h_wait_abc.mcap", metadata=lambda m: {**m, "h_wait": "abc"})
     rewrite(good, OUT / "seed_huge.mcap", metadata=lambda m: {**m, "seed": "1e308"})
+    rewrite(good, OUT / "config_missing.mcap", metadata=lambda m: {k: v for k, v in m.items() if k != "config"})
     rewrite(good, OUT / "outcome_unknown.mcap", message=_set("/episode", "outcome", "exploded"))
     rewrite(good, OUT / "x_cm_null.mcap", message=_set("/robot/state", "x_cm", None))
     rewrite(good, OUT / "tpt_ragged.mcap", message=_ragged_tpt)
