@@ -100,3 +100,11 @@ def test_an_override_written_as_an_option_is_one_line(tmp_path):
     assert one_error_line(res) == ("error: --planner.h_wait=2: unknown option (a config override has no dashes: "
                                    "planner.h_wait=2); see --help")
     assert not list(tmp_path.glob("*.mcap"))
+
+
+def test_two_spellings_of_one_value_are_counted_as_a_duplicate(tmp_path):
+    """``5,5.0`` runs the same episode twice: the summary said "(1 unreadable)"; a copy is a duplicate."""
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "planner=auto", "planner.safety_margin_cm=5,5.0")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert f"2 episode logs in {tmp_path / 's'} (1 left out: 1 duplicate)" in res.stdout, res.stdout
+    assert "unreadable" not in res.stdout
