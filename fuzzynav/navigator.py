@@ -233,6 +233,8 @@ class Navigator:
         if tpt is None and pts is None:
             return True
         remaining = active.remaining
+        if tpt is None:  # no track this frame: a lost track's returns look static, so only the next move counts
+            remaining = remaining[:1]
         if tpt is not None and active.plan.strategy == "wait" and self.planner.wait_check_horizon:
             remaining = hold_to_horizon(remaining, tpt.n_traj)  # safe to stand there to the end of the table
         return not path_collides(tpt, remaining, here, pts, self.robot_radius + self.planner.static_margin_cm,
