@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -257,6 +258,14 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
     return {"file": job["file"], "outcome": summary["outcome"], "steps": summary["steps"], **content_digests(path)}
 
 
+def effective_workers(n_jobs: int, n_episodes: int) -> int:
+    """Worker processes for ``n_episodes``: ``--jobs`` (-1: every core), at most one per episode and per core
+    (``--jobs 300`` for one episode started 300 workers, hung and left them behind when killed)."""
+    cores = os.cpu_count() or 1
+    wanted = cores if n_jobs == -1 else n_jobs
+    return max(1, min(wanted, n_episodes, cores))
+
+
 def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: str = "episodes") -> list[dict]:
     """Record every episode of the dataset into ``out_dir`` in parallel, with a progress bar."""
     from joblib import Parallel, delayed
@@ -265,8 +274,9 @@ def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: 
     out_dir.mkdir(parents=True, exist_ok=True)
     todo = jobs(manifest)
     results = []
+    workers = effective_workers(n_jobs, len(todo))
     with tqdm(total=len(todo), unit="episode", desc=desc, file=sys.stderr) as bar:
-        for res in Parallel(n_jobs=n_jobs, return_as="generator")(delayed(_record)(j, str(out_dir)) for j in todo):
+        for res in Parallel(n_jobs=workers, return_as="generator")(delayed(_record)(j, str(out_dir)) for j in todo):
             results.append(res)
             bar.update(1)
     return sorted(results, key=lambda r: r["file"])

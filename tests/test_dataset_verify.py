@@ -351,3 +351,26 @@ def test_root_option_lists_only_that_directory(root, capsys, tmp_path):
     code, out, _ = run(capsys, "list", "--root", str(tmp_path))
     assert code == 0 and out.startswith("tiny_copy") and "2 episodes  built=True" in out
     assert "committed logs: 1" in out
+
+
+# -- hostile14b ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("jobs, episodes", [(300, 1), (1024, 2), (-1, 1), (1, 5)])
+def test_workers_are_capped_by_episodes_and_cores(tmp_path, monkeypatch, jobs, episodes):
+    """d_jobs_300: ``--jobs 300`` for one episode started 300 workers (and hung)."""
+    import os
+
+    import joblib
+
+    seen = {}
+
+    class FakeParallel:
+        def __init__(self, n_jobs, **_):
+            seen["n_jobs"] = n_jobs
+
+        def __call__(self, tasks):
+            return iter(())
+
+    monkeypatch.setattr(joblib, "Parallel", FakeParallel)
+    manifest = {"sweep": {**TINY["sweep"], "seeds": [0, episodes]}}
+    dataset.record_all(manifest, tmp_path / "out", n_jobs=jobs)
+    assert seen["n_jobs"] == min(os.cpu_count() or 1, episodes, jobs if jobs > 0 else 10**6)
