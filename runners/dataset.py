@@ -95,6 +95,13 @@ def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
     if not (isinstance(seeds, list) and len(seeds) == 2 and all(isinstance(s, int) for s in seeds) and
             seeds[0] < seeds[1]):
         raise DatasetError(f"{path}: sweep.seeds: expected [first, end) as two integers, got {seeds!r}")
+    if seeds[0] < 0:
+        raise DatasetError(f"{path}: sweep.seeds: {seeds[0]}: seeds are non-negative")
+    if seeds[1] - 1 > limits.MAX_SEED:  # a seed beyond 2^53 - 1 is not exact in the analysis' float64 tables
+        raise DatasetError(f"{path}: sweep.seeds: end {seeds[1]} is beyond the largest seed {limits.MAX_SEED:,} + 1")
+    if seeds[1] - seeds[0] > limits.MAX_EPISODES_PER_RUN:  # [0, 2^53] ran (silently) for ever
+        raise DatasetError(f"{path}: sweep.seeds: [{seeds[0]}, {seeds[1]}) is {seeds[1] - seeds[0]:,} seeds, more than "
+                           f"the limit of {limits.MAX_EPISODES_PER_RUN:,} per scenario and variant")
     for key in ("scenarios", "variants"):
         if not isinstance(sweep[key], list) or not sweep[key]:
             raise DatasetError(f"{path}: sweep.{key}: expected a non-empty list")

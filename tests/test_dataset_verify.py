@@ -151,6 +151,9 @@ BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently 
     ({"variants": ["hydra.run.dir=/tmp/x"]}, "sweep.variants[0]: hydra.run.dir: hydra settings are not allowed"),
     ({"overrides": ["hydra.sweep.dir=/tmp/x"]}, "sweep.overrides[0]: hydra.sweep.dir: hydra settings are not allowed"),
     ({"variants": [["planner=auto_h2", "hydra/launcher=basic"]]}, "sweep.variants[0][1]: hydra/launcher: hydra"),
+    ({"seeds": [0, 9007199254740993]}, "sweep.seeds: end 9007199254740993 is beyond the largest seed"),
+    ({"seeds": [0, 10_001]}, "sweep.seeds: [0, 10001) is 10,001 seeds, more than the limit of 10,000"),
+    ({"seeds": [-1, 2]}, "sweep.seeds: -1: seeds are non-negative"),
 ]
 
 
