@@ -255,9 +255,11 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
     from runners.run import episode_config, load_evaluator, load_scenario, run_episode
 
     schema.register()
-    if not GlobalHydra.instance().is_initialized():
-        initialize_config_dir(config_dir=str(CONF), version_base="1.3")
-    cfg = compose("config", overrides=job["overrides"])
+    if GlobalHydra.instance().is_initialized():
+        cfg = compose("config", overrides=job["overrides"])
+    else:  # a context: with one worker this runs in the caller's process, whose later prechecks initialise Hydra
+        with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+            cfg = compose("config", overrides=job["overrides"])
     plain = OmegaConf.to_container(cfg, resolve=True)
     path = Path(out_dir) / job["file"]
     summary = run_episode(load_scenario(plain, job["seed"]), load_evaluator(plain), episode_config(plain),
@@ -346,10 +348,12 @@ class Verification:
     problems: list[tuple[str, str]] = field(default_factory=list)
     diffs: dict[str, EpisodeDiff] = field(default_factory=dict)
     compared: int = 0
+    seeds: tuple[int, int] | None = None  # the seeds actually checked (``--seeds`` clipped to the dataset's)
 
 
-def _select_seeds(manifest: dict[str, Any], seeds: tuple[int, int], path: Path) -> None:
-    """Restrict the manifest to the seeds in ``[first, end)``; an error if that leaves no episode."""
+def _select_seeds(manifest: dict[str, Any], seeds: tuple[int, int], path: Path) -> tuple[int, int]:
+    """Restrict the manifest to the seeds in ``[first, end)`` and return the seeds kept (those of the dataset);
+    an error if that leaves no episode."""
     have = manifest["sweep"]["seeds"]
     first, end = max(seeds[0], have[0]), min(seeds[1], have[1])
     if first >= end:
@@ -357,6 +361,7 @@ def _select_seeds(manifest: dict[str, Any], seeds: tuple[int, int], path: Path) 
     wanted = {j["file"] for j in jobs(manifest) if first <= j["seed"] < end}
     manifest["sweep"]["seeds"] = [first, end]
     manifest["episodes"] = {f: e for f, e in manifest["episodes"].items() if f in wanted}
+    return first, end
 
 
 def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seeds: tuple[int, int] | None = None,
@@ -371,9 +376,8 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
     check_sweep(manifest, path, overrides)
     if overrides:
         manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
-    if seeds is not None:
-        _select_seeds(manifest, seeds, path)
-    out = Verification(compared=len(manifest["episodes"]))
+    checked = _select_seeds(manifest, seeds, path) if seeds is not None else None
+    out = Verification(compared=len(manifest["episodes"]), seeds=checked)
     log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
         results = {r["file"]: r for r in record_all(manifest, Path(tmp), n_jobs, desc=f"verify {name}")}
@@ -472,8 +476,13 @@ def main(argv: list[str] | None = None) -> int:
     if result.problems:
         _print_verification(args.name, result, args.detail)
         return 1
-    what = f"seeds {args.seeds} of" if args.seeds else "all episodes and the metrics table of"
-    print(f"{args.name}: {what} the dataset match")
+    if result.seeds is None:
+        print(f"{args.name}: all episodes and the metrics table of the dataset match")
+        return 0
+    first, end = result.seeds
+    # the seeds checked, not those asked: --seeds 0:9007199254740993 checked 0:20 and claimed all of them
+    note = "" if (first, end) == seeds else f" (--seeds {args.seeds}: the dataset has only these)"
+    print(f"{args.name}: seeds {first}:{end} of the dataset match{note}")
     return 0
 
 

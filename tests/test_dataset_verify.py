@@ -377,3 +377,15 @@ def test_workers_are_capped_by_episodes_and_cores(tmp_path, monkeypatch, jobs, e
     manifest = {"sweep": {**TINY["sweep"], "seeds": [0, episodes]}}
     dataset.record_all(manifest, tmp_path / "out", n_jobs=jobs)
     assert seen["n_jobs"] == min(os.cpu_count() or 1, episodes, jobs if jobs > 0 else 10**6)
+
+
+@pytest.mark.parametrize("seeds, said", [
+    ("1:9007199254740993", "tiny: seeds 1:2 of the dataset match (--seeds 1:9007199254740993: the dataset has only "
+                           "these)"),
+    ("1:2", "tiny: seeds 1:2 of the dataset match"),
+])
+def test_verify_says_the_seeds_it_checked(root, capsys, seeds, said):
+    """d_seeds_huge: --seeds 0:9007199254740993 checked the dataset's seeds and said all 9e15 matched."""
+    code, out, err = run(capsys, "verify", "tiny", "--seeds", seeds, "--root", str(root))
+    assert code == 0, err
+    assert out.strip() == said
