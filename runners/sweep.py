@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import sys
 import threading
 from pathlib import Path
@@ -30,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ValueType
 from hydra.experimental.callback import Callback
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from analysis.logs import is_complete
@@ -48,9 +49,16 @@ CONF = Path(__file__).resolve().parents[1] / "conf"
 
 def count_episodes(config: DictConfig) -> int | None:
     """Episodes the sweep will run: product of the sweep sizes times ``episodes`` (None if unknown)."""
+    jobs = count_jobs(config, list(config.hydra.overrides.task))
+    return None if jobs is None else jobs * int(config.get("episodes", 1))
+
+
+def count_jobs(config: DictConfig, task: list[str]) -> int | None:
+    """Jobs of the sweep: the product of the sweep sizes of the preset's ``hydra.sweeper.params`` and the
+    command-line overrides ``task`` (None if unknown)."""
     params = dict(config.hydra.sweeper.get("params") or {})
     overrides = [f"{k}={v}" for k, v in params.items()]
-    overrides += list(config.hydra.overrides.task)
+    overrides += task
     total = 1
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
@@ -71,7 +79,38 @@ def count_episodes(config: DictConfig) -> int | None:
             sizes[key] = len(list(o.sweep_string_iterator()))
     for n in sizes.values():
         total *= max(n, 1)
-    return total * int(config.get("episodes", 1))
+    return total
+
+
+# a job's own directory: Hydra's job number or id, or the overrides that make the job (``${hydra.job.num}``,
+# ``${hydra:job.id}``, ``${hydra.job.override_dirname}``)
+_PER_JOB = re.compile(r"\$\{\s*hydra[.:]\s*job\.(num|id|override_dirname)\s*\}")
+
+
+def shared_job_dir(config: DictConfig, task: list[str]) -> str | None:
+    """One line when ``hydra.sweep.subdir`` is the same directory for every job of a sweep of more than one job
+    (``hydra.sweep.subdir=same``: every job wrote its logs into one directory and the logs of one job replaced
+    the logs of the same name of another, e.g. the same planner at another safety margin; the sweep said it
+    succeeded). None when it names each job's own directory or the sweep is one job."""
+    sweep = config.hydra.get("sweep") if "hydra" in config else None
+    if sweep is None:
+        return None
+    raw = OmegaConf.to_container(sweep, resolve=False).get("subdir")
+    if raw is None or _PER_JOB.search(str(raw)):
+        return None
+    jobs = count_jobs(config, task)
+    if jobs is not None and jobs <= 1:
+        return None
+    return (f"config: hydra.sweep.subdir: {str(raw)[:60]!r} is the same directory for each of the "
+            f"{jobs if jobs is not None else 'several'} jobs (logs of the same name would replace each other); "
+            "include ${hydra.job.num}")
+
+
+def refuse_shared_job_dir(config: DictConfig, task: list[str]) -> None:
+    problem = shared_job_dir(config, task)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        sys.exit(2)
 
 
 SHORT_JOBS = 50  # from this many jobs of fewer than SHORT_JOB_EPISODES episodes, the sweep suggests batching
@@ -199,6 +238,7 @@ class SweepProgress(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
+        refuse_shared_job_dir(config, list(config.hydra.overrides.task))  # before anything runs or is written
         fault_tolerant_sweeper(config)
         run = sweep_control.begin_or_exit(sweep_dir)
         if run.removed_partials:
@@ -323,7 +363,13 @@ def main() -> None:
     sys.argv = [sys.argv[0], "--multirun", *args]
     from runners import run
 
-    run.cli(on_config=prewarm_workers)
+    task = [a for a in args if not a.startswith("-")]
+
+    def on_config(config: DictConfig) -> None:
+        refuse_shared_job_dir(config, task)  # with the command line's sweeps, not the one job composed to check
+        prewarm_workers(config)
+
+    run.cli(on_config=on_config)
 
 
 if __name__ == "__main__":

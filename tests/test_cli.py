@@ -83,6 +83,26 @@ def test_a_job_dir_outside_the_sweep_dir_is_refused(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+def test_a_job_dir_shared_by_the_jobs_of_a_sweep_is_refused(tmp_path):
+    """``planner.safety_margin_cm=5,10 hydra.sweep.subdir=same``: every job wrote into one directory, the margin-10
+    logs replaced the margin-5 logs of the same name, '7 episode logs', exit 0 (hostile14b w_margin_same_name)."""
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "scenario.max_steps=20", "planner=auto,wait",
+                    "planner.safety_margin_cm=5,10", "hydra.sweep.subdir=same")
+    assert one_error_line(res) == ("error: config: hydra.sweep.subdir: 'same' is the same directory for each of "
+                                   "the 4 jobs (logs of the same name would replace each other); include "
+                                   "${hydra.job.num}")
+    assert not (tmp_path / "s").exists()
+    # one job may use any directory; a directory per job is accepted
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 'one'}", "scenario.max_steps=20", "planner=auto",
+                    "hydra.sweep.subdir=same")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert len(list((tmp_path / "one" / "same").glob("*.mcap"))) == 1
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 'per'}", "scenario.max_steps=20", "planner=auto",
+                    "planner.safety_margin_cm=5,10", "hydra.sweep.subdir=m${hydra.job.num}")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert len(list((tmp_path / "per").rglob("*.mcap"))) == 2
+
+
 def test_an_empty_sweep_is_refused(tmp_path):
     res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "seed=range(5,0)", "planner=auto")
     assert one_error_line(res) == "error: config: seed: range(5,0) selects no value (an empty sweep)"
