@@ -128,6 +128,14 @@ def _variant_overrides(variant: Any) -> list[str]:
     return [variant] if isinstance(variant, str) else list(variant)
 
 
+def _override_key(text: str) -> str:
+    """The key (config value or group) an override sets: ``planner`` of ``planner=auto``, ``+a.b`` -> ``a.b``."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    (override,) = OverridesParser.create().parse_overrides([text])
+    return override.get_key_element().lstrip("+~")
+
+
 def _check_override(text: Any, where: str, path: Path) -> None:
     """One override of a manifest (``where`` names its field): a single ``key=value`` of the run config.
 
@@ -174,6 +182,12 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
             _check_override(text, f"sweep.variants[{i}]" + (f"[{k}]" if len(parts) > 1 else ""), path)
     for i, text in enumerate(common):
         _check_override(text, f"sweep.overrides[{i}]", path)
+    # a key set by a variant and by the common overrides: the latter won silently, so episodes named
+    # planner-auto ran planner=wait
+    variant_keys = {_override_key(t) for v in sweep["variants"] for t in _variant_overrides(v)}
+    for i, text in enumerate(common):
+        if (key := _override_key(text)) in variant_keys:
+            raise DatasetError(f"{path}: sweep.overrides[{i}]: {key} is also set by the variants")
     extra = extra or []
     first = [f"seed={sweep['seeds'][0]}"]
     scenarios, variants = sweep["scenarios"], [_variant_overrides(v) for v in sweep["variants"]]

@@ -154,6 +154,10 @@ BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently 
     ({"seeds": [0, 9007199254740993]}, "sweep.seeds: end 9007199254740993 is beyond the largest seed"),
     ({"seeds": [0, 10_001]}, "sweep.seeds: [0, 10001) is 10,001 seeds, more than the limit of 10,000"),
     ({"seeds": [-1, 2]}, "sweep.seeds: -1: seeds are non-negative"),
+    ({"overrides": ["scenario.max_steps=20", "planner=wait"]},
+     "sweep.overrides[1]: planner is also set by the variants"),
+    ({"variants": [["planner=auto_h2", "planner.h_wait=3"]], "overrides": ["planner.h_wait=4"]},
+     "sweep.overrides[0]: planner.h_wait is also set by the variants"),
 ]
 
 
