@@ -401,6 +401,12 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
                 out.problems.append((file, f"{file}: not produced by the sweep"))
                 continue
             if got["sha256"] == expected["sha256"]:
+                # the same log: the manifest's own summary of it must agree too (steps 999 verified as matching)
+                wrong = [f"{k} {expected[k]!r} -> {got[k]!r}" for k in ("outcome", "steps")
+                         if k in expected and expected[k] != got[k]]
+                if wrong:
+                    out.problems.append((file, f"{file}: same content, but the manifest entry differs from the "
+                                               f"regenerated episode: {', '.join(wrong)}"))
                 continue
             recorded = log_dir / file
             if recorded.exists():  # the committed log: every message and field is compared

@@ -393,3 +393,19 @@ def test_verify_says_the_seeds_it_checked(root, capsys, seeds, said):
     code, out, err = run(capsys, "verify", "tiny", "--seeds", seeds, "--root", str(root))
     assert code == 0, err
     assert out.strip() == said
+
+
+@pytest.mark.parametrize("field, value, said", [("steps", 999, "steps 999 -> "),
+                                                ("outcome", "timeout", "outcome 'timeout' -> ")])
+def test_a_wrong_manifest_steps_or_outcome_is_a_difference(root, tmp_path, capsys, field, value, said):
+    """d_verify_steps_wrong: an entry's steps edited 20 -> 999 still verified as matching."""
+    shutil.copytree(root / "tiny", tmp_path / "tiny")
+    path = tmp_path / "tiny" / "manifest.yaml"
+    manifest = yaml.safe_load(path.read_text())
+    assert manifest["episodes"][UNLOGGED][field] != value
+    manifest["episodes"][UNLOGGED][field] = value
+    path.write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
+    code, out, err = run(capsys, "verify", "tiny", "--seeds", "1:2", "--root", str(tmp_path))
+    assert code == 1, (out, err)
+    line = episode_line(out, UNLOGGED)
+    assert "the manifest entry differs from the regenerated episode" in line and said in line, out
