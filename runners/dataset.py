@@ -182,6 +182,7 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
             _check_override(text, f"sweep.variants[{i}]" + (f"[{k}]" if len(parts) > 1 else ""), path)
     for i, text in enumerate(common):
         _check_override(text, f"sweep.overrides[{i}]", path)
+    _check_repeats(sweep, path)
     # a key set by a variant and by the common overrides: the latter won silently, so episodes named
     # planner-auto ran planner=wait
     variant_keys = {_override_key(t) for v in sweep["variants"] for t in _variant_overrides(v)}
@@ -207,6 +208,40 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
         fail_if("", [f"scenario={scenarios[0]}", *variants[0], *common, *extra[:i + 1], *first])
     for i, name in enumerate(scenarios[1:], start=1):
         fail_if(f"{path}: sweep.scenarios[{i}]", [f"scenario={name}", *variants[0], *common, *extra, *first])
+    _check_distinct_variants(path, [f"scenario={scenarios[0]}"], variants, [*common, *extra, *first])
+
+
+def _check_repeats(sweep: dict[str, Any], path: Path) -> None:
+    """A scenario or variant listed twice ran its episodes twice and kept one, without a word."""
+    for key in ("scenarios", "variants"):
+        seen: dict[str, int] = {}
+        for i, entry in enumerate(sweep[key]):
+            text = json.dumps(entry)
+            if text in seen:
+                raise DatasetError(f"{path}: sweep.{key}[{i}]: repeats sweep.{key}[{seen[text]}]")
+            seen[text] = i
+
+
+def _check_distinct_variants(path: Path, before: list[str], variants: list[list[str]], after: list[str]) -> None:
+    """Two variants composing the same configuration (planner=auto and planner=auto_h2) made the same episodes
+    under two names; the build failed after running them all, naming temporary files."""
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from runners import schema
+
+    if len(variants) < 2:
+        return
+    schema.register()
+    seen: dict[str, int] = {}
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        for i, parts in enumerate(variants):
+            cfg = compose("config", overrides=[*before, *parts, *after])
+            text = json.dumps(OmegaConf.to_container(cfg, resolve=True), sort_keys=True, default=str)
+            if text in seen:
+                raise DatasetError(f"{path}: sweep.variants[{i}]: the same configuration as "
+                                   f"sweep.variants[{seen[text]}]")
+            seen[text] = i
 
 
 def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:

@@ -158,6 +158,11 @@ BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently 
      "sweep.overrides[1]: planner is also set by the variants"),
     ({"variants": [["planner=auto_h2", "planner.h_wait=3"]], "overrides": ["planner.h_wait=4"]},
      "sweep.overrides[0]: planner.h_wait is also set by the variants"),
+    ({"variants": ["planner=auto", "planner=auto_h2"]},
+     "sweep.variants[1]: the same configuration as sweep.variants[0]"),
+    ({"variants": ["planner=wait", "planner=auto_h2", "planner=auto_h2"]},
+     "sweep.variants[2]: repeats sweep.variants[1]"),
+    ({"scenarios": ["paper_fig5", "head_on", "paper_fig5"]}, "sweep.scenarios[2]: repeats sweep.scenarios[0]"),
 ]
 
 
