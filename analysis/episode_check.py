@@ -44,6 +44,7 @@ def check_episode(log: EpisodeLog, times: Mapping[str, list[int]], config_dt: fl
     _check_tpts(log)
     _check_decisions(log, times)
     _check_counts(log, times)
+    _check_outcome(log)
 
 
 def _dt_from_log(log: EpisodeLog, times: Mapping[str, list[int]]) -> float:
@@ -80,6 +81,53 @@ def _check_world(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:
 
 _ROBOT = obj(start=array(number(), length=2), goal=array(number(), length=2), heading=number(-1e6, 1e6),
              radius=POSITIVE_CM)
+
+
+def _scenario(log: EpisodeLog) -> dict | None:
+    """The logged scenario (metadata ``scenario_yaml``) when it is one with a robot, else None."""
+    text = log.meta.get("scenario_yaml", "")
+    try:
+        world = yaml.load(text, Loader=YAML_LOADER) if len(text) <= MAX_CONFIG_BYTES else None
+    except (yaml.YAMLError, RecursionError):
+        world = None
+    return world if isinstance(world, dict) and world.get("robot") is not None else None
+
+
+def _check_outcome(log: EpisodeLog) -> None:
+    """A finished episode's outcome (of a log with its scenario) is what its last step shows, as
+    :mod:`fuzzynav.episode` decides it: ``goal`` ends within the scenario's goal tolerance of the goal, ``timeout``
+    at the scenario's ``max_steps`` outside it, ``collision`` on a step with a contact. A log whose ``/episode``
+    outcome was rewritten (timeout to goal, 550 cm from the goal) was counted as a success."""
+    world = _scenario(log)  # a log of runners.run (hand-written logs have no scenario: their outcome is as written)
+    if world is None or not log.complete or log.episode is None or log.episode["outcome"] not in FINISHED \
+            or not log.states:
+        return
+    outcome, last = log.episode["outcome"], log.states[-1]
+    if outcome == "collision":
+        if not last["contact_static"] and not last["contact_dynamic"]:
+            raise CheckError("/episode outcome", f"'collision', but the last step (step {last['step']}) has no "
+                                                 "contact")
+        return
+    robot = world["robot"]
+    tol = world.get("goal_tolerance")
+    try:
+        tol = float(robot["radius"] if tol is None else tol)
+        gx, gy = (float(v) for v in robot["goal"])
+        max_steps = int(world.get("max_steps", 300))
+    except (TypeError, ValueError, KeyError):
+        return  # _check_against_scenario names a malformed robot
+    d = math.hypot(last["next_x_cm"] - gx, last["next_y_cm"] - gy)
+    slack = 1e-6 * max(1.0, tol)  # the episode measures with its own (portable) distance
+    if outcome == "goal" and d > tol + slack:
+        raise CheckError("/episode outcome", f"'goal', but the robot ends {d:.1f} cm from the goal (goal tolerance "
+                                             f"{tol:g} cm, metadata scenario_yaml)")
+    if outcome == "timeout":
+        if d < tol - slack:
+            raise CheckError("/episode outcome", f"'timeout', but the robot ends {d:.1f} cm from the goal, within "
+                                                 f"the goal tolerance {tol:g} cm")
+        if len(log.states) != max_steps:
+            raise CheckError("/episode outcome", f"'timeout' after {len(log.states)} steps, the scenario's "
+                                                 f"max_steps is {max_steps}")
 
 
 def _check_against_scenario(log: EpisodeLog) -> None:

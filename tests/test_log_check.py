@@ -150,3 +150,32 @@ def test_left_out_logs_carry_the_kind_of_check_that_failed(tmp_path, recorded_lo
             "1 not-regular-file, 1 truncated)") in capsys.readouterr().out
     markdown = (tmp_path / "report" / "report.md").read_text()
     assert re.search(r"\|\s*log\s*\|\s*kind\s*\|", markdown) and "not-regular-file" in markdown
+
+
+@pytest.mark.parametrize(("forged", "expect"), [
+    ("goal", "/episode outcome: 'goal', but the robot ends "),
+    ("collision", "/episode outcome: 'collision', but the last step (step 13) has no contact")])
+def test_an_outcome_its_last_step_contradicts_is_left_out(tmp_path, recorded_logs, forged, expect, capsys):  # noqa: F811
+    """/episode outcome rewritten from timeout to goal (the robot 470+ cm short of the goal) was counted as a success
+    by the report and passed replay --verify (hostile14b l_forged_goal)."""
+    from analysis.metrics import analyse_logs
+    from runners import replay
+    from tests.log_surgery import rewrite
+
+    def forge(topic, _index, msg):
+        if topic == "/episode":
+            assert msg["outcome"] == "timeout"
+            return {**msg, "outcome": forged}
+        return msg
+
+    log = rewrite(recorded_logs[0], tmp_path / "forged.mcap", message=forge)
+    analysis = analyse_logs([log])
+    assert analysis.episodes.empty and len(analysis.excluded) == 1
+    row = analysis.excluded.iloc[0]
+    assert row["kind"] == "episode" and expect in row["reason"], row["reason"]
+    assert replay.main([str(log), "--verify", "--quiet", "--out", str(tmp_path / "r")]) == 2
+    assert expect in capsys.readouterr().err
+    # the true outcome still passes
+    analysis = analyse_logs([rewrite(recorded_logs[0], tmp_path / "same.mcap", message=lambda _t, _i, m: m)])
+    assert len(analysis.episodes) == 1 and analysis.excluded.empty
+
