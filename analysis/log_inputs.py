@@ -2,9 +2,10 @@
 
 :func:`collect_logs` turns command-line paths into the list of logs the analysis reads:
 
-1. A directory stands for its ``*.mcap`` files at any depth, in sorted order, except hidden ones and those in
-   hidden directories (``.hydra/``, a sweep's ``.fuzzynav/`` with the logs a resume has set aside); symlinked
-   directories are not followed (no loops). A file stands for itself, whatever its name.
+1. A directory stands for its ``*.mcap`` files (the extension in any case: ``*.MCAP`` too) at any depth, in
+   sorted order, except hidden ones and those in hidden directories (``.hydra/``, a sweep's ``.fuzzynav/`` with
+   the logs a resume has set aside); symlinked directories are not followed (no loops). A file stands for
+   itself, whatever its name.
 2. Something that is not a regular file (a FIFO, device, socket or directory named ``*.mcap``), a dangling link
    or a directory that cannot be listed is never opened: it comes back as a :class:`RejectedLog` whose reason
    the analysis lists with the logs left out.
@@ -69,6 +70,10 @@ def collect_logs(paths: Iterable[str | Path]) -> list[Path]:
     return _one_per_episode(out)
 
 
+def _is_mcap(name: str) -> bool:
+    return name.lower().endswith(".mcap")
+
+
 def _expand(paths: Iterable[str | Path]) -> list[Path]:
     out: list[Path] = []
     for p in map(Path, paths):
@@ -85,8 +90,9 @@ def _expand(paths: Iterable[str | Path]) -> list[Path]:
         for root, dirs, files in os.walk(p, onerror=failed):
             base = Path(root)
             dirs[:] = [d for d in dirs if not d.startswith(".")]  # .hydra, a sweep's .fuzzynav/ control files
-            found.extend(base / name for name in files if name.endswith(".mcap") and not name.startswith("."))
-            found.extend(base / name for name in dirs if name.endswith(".mcap"))  # rejected below: a directory
+            # the extension in any case: b.MCAP beside a.mcap was skipped without a word
+            found.extend(base / name for name in files if _is_mcap(name) and not name.startswith("."))
+            found.extend(base / name for name in dirs if _is_mcap(name))  # rejected below: a directory
         out.extend(sorted(found))
         out.extend(unlistable)
     return out

@@ -179,3 +179,18 @@ def test_an_outcome_its_last_step_contradicts_is_left_out(tmp_path, recorded_log
     analysis = analyse_logs([rewrite(recorded_logs[0], tmp_path / "same.mcap", message=lambda _t, _i, m: m)])
     assert len(analysis.episodes) == 1 and analysis.excluded.empty
 
+
+def test_logs_named_in_upper_case_are_read_and_deduplicated(tmp_path, recorded_logs):  # noqa: F811
+    """``a.mcap`` and ``b.MCAP`` (another episode) in one folder: b.MCAP was skipped without a word, '1 episodes
+    analysed, 0 left out' (hostile14b r_upper_ext). A copy of a.mcap named ``C.Mcap`` is still a duplicate."""
+    from analysis.metrics import analyse_logs
+
+    shutil.copy(recorded_logs[0], tmp_path / "a.mcap")
+    shutil.copy(recorded_logs[1], tmp_path / "b.MCAP")
+    analysis = analyse_logs([tmp_path])
+    assert sorted(Path(p).name for p in analysis.episodes["log"]) == ["a.mcap", "b.MCAP"]
+    assert analysis.excluded.empty
+    shutil.copy(recorded_logs[0], tmp_path / "C.Mcap")
+    analysis = analyse_logs([tmp_path])
+    assert len(analysis.episodes) == 2
+    assert analysis.excluded["kind"].tolist() == ["duplicate"]
