@@ -44,6 +44,7 @@ from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
 from fuzzynav import limits
 from runners.data_files import MANIFEST, DataFileError, check_data_text
+from runners.dataset_manifest import DatasetError, check_manifest
 from runners.log_diff import EpisodeDiff, diff_logs, diff_records
 from runners.log_fields import TIMING_FIELDS, BehaviourRecord
 from runners.verify_report import detail_lines, episode_line, summary_lines
@@ -53,16 +54,14 @@ DATASETS = ROOT / "datasets"  # the default place of datasets; ``--root`` (tests
 CONF = ROOT / "conf"
 
 
-class DatasetError(Exception):
-    """A manifest is missing or malformed; the message names the file and the field."""
-
-
 # -- the manifest -------------------------------------------------------------------------------------------
 def manifest_path(name: str, root: Path = DATASETS) -> Path:
     return root / name / "manifest.yaml"
 
 
 def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
+    """The manifest of dataset ``name`` under ``root``, read as data and checked field by field
+    (:func:`runners.dataset_manifest.check_manifest`); :class:`DatasetError` naming the file and field."""
     path = manifest_path(name, root)
     if not path.exists():
         known = ", ".join(sorted(p.parent.name for p in root.glob("*/manifest.yaml"))) or "none"
@@ -83,44 +82,8 @@ def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
         raise DatasetError(f"{path}: cannot read: {err.strerror or err}") from None
     except yaml.YAMLError as err:
         raise DatasetError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
-    if not isinstance(data, dict):
-        raise DatasetError(f"{path}: expected a mapping")
-    sweep = data.get("sweep")
-    if not isinstance(sweep, dict):
-        raise DatasetError(f"{path}: sweep: missing")
-    for key in ("scenarios", "variants", "seeds"):
-        if key not in sweep:
-            raise DatasetError(f"{path}: sweep.{key}: missing")
-    seeds = sweep["seeds"]
-    if not (isinstance(seeds, list) and len(seeds) == 2 and all(isinstance(s, int) for s in seeds) and
-            seeds[0] < seeds[1]):
-        raise DatasetError(f"{path}: sweep.seeds: expected [first, end) as two integers, got {seeds!r}")
-    if seeds[0] < 0:
-        raise DatasetError(f"{path}: sweep.seeds: {seeds[0]}: seeds are non-negative")
-    if seeds[1] - 1 > limits.MAX_SEED:  # a seed beyond 2^53 - 1 is not exact in the analysis' float64 tables
-        raise DatasetError(f"{path}: sweep.seeds: end {seeds[1]} is beyond the largest seed {limits.MAX_SEED:,} + 1")
-    if seeds[1] - seeds[0] > limits.MAX_EPISODES_PER_RUN:  # [0, 2^53] ran (silently) for ever
-        raise DatasetError(f"{path}: sweep.seeds: [{seeds[0]}, {seeds[1]}) is {seeds[1] - seeds[0]:,} seeds, more than "
-                           f"the limit of {limits.MAX_EPISODES_PER_RUN:,} per scenario and variant")
-    for key in ("scenarios", "variants"):
-        if not isinstance(sweep[key], list) or not sweep[key]:
-            raise DatasetError(f"{path}: sweep.{key}: expected a non-empty list")
-    _check_episodes(data.get("episodes"), path)
+    check_manifest(data, path, name)
     return data
-
-
-def _check_episodes(episodes: Any, path: Path) -> None:
-    """The recorded episodes, if any: a mapping of log file name to a mapping holding at least its SHA-256 (a
-    wrong type would otherwise surface as a traceback after every episode has been regenerated)."""
-    if episodes is None:
-        return
-    if not isinstance(episodes, dict):
-        raise DatasetError(f"{path}: episodes: expected a mapping of log file names, got {type(episodes).__name__}")
-    for file, entry in episodes.items():
-        if not isinstance(entry, dict):
-            raise DatasetError(f"{path}: episodes.{file}: expected a mapping, got {entry!r:.40}")
-        if not isinstance(entry.get("sha256"), str):
-            raise DatasetError(f"{path}: episodes.{file}.sha256: missing or not a string")
 
 
 def _variant_overrides(variant: Any) -> list[str]:

@@ -136,7 +136,7 @@ def test_bad_jobs_is_one_line(root, capsys, jobs):
 def _bad_manifest(root: Path, sweep: dict[str, Any] | None = None, text: str | None = None, **top: Any) -> None:
     """A manifest ``bad`` under ``root``: TINY with ``sweep`` entries and top-level fields replaced, or ``text``."""
     (root / "bad").mkdir(exist_ok=True)
-    data = {**TINY, "sweep": {**TINY["sweep"], **(sweep or {})}, **top}
+    data = {**TINY, "name": "bad", "sweep": {**TINY["sweep"], **(sweep or {})}, **top}
     (root / "bad" / "manifest.yaml").write_text(text if text is not None else yaml.safe_dump(data, sort_keys=False))
 
 
@@ -360,6 +360,8 @@ def test_old_manifests_classify_only_outcome_and_steps():
 
 def test_root_option_lists_only_that_directory(root, capsys, tmp_path):
     shutil.copytree(root / "tiny", tmp_path / "tiny_copy")
+    path = tmp_path / "tiny_copy" / "manifest.yaml"  # a manifest names its directory
+    path.write_text(path.read_text().replace("name: tiny\n", "name: tiny_copy\n", 1))
     code, out, _ = run(capsys, "list", "--root", str(tmp_path))
     assert code == 0 and out.startswith("tiny_copy") and "2 episodes  built=True" in out
     assert "committed logs: 1" in out
