@@ -13,9 +13,21 @@ from typing import Any
 
 from fuzzynav import limits
 
+#: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_sha256`` and ``episodes``
+FIELDS = ("name", "description", "version", "sweep", "keep_logs", "metrics_sha256", "episodes")
+#: the fields of ``sweep``: scenarios x variants x seeds, plus Hydra overrides for every episode
+SWEEP_FIELDS = ("scenarios", "variants", "seeds", "overrides")
+
 
 class DatasetError(Exception):
     """A manifest is missing or malformed; the message names the file and the field."""
+
+
+def _check_keys(mapping: dict[Any, Any], allowed: tuple[str, ...], where: str, path: Path) -> None:
+    """No field beyond ``allowed``: an unknown one (a misspelt ``keep_log``) was silently ignored and kept."""
+    for key in mapping:
+        if key not in allowed:
+            raise DatasetError(f"{path}: {where}{key!s:.60}: unknown field (allowed: {', '.join(allowed)})")
 
 
 def check_manifest(data: Any, path: Path, name: str) -> None:
@@ -23,6 +35,7 @@ def check_manifest(data: Any, path: Path, name: str) -> None:
     problem."""
     if not isinstance(data, dict):
         raise DatasetError(f"{path}: expected a mapping")
+    _check_keys(data, FIELDS, "", path)
     # the directory names the dataset (``<root>/<name>/manifest.yaml``): a manifest naming another dataset was
     # built, verified and listed under the directory's name while its own said otherwise
     got = data.get("name")
@@ -37,7 +50,9 @@ def _check_sweep_fields(sweep: Any, path: Path) -> None:
     """``sweep``: scenarios and variants (non-empty lists) and seeds ``[first, end)``; what the entries mean is
     checked by :func:`runners.dataset.check_sweep`."""
     if not isinstance(sweep, dict):
-        raise DatasetError(f"{path}: sweep: missing")
+        raise DatasetError(f"{path}: sweep: missing" if sweep is None else
+                           f"{path}: sweep: expected a mapping, got {type(sweep).__name__}")
+    _check_keys(sweep, SWEEP_FIELDS, "sweep.", path)
     for key in ("scenarios", "variants", "seeds"):
         if key not in sweep:
             raise DatasetError(f"{path}: sweep.{key}: missing")

@@ -51,7 +51,7 @@ def test_the_unmutated_manifest_is_accepted(tmp_path):
     assert len(dataset.jobs(manifest)) == 7
 
 
-def _set(*keys: str, value: Any) -> Callable[[dict[str, Any]], None]:
+def _set(*keys: Any, value: Any) -> Callable[[dict[str, Any]], None]:
     """A mutation setting the field at ``keys`` (the first episode entry for ``"<episode>"``)."""
     def mutate(m: dict[str, Any]) -> None:
         node = m
@@ -75,6 +75,10 @@ EPISODE = "episodes.paper_fig5__planner-auto_h1__s0.mcap"
 CASES = [  # id, mutation, the message after "error: <manifest path>: "
     ("d_name_mismatch", _set("name", value="other"), "name: 'other' is not the dataset's directory name 'dsx'"),
     ("name_missing", _drop("name"), "name: missing"),
+    ("d_unknown_top", _set("zzz", value=1), "zzz: unknown field (allowed: name, description, version, sweep, "),
+    ("bool_key", _set(True, value=1), "True: unknown field (allowed: "),  # YAML 1.1's ``on:``
+    ("unknown_sweep_key", _set("sweep", "seed", value=[0, 1]), "sweep.seed: unknown field (allowed: scenarios, "),
+    ("sweep_not_mapping", _set("sweep", value=[1]), "sweep: expected a mapping, got list"),
 ]
 
 
