@@ -44,7 +44,7 @@ from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
 from fuzzynav import limits
 from runners.data_files import MANIFEST, DataFileError, check_data_text
-from runners.dataset_manifest import DatasetError, check_manifest
+from runners.dataset_manifest import EPISODE_FIELDS, DatasetError, check_manifest
 from runners.log_diff import EpisodeDiff, diff_logs, diff_records
 from runners.log_fields import TIMING_FIELDS, BehaviourRecord
 from runners.verify_report import detail_lines, episode_line, summary_lines
@@ -301,9 +301,6 @@ def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: 
             results.append(res)
             bar.update(1)
     return sorted(results, key=lambda r: r["file"])
-
-
-EPISODE_FIELDS = ("outcome", "steps", "sha256", "decision_digest", "discrete_digest", "modes", "float_sums", "topics")
 
 
 def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:

@@ -8,15 +8,29 @@ this module checks the manifest as data.
 
 from __future__ import annotations
 
+import math
+import re
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
+from analysis.log_check import OUTCOMES
 from fuzzynav import limits
 
 #: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_sha256`` and ``episodes``
 FIELDS = ("name", "description", "version", "sweep", "keep_logs", "metrics_sha256", "episodes")
 #: the fields of ``sweep``: scenarios x variants x seeds, plus Hydra overrides for every episode
 SWEEP_FIELDS = ("scenarios", "variants", "seeds", "overrides")
+
+#: what ``build`` writes for each episode besides ``step_digests`` (:func:`runners.dataset.content_digests`)
+EPISODE_FIELDS = ("outcome", "steps", "sha256", "decision_digest", "discrete_digest", "modes", "float_sums", "topics")
+ENTRY_FIELDS = (*EPISODE_FIELDS, "step_digests")
+#: the fields every entry has; the behaviour record (:class:`runners.log_fields.BehaviourRecord`) is newer
+ENTRY_REQUIRED = ("outcome", "steps", "sha256", "topics", "step_digests")
+BEHAVIOUR_RECORD = ("decision_digest", "discrete_digest", "modes", "float_sums")
+DIGEST = re.compile(r"[0-9a-f]{8}")
+MODE_RUN = re.compile(r"(\S+)\*([1-9][0-9]{0,9})")  # a mode and how many steps in a row it was decided
+MAX_LOG_TIMES = limits.MAX_STEPS + 1  # steps 0 to max_steps
 
 
 class DatasetError(Exception):
@@ -73,14 +87,74 @@ def _check_sweep_fields(sweep: Any, path: Path) -> None:
 
 
 def _check_episodes(episodes: Any, path: Path) -> None:
-    """The recorded episodes, if any: a mapping of log file name to a mapping holding at least its SHA-256 (a
-    wrong type would otherwise surface as a traceback after every episode has been regenerated)."""
+    """The recorded episodes, if any: a mapping of log file name to its entry (:func:`_check_entry`). A wrong
+    or missing value would otherwise surface as a traceback after every episode has been regenerated."""
     if episodes is None:
         return
     if not isinstance(episodes, dict):
         raise DatasetError(f"{path}: episodes: expected a mapping of log file names, got {type(episodes).__name__}")
     for file, entry in episodes.items():
-        if not isinstance(entry, dict):
-            raise DatasetError(f"{path}: episodes.{file}: expected a mapping, got {entry!r:.40}")
-        if not isinstance(entry.get("sha256"), str):
-            raise DatasetError(f"{path}: episodes.{file}.sha256: missing or not a string")
+        if not isinstance(file, str):  # sorting int and str file names was a traceback
+            raise DatasetError(f"{path}: episodes: {file!r:.60}: expected a log file name (a string)")
+        _check_entry(entry, f"episodes.{file}", path)
+
+
+def _check_entry(entry: Any, where: str, path: Path) -> None:
+    """One episode entry as ``build`` writes it (:data:`ENTRY_FIELDS`); an entry without the behaviour record
+    (:data:`BEHAVIOUR_RECORD`, from manifests built before it existed) is read too."""
+    if not isinstance(entry, dict):
+        raise DatasetError(f"{path}: {where}: expected a mapping, got {entry!r:.40}")
+    _check_keys(entry, ENTRY_FIELDS, f"{where}.", path)
+    for key in ENTRY_REQUIRED:
+        if key not in entry:
+            raise DatasetError(f"{path}: {where}.{key}: missing (an entry has {', '.join(ENTRY_REQUIRED)})")
+    record = [k for k in BEHAVIOUR_RECORD if k in entry]
+    if record and len(record) < len(BEHAVIOUR_RECORD):  # each is read with the others (a KeyError otherwise)
+        key = next(k for k in BEHAVIOUR_RECORD if k not in entry)
+        raise DatasetError(f"{path}: {where}.{key}: missing (the behaviour record is {', '.join(BEHAVIOUR_RECORD)}, "
+                           "all or none)")
+
+    def fail(key: str, problem: str) -> NoReturn:
+        raise DatasetError(f"{path}: {where}.{key}: {problem}, got {entry[key]!r:.60}")
+
+    if entry["outcome"] not in OUTCOMES:
+        fail("outcome", f"expected one of {', '.join(OUTCOMES)}")
+    steps = entry["steps"]
+    if not (isinstance(steps, int) and not isinstance(steps, bool) and 0 <= steps <= limits.MAX_STEPS):
+        fail("steps", f"expected an integer from 0 to {limits.MAX_STEPS:,}")
+    for key, digits in (("sha256", 64), ("decision_digest", 16), ("discrete_digest", 16)):
+        if key in entry and not (isinstance(entry[key], str) and re.fullmatch(f"[0-9a-f]{{{digits}}}", entry[key])):
+            fail(key, f"expected {digits} lowercase hex digits")
+    topics = entry["topics"]
+    if not (isinstance(topics, dict) and all(isinstance(t, str) and t.startswith("/") and isinstance(d, str) and
+                                             DIGEST.fullmatch(d) for t, d in topics.items())):
+        fail("topics", "expected a mapping of topic (/...) to 8 hex digits")
+    words = entry["step_digests"].split() if isinstance(entry["step_digests"], str) else None
+    if words is None or not all(DIGEST.fullmatch(w) for w in words):
+        fail("step_digests", "expected 8 hex digits per step, separated by spaces")
+    elif len(words) > MAX_LOG_TIMES:
+        fail("step_digests", f"{len(words):,} steps, more than {MAX_LOG_TIMES:,}")
+    if record:
+        _check_record(entry, fail)
+
+
+def _check_record(entry: dict[str, Any], fail: Callable[[str, str], NoReturn]) -> None:
+    """The behaviour record's run-length encoded modes and float sums, in the form their readers
+    (:func:`runners.log_fields.expand_runs`, :func:`runners.log_fields.parse_sums`) take."""
+    runs = [MODE_RUN.fullmatch(w) for w in entry["modes"].split()] if isinstance(entry["modes"], str) else [None]
+    if not all(runs):
+        fail("modes", "expected runs MODE*COUNT separated by spaces")
+    # expanded when a decision differs: modes: direct*1000000000000 was a MemoryError after every episode ran
+    elif sum(int(m.group(2)) for m in runs if m) > MAX_LOG_TIMES:
+        fail("modes", f"more than {MAX_LOG_TIMES:,} steps")
+    words = entry["float_sums"].split() if isinstance(entry["float_sums"], str) else ["?"]
+    topics, sums = words[0::2], words[1::2]
+    if len(topics) != len(sums) or not all(t.startswith("/") for t in topics) or len(set(topics)) < len(topics):
+        fail("float_sums", "expected pairs TOPIC SUM separated by spaces, each topic (/...) once")
+    for text in sums:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            fail("float_sums", f"{text!r:.40} is not a finite number")

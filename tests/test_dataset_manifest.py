@@ -51,6 +51,16 @@ def test_the_unmutated_manifest_is_accepted(tmp_path):
     assert len(dataset.jobs(manifest)) == 7
 
 
+def test_an_entry_without_the_behaviour_record_is_read(tmp_path):
+    """Manifests built before the behaviour record existed hold outcome, steps and digests only."""
+    data = base()
+    for entry in data["episodes"].values():
+        for key in ("decision_digest", "discrete_digest", "modes", "float_sums"):
+            del entry[key]
+    write(tmp_path, data)
+    assert dataset.load_manifest(NAME, tmp_path)["episodes"] == data["episodes"]
+
+
 def _set(*keys: Any, value: Any) -> Callable[[dict[str, Any]], None]:
     """A mutation setting the field at ``keys`` (the first episode entry for ``"<episode>"``)."""
     def mutate(m: dict[str, Any]) -> None:
@@ -79,6 +89,39 @@ CASES = [  # id, mutation, the message after "error: <manifest path>: "
     ("bool_key", _set(True, value=1), "True: unknown field (allowed: "),  # YAML 1.1's ``on:``
     ("unknown_sweep_key", _set("sweep", "seed", value=[0, 1]), "sweep.seed: unknown field (allowed: scenarios, "),
     ("sweep_not_mapping", _set("sweep", value=[1]), "sweep: expected a mapping, got list"),
+    ("d_verify_extra_field", _set("episodes", "<episode>", "zzz", value=1),
+     f"{EPISODE}.zzz: unknown field (allowed: outcome, steps, sha256, "),
+    *[(f"entry_without_{key}", _drop("episodes", "<episode>", key),
+       f"{EPISODE}.{key}: missing (an entry has outcome, steps, sha256, topics, step_digests)")
+      for key in ("outcome", "steps", "sha256", "topics", "step_digests")],
+    ("entry_without_modes", _drop("episodes", "<episode>", "modes"),
+     f"{EPISODE}.modes: missing (the behaviour record is decision_digest, discrete_digest, modes, float_sums, all "),
+    ("int_file_name", _set("episodes", 5, value={}), "episodes: 5: expected a log file name (a string)"),
+    ("entry_not_mapping", _set("episodes", "a.mcap", value=[1]), "episodes.a.mcap: expected a mapping, got [1]"),
+    ("outcome_unknown", _set("episodes", "<episode>", "outcome", value="won"),
+     f"{EPISODE}.outcome: expected one of goal, collision, timeout, error, interrupted, got 'won'"),
+    *[(f"steps_{v!r}", _set("episodes", "<episode>", "steps", value=v),
+       f"{EPISODE}.steps: expected an integer from 0 to 100,000, got {v!r}") for v in (-1, 100_001, True, "47", 4.5)],
+    ("sha256_short", _set("episodes", "<episode>", "sha256", value="abc"),
+     f"{EPISODE}.sha256: expected 64 lowercase hex digits, got 'abc'"),
+    ("decision_digest_int", _set("episodes", "<episode>", "decision_digest", value=12),
+     f"{EPISODE}.decision_digest: expected 16 lowercase hex digits, got 12"),
+    ("topics_list", _set("episodes", "<episode>", "topics", value=["/tpt"]),
+     f"{EPISODE}.topics: expected a mapping of topic (/...) to 8 hex digits"),
+    ("topics_bad_digest", _set("episodes", "<episode>", "topics", value={"/tpt": 5}),
+     f"{EPISODE}.topics: expected a mapping of topic (/...) to 8 hex digits"),
+    ("step_digests_int", _set("episodes", "<episode>", "step_digests", value=7),
+     f"{EPISODE}.step_digests: expected 8 hex digits per step, separated by spaces, got 7"),
+    ("step_digests_many", _set("episodes", "<episode>", "step_digests", value=" ".join(["0" * 8] * 100_002)),
+     f"{EPISODE}.step_digests: 100,002 steps, more than 100,001"),
+    ("modes_unreadable", _set("episodes", "<episode>", "modes", value="direct*x"),
+     f"{EPISODE}.modes: expected runs MODE*COUNT separated by spaces, got 'direct*x'"),
+    ("modes_huge", _set("episodes", "<episode>", "modes", value="direct*1000000000"),
+     f"{EPISODE}.modes: more than 100,001 steps"),
+    ("float_sums_odd", _set("episodes", "<episode>", "float_sums", value="/tpt 1.0 /sonar"),
+     f"{EPISODE}.float_sums: expected pairs TOPIC SUM separated by spaces, each topic (/...) once"),
+    ("float_sums_nan", _set("episodes", "<episode>", "float_sums", value="/tpt nan"),
+     f"{EPISODE}.float_sums: 'nan' is not a finite number"),
 ]
 
 

@@ -140,6 +140,7 @@ def _bad_manifest(root: Path, sweep: dict[str, Any] | None = None, text: str | N
     (root / "bad" / "manifest.yaml").write_text(text if text is not None else yaml.safe_dump(data, sort_keys=False))
 
 
+ENTRY = {"outcome": "goal", "steps": 1, "sha256": "0" * 64, "topics": {"/episode": "0" * 8}, "step_digests": "0" * 8}
 BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently accepted
     ({"scenarios": ["no_such_world"]}, "sweep.scenarios[0]: no config 'scenario/no_such_world'"),
     ({"scenarios": ["paper_fig5", "no_such_world"]}, "sweep.scenarios[1]: no config 'scenario/no_such_world'"),
@@ -170,7 +171,7 @@ BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently 
 @pytest.mark.parametrize("sweep, problem", BAD_SWEEPS, ids=[p for _, p in BAD_SWEEPS])
 def test_a_bad_manifest_sweep_is_one_line_before_anything_runs(tmp_path, capsys, monkeypatch, command, sweep, problem):
     monkeypatch.setattr(dataset, "record_all", lambda *a, **k: pytest.fail("episodes ran"))
-    _bad_manifest(tmp_path, sweep, episodes={"x.mcap": {"sha256": "0" * 64}})
+    _bad_manifest(tmp_path, sweep, episodes={"x.mcap": ENTRY})
     code, out, err = run(capsys, command, "bad", "--root", str(tmp_path))
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1, err
@@ -179,7 +180,7 @@ def test_a_bad_manifest_sweep_is_one_line_before_anything_runs(tmp_path, capsys,
 
 @pytest.mark.parametrize("top, text, problem", [
     ({"episodes": {"a.mcap": 5}}, None, "manifest.yaml: episodes.a.mcap: expected a mapping, got 5"),
-    ({"episodes": {"a.mcap": {"outcome": "goal"}}}, None, "manifest.yaml: episodes.a.mcap.sha256: missing"),
+    ({"episodes": {"a.mcap": {"outcome": "goal"}}}, None, "manifest.yaml: episodes.a.mcap.steps: missing"),
     ({"episodes": [1, 2]}, None, "manifest.yaml: episodes: expected a mapping of log file names, got list"),
     ({}, "name: x\nversion: !!python/object/apply:os.system [id]\n",
      "manifest.yaml:2: version: YAML tag 'tag:yaml.org,2002:python/object/apply:os.system' is not allowed"),
