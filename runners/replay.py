@@ -12,7 +12,9 @@ step; it reports the first step whose decision (mode, Δθ, v, and the planner's
 recorded one. With ``--controller`` (a name in conf/controller/ or a YAML file) and/or ``key=value``
 overrides of the recorded config (e.g. ``planner.h_wait=4``), the same recorded inputs go through the
 changed navigator and every step where its decision diverges is printed (open loop: the recorded inputs do
-not react to the new decisions).
+not react to the new decisions); ``--verify`` cannot be combined with them. Only what the navigator decides
+with can be overridden (keys in controller, planner, navigator, robot, and dt), each key once: the scenario,
+the seed, perception and the sensors shaped the recorded inputs, which stay as they were.
 """
 
 from __future__ import annotations
@@ -45,6 +47,15 @@ ALL_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision",
 TOLERANCE = 1e-2  # degrees and cm/s: the log rounds to 1e-4
 MAX_SNAPSHOTS = 100  # --steps: snapshots drawn in one PNG
 MAX_CONTROLLER_BYTES = 1 << 20  # --controller: a controller file is a few KB
+NAVIGATOR_SOURCES = {"evaluator": "controller", "planner": "planner", "navigator": "navigator", "limits": "robot",
+                     "dt": "dt", "front_sector_deg": "sensors.sonar.front"}
+"""Per argument of :class:`Navigator` (but ``robot_radius``, which the log's /robot/state gives), the part of the
+run config :func:`navigator_for` builds it from (a test keeps this in step with both). Nothing else reaches a
+replayed decision, so an override of any other key is refused."""
+RECORDED_INPUT_SOURCES = ("sensors.sonar.front",)  # the sector the recorded front readings were taken over: the
+# navigator compares the goal with that reading, so another sector would misread the recorded input
+OVERRIDABLE = tuple(source for source in NAVIGATOR_SOURCES.values() if source not in RECORDED_INPUT_SOURCES)
+"""The keys (and the keys inside them) a counterfactual replay may change."""
 
 
 @dataclass(frozen=True)
@@ -117,10 +128,38 @@ def parse_override(item: str) -> tuple[str, Any]:
 
 
 def navigator_for(config: dict[str, Any], robot_radius: float) -> Navigator:
-    """The navigator a run with this (recorded) configuration used."""
+    """The navigator a run with this (recorded) configuration used; ``robot_radius`` in cm. The whole config is
+    validated as ``runners.run`` validates it (the sonar sectors are checked together, say), but the navigator
+    gets only the parts :data:`NAVIGATOR_SOURCES` names."""
     ep = episode_config(config)
     evaluator = FastEvaluator(ControllerSpec.from_dict(config["controller"]))
-    return Navigator(evaluator, ep.planner, ep.navigator, ep.robot, robot_radius, ep.dt, ep.sonar.front)
+    return Navigator(evaluator=evaluator, planner=ep.planner, navigator=ep.navigator, limits=ep.robot,
+                     robot_radius=robot_radius, dt=ep.dt, front_sector_deg=ep.sonar.front)
+
+
+def check_overrides(overrides: list[tuple[str, Any]]) -> None:
+    """Each key once (not also inside another given key), and only keys of :data:`OVERRIDABLE`;
+    :class:`ReplayError` naming the first key that is not."""
+    seen: list[str] = []
+    for key, _value in overrides:
+        for other in seen:
+            if key == other:
+                raise ReplayError(f"override {key}: given twice (one value per key)")
+            if key.startswith(other + ".") or other.startswith(key + "."):
+                raise ReplayError(f"override {key}: overlaps override {other} (one value per key)")
+        seen.append(key)
+        if any(_within(key, source) for source in RECORDED_INPUT_SOURCES):
+            raise ReplayError(f"override {key}: the sonar sector the recorded front readings were taken over: it "
+                              "cannot change in an open-loop replay; run the episode again with runners.run")
+        if not any(_within(key, source) for source in OVERRIDABLE):
+            raise ReplayError(f"override {key}: has no effect on an open-loop replay (the recorded inputs are "
+                              f"replayed; only {', '.join(OVERRIDABLE)} can change a decision); run the episode "
+                              "again with runners.run")
+
+
+def _within(key: str, source: str) -> bool:
+    """``key`` is ``source`` or a key inside it (dotted paths)."""
+    return key == source or key.startswith(source + ".")
 
 
 def _observation(log: EpisodeLog, k: int, goal: tuple[float, float]) -> Observation:
@@ -228,6 +267,10 @@ def _run(args: argparse.Namespace) -> int:
     path = Path(args.log)
     steps = parse_steps(args.steps) if args.steps is not None else None
     overrides = [parse_override(item) for item in args.overrides]
+    check_overrides(overrides)
+    if args.verify and (args.controller or overrides):
+        raise ReplayError("--verify: re-decides with the recorded config; it cannot be combined with "
+                          "--controller/overrides (without --verify they list every step that differs)")
     if not path.exists() and not path.is_symlink():
         raise ReplayError(f"{path}: no such file")
     try:
@@ -271,7 +314,7 @@ def _decide_again(log: EpisodeLog, path: Path, args: argparse.Namespace, overrid
     for key, value in overrides:
         _set(config, key, value)
     try:
-        diffs = replay(log, config, stop_at_first=args.verify and not counterfactual)
+        diffs = replay(log, config, stop_at_first=not counterfactual)
     except (ConfigFileError, ValueError, KeyError, TypeError, AttributeError) as err:
         # the config's own validation raises ValueError subclasses; KeyError/TypeError/AttributeError come from a
         # recorded config that lacks a section or has one of another type (hand-written or old logs)

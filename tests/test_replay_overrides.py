@@ -1,0 +1,152 @@
+"""``runners.replay`` refuses what it cannot honour (issue 14, hostile inputs): ``--verify`` with a changed
+config, the same override key twice, and overrides of keys the replayed navigator is not built from (an
+open-loop replay feeds the recorded inputs, so the scenario, the seed, perception and the other sensors
+cannot change a decision). Each refusal is one ``error:`` line, exit 2, before anything is replayed."""
+
+from __future__ import annotations
+
+import copy
+import inspect
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from analysis.episode_log import load_episode
+from fuzzynav.navigator import Navigator
+from runners import replay
+from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
+
+VERIFY_REFUSAL = ("error: --verify: re-decides with the recorded config; it cannot be combined with "
+                  "--controller/overrides")
+
+
+@pytest.fixture
+def good(recorded_logs) -> Path:  # noqa: F811 - the fixture imported above
+    """A complete paper_fig5 log whose plans a changed planner decides differently."""
+    return recorded_logs[0]
+
+
+def one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
+    return lines[0]
+
+
+def run_replay(capsys, tmp_path: Path, log: Path, *args: str) -> tuple[int, str, str]:
+    """(exit code, stdout, stderr) of ``runners.replay LOG --quiet --out TMP/x ARGS``."""
+    try:
+        code = replay.main([str(log), "--quiet", "--out", str(tmp_path / "x"), *args])
+    except SystemExit as stop:
+        code = int(stop.code or 0)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.parametrize("args", [
+    ["--controller", "listing", "--verify"],
+    ["--verify", "planner.strategy=none"],
+    ["--verify", "planner.h_wait=4", "--controller", "listing"],
+])
+def test_verify_with_a_changed_config_is_refused(args, capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, *args)
+    assert code == 2 and out == ""
+    assert one_error_line(err).startswith(VERIFY_REFUSAL)
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_same_change_without_verify_lists_the_differences(capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, "planner.strategy=none")
+    assert code == 0 and err == ""
+    assert "decisions differ" in out and "0 decisions differ" not in out
+
+
+@pytest.mark.parametrize("args, expect", [
+    (["planner.h_wait=1", "planner.h_wait=3"], "override planner.h_wait: given twice (one value per key)"),
+    (["planner={h_wait: 1}", "planner.h_wait=3"], "override planner.h_wait: overlaps override planner"),
+    (["planner.h_wait=3", "planner={h_wait: 1}"], "override planner: overlaps override planner.h_wait"),
+    (["controller.fallback.v=5", "controller.fallback.v=6"], "override controller.fallback.v: given twice"),
+])
+def test_a_key_given_twice_is_refused_naming_it(args, expect, capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, *args)
+    assert code == 2 and out == ""
+    assert one_error_line(err).startswith(f"error: {expect}")
+
+
+@pytest.mark.parametrize("override", ["scenario=u_trap", "seed=5", "scenario.max_steps=3", "sensors.laser.beams=90",
+                                      "sensors.sonar.range_cm=100", "sensors={}", "perception.mode=ground_truth",
+                                      "terminate_on_collision=false", "episodes=3"])
+def test_an_override_the_navigator_does_not_read_is_refused(override, capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, override)
+    key = override.partition("=")[0]
+    assert code == 2 and out == ""
+    line = one_error_line(err)
+    assert line == (f"error: override {key}: has no effect on an open-loop replay (the recorded inputs are "
+                    "replayed; only controller, planner, navigator, robot, dt can change a decision); run the episode "
+                    "again with runners.run"), line
+
+
+@pytest.mark.parametrize("override", ["sensors.sonar.front=[-20, 20]", "sensors.sonar.front=[-30, 30]"])
+def test_the_front_sonar_sector_of_the_recorded_readings_cannot_change(override, capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, override)
+    assert code == 2 and out == ""
+    assert one_error_line(err) == ("error: override sensors.sonar.front: the sonar sector the recorded front readings "
+                                   "were taken over: it cannot change in an open-loop replay; run the episode again "
+                                   "with runners.run")
+
+
+@pytest.mark.parametrize("overrides", [["planner.h_wait=4"], ["navigator.static_near_cm=80"], ["dt=0.5"],
+                                       ["robot.max_turn_deg=90"], ["controller.fallback.v=12"],
+                                       ["planner.h_wait=4", "dt=0.5"]])
+def test_an_override_the_navigator_reads_is_replayed(overrides, capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, *overrides)
+    assert code == 0 and err == "", err
+    assert out.startswith("counterfactual replay of 14 recorded steps: ")
+
+
+def test_the_navigator_sources_name_every_argument_of_the_navigator():
+    params = set(inspect.signature(Navigator.__init__).parameters) - {"self"}
+    assert set(replay.NAVIGATOR_SOURCES) | {"robot_radius"} == params
+
+
+def _arguments(monkeypatch, config: dict[str, Any]) -> dict[str, Any]:
+    """The keyword arguments :func:`replay.navigator_for` gives the navigator for ``config`` (the evaluator as its
+    controller spec, which compares by value)."""
+    seen: dict[str, Any] = {}
+
+    def capture(**kwargs: Any) -> None:
+        seen.update(kwargs, evaluator=kwargs["evaluator"].spec)
+
+    monkeypatch.setattr(replay, "Navigator", capture)
+    replay.navigator_for(config, 20.0)
+    return seen
+
+
+def _set(config: dict[str, Any], dotted: str, value: Any) -> dict[str, Any]:
+    changed = copy.deepcopy(config)
+    *parents, last = dotted.split(".")
+    node = changed
+    for key in parents:
+        node = node[key]
+    node[last] = value
+    return changed
+
+
+def test_each_source_reaches_its_argument_and_nothing_else_does(monkeypatch, good):
+    config = load_episode(good, ("/scene",)).config
+    recorded = _arguments(monkeypatch, config)
+    sectors = {"left": [20.0, 60.0], "front": [-20.0, 20.0], "right": [-60.0, -20.0]}  # equally wide, adjacent
+    changes = {"evaluator": ("controller.fallback.v", 12.0), "planner": ("planner.h_wait", 4),
+               "navigator": ("navigator.static_near_cm", 80.0), "limits": ("robot.max_turn_deg", 90.0),
+               "dt": ("dt", 0.5), "front_sector_deg": ("sensors.sonar", {**config["sensors"]["sonar"], **sectors})}
+    assert set(changes) == set(replay.NAVIGATOR_SOURCES)
+    for argument, (key, value) in changes.items():
+        source = replay.NAVIGATOR_SOURCES[argument]
+        assert key.startswith(source) or source.startswith(key)  # inside the source, or holding it
+        now = _arguments(monkeypatch, _set(config, key, value))
+        assert [name for name in recorded if now[name] != recorded[name]] == [argument], key
+    # the keys a replay refuses leave every argument as it was
+    for key, value in (("seed", 5), ("scenario.max_steps", 3), ("sensors.laser.beams", 90),
+                       ("sensors.sonar.range_cm", 100.0), ("perception.mode", "ground_truth"),
+                       ("terminate_on_collision", False)):
+        assert _arguments(monkeypatch, _set(config, key, value)) == recorded, key
