@@ -57,6 +57,7 @@ def check_manifest(data: Any, path: Path, name: str) -> None:
         raise DatasetError(f"{path}: name: {got!r:.80} is not the dataset's directory name {name!r} (a dataset "
                            "is <root>/<name>/manifest.yaml)" if "name" in data else f"{path}: name: missing")
     _check_sweep_fields(data.get("sweep"), path)
+    _check_keep_logs(data.get("keep_logs"), data["sweep"]["seeds"], path)
     _check_episodes(data.get("episodes"), path)
 
 
@@ -84,6 +85,21 @@ def _check_sweep_fields(sweep: Any, path: Path) -> None:
     for key in ("scenarios", "variants"):
         if not isinstance(sweep[key], list) or not sweep[key]:
             raise DatasetError(f"{path}: sweep.{key}: expected a non-empty list")
+
+
+def _check_keep_logs(keep: Any, seeds: list[int], path: Path) -> None:
+    """``keep_logs``: the seeds (of ``sweep.seeds``, each once) whose logs ``build`` keeps in ``<name>/logs/``; a
+    seed outside the sweep kept nothing without a word."""
+    if keep is None:
+        return
+    if not isinstance(keep, list):
+        raise DatasetError(f"{path}: keep_logs: expected a list of seeds, got {keep!r:.60}")
+    for i, seed in enumerate(keep):
+        if not (isinstance(seed, int) and not isinstance(seed, bool) and seeds[0] <= seed < seeds[1]):
+            raise DatasetError(f"{path}: keep_logs[{i}]: {seed!r:.40} is not a seed of the sweep (sweep.seeds: "
+                               f"{seeds[0]} to {seeds[1] - 1})")
+        if seed in keep[:i]:
+            raise DatasetError(f"{path}: keep_logs[{i}]: repeats seed {seed}")
 
 
 def _check_episodes(episodes: Any, path: Path) -> None:

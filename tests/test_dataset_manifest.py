@@ -89,6 +89,13 @@ CASES = [  # id, mutation, the message after "error: <manifest path>: "
     ("bool_key", _set(True, value=1), "True: unknown field (allowed: "),  # YAML 1.1's ``on:``
     ("unknown_sweep_key", _set("sweep", "seed", value=[0, 1]), "sweep.seed: unknown field (allowed: scenarios, "),
     ("sweep_not_mapping", _set("sweep", value=[1]), "sweep: expected a mapping, got list"),
+    ("d_verify_keep_logs_99", _set("keep_logs", value=[99]),
+     "keep_logs[0]: 99 is not a seed of the sweep (sweep.seeds: 0 to 0)"),
+    ("keep_logs_negative", _set("keep_logs", value=[0, -1]), "keep_logs[1]: -1 is not a seed of the sweep"),
+    ("keep_logs_bool", _set("keep_logs", value=[True]), "keep_logs[0]: True is not a seed of the sweep"),
+    ("keep_logs_text", _set("keep_logs", value=["0"]), "keep_logs[0]: '0' is not a seed of the sweep"),
+    ("keep_logs_repeated", _set("keep_logs", value=[0, 0]), "keep_logs[1]: repeats seed 0"),
+    ("keep_logs_not_list", _set("keep_logs", value=0), "keep_logs: expected a list of seeds, got 0"),
     ("d_verify_extra_field", _set("episodes", "<episode>", "zzz", value=1),
      f"{EPISODE}.zzz: unknown field (allowed: outcome, steps, sha256, "),
     *[(f"entry_without_{key}", _drop("episodes", "<episode>", key),
