@@ -17,6 +17,7 @@ from typing import Any, NoReturn
 from analysis.log_check import OUTCOMES
 from fuzzynav import limits
 
+VERSION = 1  # of the manifest's layout, which build writes and verify reads
 #: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_sha256`` and ``episodes``
 FIELDS = ("name", "description", "version", "sweep", "keep_logs", "metrics_sha256", "episodes")
 #: the fields of ``sweep``: scenarios x variants x seeds, plus Hydra overrides for every episode
@@ -49,6 +50,13 @@ def check_manifest(data: Any, path: Path, name: str) -> None:
     problem."""
     if not isinstance(data, dict):
         raise DatasetError(f"{path}: expected a mapping")
+    # first: another version may have other fields, and its episodes would be compared as this version's
+    version = data.get("version")
+    if "version" not in data:
+        raise DatasetError(f"{path}: version: missing (this fuzzynav reads manifest version {VERSION})")
+    if not (isinstance(version, int) and not isinstance(version, bool) and version == VERSION):
+        raise DatasetError(f"{path}: version: {version!r:.40} is not a manifest version this fuzzynav reads "
+                           f"(only {VERSION})")
     _check_keys(data, FIELDS, "", path)
     # the directory names the dataset (``<root>/<name>/manifest.yaml``): a manifest naming another dataset was
     # built, verified and listed under the directory's name while its own said otherwise

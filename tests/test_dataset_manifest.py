@@ -83,6 +83,11 @@ def _drop(*keys: str) -> Callable[[dict[str, Any]], None]:
 
 EPISODE = "episodes.paper_fig5__planner-auto_h1__s0.mcap"
 CASES = [  # id, mutation, the message after "error: <manifest path>: "
+    ("d_version_2", _set("version", value=2),
+     "version: 2 is not a manifest version this fuzzynav reads (only 1)"),
+    ("version_text", _set("version", value="1"), "version: '1' is not a manifest version this fuzzynav reads"),
+    ("version_bool", _set("version", value=True), "version: True is not a manifest version this fuzzynav reads"),
+    ("version_missing", _drop("version"), "version: missing (this fuzzynav reads manifest version 1)"),
     ("d_name_mismatch", _set("name", value="other"), "name: 'other' is not the dataset's directory name 'dsx'"),
     ("name_missing", _drop("name"), "name: missing"),
     ("d_unknown_top", _set("zzz", value=1), "zzz: unknown field (allowed: name, description, version, sweep, "),
