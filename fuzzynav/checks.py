@@ -115,8 +115,17 @@ def field_name(prefix: str, attribute: str) -> str:
 
 
 def check_sonar_sectors(sonar: Any, field: str) -> None:
-    """The sonar builds its three wedges as one array of polygons, so the left, front and right sectors must
-    be sampled with the same number of arc points: equally wide, to the arc step (``fuzzynav.sonar.Sonar``)."""
+    """The right, front and left sectors follow each other counter-clockwise without overlapping (they may touch).
+    The sonar builds its three wedges as one array of polygons, so they must also be sampled with the same
+    number of arc points: equally wide, to the arc step (``fuzzynav.sonar.Sonar``)."""
+    (r_lo, r_hi), (f_lo, f_hi), (l_lo, l_hi) = sonar.right, sonar.front, sonar.left
+    if not (r_hi <= f_lo and f_hi <= l_lo and l_hi - r_lo <= 360):
+        # the controller's rules read Left, Front and Right as three different directions: a sector that
+        # overlaps another (or repeats it) makes one obstacle count for two inputs, and swapped sectors mirror
+        # every steering rule
+        raise ValueError(f"{field}: the sectors must follow each other counter-clockwise without overlapping "
+                         f"(right, front, left; they may touch; together at most 360 degrees), got right [{r_lo:g}, {r_hi:g}], front "
+                         f"[{f_lo:g}, {f_hi:g}], left [{l_lo:g}, {l_hi:g}] degrees")
     points = [max(2, math.ceil((hi - lo) / sonar.arc_step_deg) + 1) for lo, hi in (sonar.left, sonar.front,
                                                                                  sonar.right)]
     if len(set(points)) > 1:

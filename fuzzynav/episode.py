@@ -56,6 +56,21 @@ class EpisodeConfig:
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise ValueError(f"dt: must be a positive number of seconds, got {self.dt}")
         check_config_fields(self)  # every number of the tree: finite and in its documented range (fuzzynav.limits)
+        self._check_speeds_fit_robot()
+
+    def _check_speeds_fit_robot(self) -> None:
+        """Every speed the navigator commands or the planner plans with must be one the robot drives
+        (``robot.v_min`` .. ``robot.v_max``, cm/s): the robot clamps a command into that range, so a planned
+        move at 1e-300 cm/s, or a direct speed of 5 under v_min 10, would be driven at another speed than the
+        table predicted, and the plan's collision check would be about a motion that never happens."""
+        lo, hi = self.robot.v_min, self.robot.v_max
+        speeds = [(f"planner.successor_speeds[{i}]", v) for i, v in enumerate(self.planner.successor_speeds)]
+        speeds += [("planner.cruise_speed", self.planner.cruise_speed),
+                   ("navigator.direct_speed_cm_s", self.navigator.direct_speed_cm_s)]
+        for field_, v in speeds:
+            if not lo <= v <= hi:
+                raise ValueError(f"{field_}: {v:g} cm/s is outside the robot's speed range [{lo:g}, {hi:g}] cm/s "
+                                 "(robot.v_min, robot.v_max): the robot cannot drive it")
 
 
 @dataclass(frozen=True)

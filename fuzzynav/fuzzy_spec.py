@@ -326,6 +326,12 @@ def parse_controller(data: Mapping[str, Any]) -> ControllerSpec:
                     for n, d in outputs_raw.items())
     if not inputs:
         raise ControllerSpecError("inputs: at least one input variable is needed")
+    readers: dict[str, str] = {}
+    for v in inputs:  # two inputs on one sonar leave another unread and weigh one obstacle twice
+        if v.source in readers:
+            raise ControllerSpecError(f"inputs.{v.name}.source: {v.source!r} is already read by "
+                                      f"inputs.{readers[v.source]} (each observation feeds one input)")
+        readers[str(v.source)] = v.name
     names = [v.name for v in (*inputs, *outputs)]
     for n in names:
         if names.count(n) > 1:

@@ -1,7 +1,7 @@
 """Seeded scenario generators: plain parameters + seed -> a valid :class:`Scenario` (cm, s, degrees).
 
 Each generator is valid by construction (start and goal free, obstacles clear of the robot's start and of
-each other's start positions) and deterministic: the same parameters and seed give the same scenario.
+each other's start positions, moving obstacles starting outside the static ones) and deterministic: the same parameters and seed give the same scenario.
 The generator's random stream is ``numpy.random.default_rng((seed, 7))``, independent of the episode's.
 """
 
@@ -54,6 +54,29 @@ def _is_number(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
 
 
+
+
+def _outside_statics(p0: np.ndarray, vel: np.ndarray, placed: list[tuple[np.ndarray, float]],
+                     box: tuple[float, float, float, float], start: np.ndarray, start_clear: float,
+                     what: str) -> np.ndarray:
+    """``p0`` (cm), or the first point along the obstacle's own path (1 s earlier, then 1 s later, up to 60 s)
+    that is inside ``box`` (xmin, ymin, xmax, ymax), outside the circle around every static obstacle (centre,
+    half size × √2) and ``start_clear`` away from the robot's start. A moving obstacle that starts inside a
+    static one is hidden there from the laser (scenario validation refuses it). No random draw: only the
+    scenarios that had the problem change."""
+    def free(p: np.ndarray) -> bool:
+        inside = box[0] <= p[0] <= box[2] and box[1] <= p[1] <= box[3]
+        return (inside and dist(p, start) >= start_clear
+                and all(dist(p, c) > size * math.sqrt(2) for c, size in placed))
+    if free(p0):
+        return p0
+    for k in range(1, 61):
+        for sign in (-1.0, 1.0):
+            candidate = p0 + sign * k * vel
+            if free(candidate):
+                return candidate
+    raise ScenarioError(f"params.n_static: {what} finds no start outside the static obstacles along its path "
+                        "(ask for fewer or smaller static obstacles)")
 
 
 def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed") -> dict[str, Any]:
@@ -130,6 +153,8 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
         p0 = np.clip(p0, [radius, radius], [w - radius, h - radius])
         if dist(p0, start) < ROBOT_RADIUS + radius + CLEAR_CM:
             p0 = p0 + np.array([0.0, (1 if p0[1] >= start[1] else -1) * (ROBOT_RADIUS + radius + CLEAR_CM)])
+        p0 = _outside_statics(p0, vel, placed, (radius, radius, w - radius, h - radius), start,
+                              ROBOT_RADIUS + radius + CLEAR_CM, f"dynamic obstacle m{i}")
         dynamics.append({"id": f"m{i}", "radius": radius, "start": [round(float(p0[0]), 3), round(float(p0[1]), 3)],
                          "velocity": [round(float(vel[0]), 3), round(float(vel[1]), 3)]})
     return {"name": name, "description": f"random_mixed generated with seed {seed}", "bounds": [0, 0, w, h],

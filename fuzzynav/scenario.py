@@ -318,6 +318,8 @@ def validate_geometry(s: Scenario) -> None:
         raise ScenarioError(f"robot.goal: {list(goal_xy)} is outside bounds {list(s.bounds)}")
     if start.distance(area.exterior) < r:
         raise ScenarioError(f"robot.start: the robot (radius {r} cm) does not fit inside the bounds there")
+    if goal.distance(area.exterior) < r:  # the robot would have to cross the wall to stand at its goal
+        raise ScenarioError(f"robot.goal: the robot (radius {r} cm) does not fit inside the bounds there")
     if s.tolerance <= 0:
         raise ScenarioError(f"goal_tolerance: must be > 0, got {s.goal_tolerance}")
     if start.distance(goal) <= s.tolerance:
@@ -331,6 +333,9 @@ def validate_geometry(s: Scenario) -> None:
         else:
             if obs.polygon is None or len(obs.polygon) < 3:
                 raise ScenarioError(f"{path}.polygon: needs at least 3 points")
+            for k in range(1, len(obs.polygon)):  # a closing point equal to the first is fine
+                if obs.polygon[k] == obs.polygon[k - 1]:
+                    raise ScenarioError(f"{path}.polygon[{k}]: repeats the point before it (a zero-length edge)")
             geom = obs.geometry()
             if not geom.is_valid:
                 reason = explain_validity(geom)
@@ -365,3 +370,13 @@ def validate_geometry(s: Scenario) -> None:
             first = dyn.start
         if Point(first).distance(start) < r + dyn.radius:
             raise ScenarioError(f"{path}: overlaps the robot at robot.start")
+        # the world's bounds are walls: a moving obstacle starting or heading for a point outside them is a typo
+        # (a coordinate in mm, a swapped sign), and one starting inside a static obstacle is never seen there
+        points = [("start", dyn.start)] if dyn.waypoints is None else [
+            (f"waypoints[{k}]", w) for k, w in enumerate(dyn.waypoints)]
+        for name, xy in points:
+            if not area.contains(Point(xy)):
+                raise ScenarioError(f"{path}.{name}: {list(xy)} is outside bounds {list(s.bounds)}")
+        for k, obs in enumerate(s.static_obstacles):
+            if obs.geometry().covers(Point(first)):
+                raise ScenarioError(f"{path}: starts inside static_obstacles[{k}]")

@@ -12,6 +12,7 @@ the field):
   :data:`~fuzzynav.limits.MAX_YAML_NODES` nodes once aliases are expanded (aliases themselves are fine:
   ``conf/controller/listing.yaml`` shares its sensor terms with one);
 - interpolations: any ``${`` in a key or value;
+- YAML 1.1 base-60 numbers (``max_steps: 1:00`` is read as 60): quote them or write the number;
 - anything but one mapping at the top (Hydra's own message for that names no file).
 
 The scanner and composer are libyaml's (C) when available: linear in the file size, no objects built.
@@ -19,6 +20,7 @@ The scanner and composer are libyaml's (C) when available: linear in the file si
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +33,10 @@ _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _OPEN = (yaml.BlockMappingStartToken, yaml.BlockSequenceStartToken, yaml.FlowMappingStartToken,
          yaml.FlowSequenceStartToken)
 _CLOSE = (yaml.BlockEndToken, yaml.FlowMappingEndToken, yaml.FlowSequenceEndToken)
+
+
+#: YAML 1.1's base-60 numbers (``1:00`` is 60, ``1:30:00.5`` is 5400.5), which the loaders read silently
+_SEXAGESIMAL = re.compile(r"[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?")
 
 
 class DataFileError(ValueError):
@@ -168,6 +174,9 @@ class _Events:
                     if "${" in event.value:
                         self.fail(event, field, f"interpolation {_short(event.value)} is not allowed: "
                                                 f"{self.kind.all} are data")
+                    if event.implicit[0] and _SEXAGESIMAL.fullmatch(event.value):
+                        self.fail(event, field, f"{event.value!r} is a base-60 number in YAML 1.1 (read as "
+                                                f"{yaml.safe_load(event.value):g}): write the number, or quote it")
                     if event.anchor is not None:
                         self.anchors[event.anchor] = 1
                     self.add(event, 1, event.value)

@@ -23,7 +23,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from fuzzynav import limits
-from fuzzynav.checks import check_number, kind_of
+from fuzzynav.checks import check_number, kind_of, show
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
@@ -208,6 +208,8 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
         check_launcher(cfg.hydra)
         check_job_dir(cfg.hydra)
     plain = plain_config(cfg)
+    if not isinstance(plain.get("resume", False), bool):  # untyped in the schema (see runners.schema)
+        raise ValueError(f"resume: expected true or false, got {show(plain.get('resume'))}")
     seeds = run_seeds(plain)
     ep_cfg = episode_config(plain)
     evaluator = load_evaluator(plain, runtime)
@@ -222,5 +224,19 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
     else:
         scenario = load_scenario(plain, seeds[0], runtime)
         scenarios = dict.fromkeys(seeds, scenario)
+    for scenario in {id(sc): sc for sc in scenarios.values()}.values():
+        check_goal_tolerance(scenario, ep_cfg, runtime)
     return RunInputs(seeds, ep_cfg, evaluator, scenarios, plain)
+
+
+def check_goal_tolerance(scenario: Scenario, ep_cfg: EpisodeConfig, runtime: Any = None) -> None:
+    """The goal tolerance (cm) must be at least half the robot's shortest step (``robot.v_min`` × ``dt`` / 2):
+    a robot that moves at least v_min·dt per step can always end a step that close to its goal, and with a
+    smaller tolerance it may step over the goal from side to side until the episode times out."""
+    shortest = ep_cfg.robot.v_min * ep_cfg.dt
+    if scenario.tolerance < shortest / 2:
+        raise ConfigFileError(f"{source_of('scenario', runtime)}: goal_tolerance: {scenario.tolerance:g} cm is "
+                              f"below half the robot's shortest step ({shortest:g} cm: robot.v_min "
+                              f"{ep_cfg.robot.v_min:g} cm/s x dt {ep_cfg.dt:g} s), so the goal may never be "
+                              "reached")
 

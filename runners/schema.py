@@ -43,7 +43,9 @@ def mutable_mirror(cls: type) -> type:
             value = list(default)
             fields.append((f.name, list[item], dataclasses.field(default_factory=lambda v=value: list(v))))
             continue
-        fields.append((f.name, hint, dataclasses.field(default=default)))
+        # OmegaConf turns any integer into a boolean for a bool field (``sees_dynamic=3`` became true): such
+        # fields stay untyped here and fuzzynav's own parser (fuzzynav.config) accepts only true or false
+        fields.append((f.name, Any if hint is bool else hint, dataclasses.field(default=default)))
     mirror = dataclasses.make_dataclass(f"{cls.__name__}Schema", fields)
     _MIRRORS[cls] = mirror
     return mirror
@@ -80,8 +82,8 @@ class RunSchema:
     seed: int = 0
     episodes: int = 1
     dt: float = 1.0
-    terminate_on_collision: bool = True
-    resume: bool = False
+    terminate_on_collision: Any = True  # checked as a boolean by fuzzynav.config (see mutable_mirror)
+    resume: Any = False
 
 
 def register() -> None:
