@@ -32,6 +32,9 @@ BEHAVIOUR_RECORD = ("decision_digest", "discrete_digest", "modes", "float_sums")
 DIGEST = re.compile(r"[0-9a-f]{8}")
 MODE_RUN = re.compile(r"(\S+)\*([1-9][0-9]{0,9})")  # a mode and how many steps in a row it was decided
 MAX_LOG_TIMES = limits.MAX_STEPS + 1  # steps 0 to max_steps
+#: episodes per dataset: a built manifest holds about 1.3 kB per episode, and one of more than
+#: :data:`fuzzynav.limits.MAX_MANIFEST_BYTES` (about 15,000 episodes) could not be read back
+MAX_EPISODES = 15_000
 
 
 class DatasetError(Exception):
@@ -64,6 +67,13 @@ def check_manifest(data: Any, path: Path, name: str) -> None:
     if got != name:
         raise DatasetError(f"{path}: name: {got!r:.80} is not the dataset's directory name {name!r} (a dataset "
                            "is <root>/<name>/manifest.yaml)" if "name" in data else f"{path}: name: missing")
+    description = data.get("description", "")
+    if not (isinstance(description, str) and len(description) <= limits.MAX_TEXT_CHARS):
+        raise DatasetError(f"{path}: description: expected text of at most {limits.MAX_TEXT_CHARS:,} characters, "
+                           f"got {description!r:.40}")
+    digest = data.get("metrics_sha256")
+    if digest is not None and not (isinstance(digest, str) and re.fullmatch("[0-9a-f]{64}", digest)):
+        raise DatasetError(f"{path}: metrics_sha256: expected 64 lowercase hex digits, got {digest!r:.70}")
     _check_sweep_fields(data.get("sweep"), path)
     _check_keep_logs(data.get("keep_logs"), data["sweep"]["seeds"], path)
     _check_episodes(data.get("episodes"), path)
@@ -80,7 +90,8 @@ def _check_sweep_fields(sweep: Any, path: Path) -> None:
         if key not in sweep:
             raise DatasetError(f"{path}: sweep.{key}: missing")
     seeds = sweep["seeds"]
-    if not (isinstance(seeds, list) and len(seeds) == 2 and all(isinstance(s, int) for s in seeds) and
+    if not (isinstance(seeds, list) and len(seeds) == 2 and
+            all(isinstance(s, int) and not isinstance(s, bool) for s in seeds) and
             seeds[0] < seeds[1]):
         raise DatasetError(f"{path}: sweep.seeds: expected [first, end) as two integers, got {seeds!r}")
     if seeds[0] < 0:
@@ -93,6 +104,11 @@ def _check_sweep_fields(sweep: Any, path: Path) -> None:
     for key in ("scenarios", "variants"):
         if not isinstance(sweep[key], list) or not sweep[key]:
             raise DatasetError(f"{path}: sweep.{key}: expected a non-empty list")
+    episodes = len(sweep["scenarios"]) * len(sweep["variants"]) * (seeds[1] - seeds[0])
+    if episodes > MAX_EPISODES:  # 1,000 scenarios x 1,000 variants x 10,000 seeds: a few lines, 1e10 episodes
+        raise DatasetError(f"{path}: sweep: {len(sweep['scenarios']):,} scenarios x {len(sweep['variants']):,} "
+                           f"variants x {seeds[1] - seeds[0]:,} seeds is {episodes:,} episodes, more than the "
+                           f"limit of {MAX_EPISODES:,} per dataset")
 
 
 def _check_keep_logs(keep: Any, seeds: list[int], path: Path) -> None:

@@ -81,6 +81,14 @@ def _drop(*keys: str) -> Callable[[dict[str, Any]], None]:
     return mutate
 
 
+def _both(*mutations: Callable[[dict[str, Any]], None]) -> Callable[[dict[str, Any]], None]:
+    """The mutations one after the other."""
+    def mutate(m: dict[str, Any]) -> None:
+        for each in mutations:
+            each(m)
+    return mutate
+
+
 EPISODE = "episodes.paper_fig5__planner-auto_h1__s0.mcap"
 CASES = [  # id, mutation, the message after "error: <manifest path>: "
     ("d_version_2", _set("version", value=2),
@@ -94,6 +102,16 @@ CASES = [  # id, mutation, the message after "error: <manifest path>: "
     ("bool_key", _set(True, value=1), "True: unknown field (allowed: "),  # YAML 1.1's ``on:``
     ("unknown_sweep_key", _set("sweep", "seed", value=[0, 1]), "sweep.seed: unknown field (allowed: scenarios, "),
     ("sweep_not_mapping", _set("sweep", value=[1]), "sweep: expected a mapping, got list"),
+    ("description_not_text", _set("description", value=["a"]), "description: expected text of at most 10,000 "),
+    ("description_long", _set("description", value="x" * 10_001), "description: expected text of at most 10,000 "),
+    ("metrics_sha256_short", _set("metrics_sha256", value="abc"),
+     "metrics_sha256: expected 64 lowercase hex digits, got 'abc'"),
+    ("seeds_bool", _set("sweep", "seeds", value=[False, True]),
+     "sweep.seeds: expected [first, end) as two integers, got [False, True]"),
+    ("seeds_float", _set("sweep", "seeds", value=[0, 1e12]), "sweep.seeds: expected [first, end) as two integers"),
+    ("seeds_one", _set("sweep", "seeds", value=[3]), "sweep.seeds: expected [first, end) as two integers"),
+    ("too_many_episodes", _both(_set("sweep", "scenarios", value=["a", "b"]), _set("sweep", "seeds", value=[0, 1072])),
+     "sweep: 2 scenarios x 7 variants x 1,072 seeds is 15,008 episodes, more than the limit of 15,000 per dataset"),
     ("d_verify_keep_logs_99", _set("keep_logs", value=[99]),
      "keep_logs[0]: 99 is not a seed of the sweep (sweep.seeds: 0 to 0)"),
     ("keep_logs_negative", _set("keep_logs", value=[0, -1]), "keep_logs[1]: -1 is not a seed of the sweep"),
