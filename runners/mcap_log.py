@@ -13,6 +13,7 @@ encoded with orjson (compact JSON; numpy arrays are written directly, floats in 
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import json
 import logging
@@ -27,6 +28,7 @@ import foxglove
 import numpy as np
 import orjson
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+from mcap.reader import make_reader
 
 from fuzzynav.episode import Episode, StepRecord
 from fuzzynav.portable_math import dist, sin_cos_deg
@@ -216,6 +218,7 @@ class EpisodeLogWriter:
         self._plan_lines: list[dict] = []
         self._radii = [float(r) for r in episode.motion.radii]  # moving obstacles' radii (cm)
         self.path = Path(destination) if isinstance(destination, str | Path) else None
+        self._identity = (metadata.get("config"), metadata.get("seed"))
         self._partial = partial_path(self.path) if self.path is not None else None
         self._failures: list[str] = []  # the SDK's reports of failed writes (see SDK_LOGGER)
         try:
@@ -453,11 +456,37 @@ class EpisodeLogWriter:
             self._abandon()
             raise failure
         if self._partial is not None and self.path is not None:
+            other = _other_episode(self.path, self._identity)
+            if other:
+                self._abandon()
+                raise LogWriteError(self.path, errno.EEXIST, f"{other} is already there and would be replaced (choose "
+                                    "another output directory; in a sweep, a hydra.sweep.subdir per job)")
             try:
                 os.replace(self._partial, self.path)
             except OSError as err:
                 self._abandon()
                 raise LogWriteError(self.path, err.errno, err.strerror or str(err)) from None
+
+
+def _other_episode(path: Path, identity: tuple[str | None, str | None]) -> str | None:
+    """"the log of another episode (seed N)" when ``path`` is a readable log whose recorded config or seed differs
+    from ``identity`` (config YAML, seed); None when nothing is there, it is this episode's (a re-run), or it is
+    unreadable (a corrupt or partial file is no result to protect)."""
+    if not path.is_file():
+        return None
+    try:
+        with open(path, "rb") as f:
+            for record in make_reader(f).iter_metadata():
+                if record.name == RUN_METADATA:
+                    meta = dict(record.metadata)
+                    if (meta.get("config"), meta.get("seed")) != identity:
+                        same_seed = meta.get("seed") == identity[1]
+                        return (f"the log of another episode ({'another config' if same_seed else 'seed '}"
+                                f"{'' if same_seed else meta.get('seed')})")
+                    return None
+    except Exception:  # any reader failure: the file is not a finished log
+        return None
+    return None
 
 
 def _write_errno(path: Path) -> int | None:

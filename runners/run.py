@@ -229,12 +229,33 @@ def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
         os.environ["HYDRA_FULL_ERROR"] = "1"
     if not debug_requested(args) and "--help" not in args and "-h" not in args:
         overrides, problem = hydra_overrides(args)
+        if not problem and "--multirun" not in args and "-m" not in args:
+            problem = single_run_sweep(overrides)
         problem = problem or precheck(overrides, on_config)
         if problem:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)
     register_sweeper()
     main()
+
+
+def single_run_sweep(overrides: list[str]) -> str | None:
+    """One line about the first override that sweeps (``planner=auto,wait``, ``seed=range(3)``) in a single run:
+    Hydra answered with five lines of options; ``runners.sweep`` is the command for it."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parser = OverridesParser.create()
+    for text in overrides:
+        try:
+            (override,) = parser.parse_overrides([text])
+        except Exception:  # an override that does not parse: the precheck reports it
+            continue
+        if override.is_sweep_override():
+            key = override.get_key_element()
+            return (f"config: {key[:80]}: {text.partition('=')[2][:80]!r} is a sweep and runners.run runs one "
+                    f"configuration: use python -m runners.sweep (or quote the value for a string: "
+                    f"{key[:80]}='...')")
+    return None
 
 
 def hydra_overrides(args: list[str]) -> tuple[list[str], str | None]:

@@ -96,6 +96,11 @@ def shared_job_dir(config: DictConfig, task: list[str]) -> str | None:
     if sweep is None:
         return None
     raw = OmegaConf.to_container(sweep, resolve=False).get("subdir")
+    excluded = _swept_but_excluded(config, task) if raw is not None and "override_dirname" in str(raw) else None
+    if excluded:
+        return (f"config: hydra.job.config.override_dirname.exclude_keys: {excluded[:60]} is swept but left out "
+                f"of hydra.sweep.subdir {str(raw)[:60]!r}, so jobs that differ only in it share one directory "
+                "(logs of the same name would replace each other); keep it in the name or include ${hydra.job.num}")
     if raw is None or _PER_JOB.search(str(raw)):
         return None
     jobs = count_jobs(config, task)
@@ -104,6 +109,26 @@ def shared_job_dir(config: DictConfig, task: list[str]) -> str | None:
     return (f"config: hydra.sweep.subdir: {str(raw)[:60]!r} is the same directory for each of the "
             f"{jobs if jobs is not None else 'several'} jobs (logs of the same name would replace each other); "
             "include ${hydra.job.num}")
+
+
+def _swept_but_excluded(config: DictConfig, task: list[str]) -> str | None:
+    """The first swept key of ``task`` that ``override_dirname`` leaves out (its ``exclude_keys``), if any and
+    the subdir names no ``hydra.job.num`` or ``id`` besides."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    raw = str(OmegaConf.to_container(config.hydra.sweep, resolve=False).get("subdir"))
+    if re.search(r"\$\{\s*hydra[.:]\s*job\.(num|id)\s*\}", raw):
+        return None
+    keys = OmegaConf.select(config, "hydra.job.config.override_dirname.exclude_keys", default=None) or []
+    try:
+        parsed = OverridesParser.create().parse_overrides(list(task))
+    except Exception:  # the precheck has reported an override that does not parse
+        return None
+    for o in parsed:
+        # the seed is in every log's name: jobs that differ only in it never write the same file
+        if o.is_sweep_override() and o.get_key_element() != "seed" and o.get_key_element() in set(map(str, keys)):
+            return o.get_key_element()
+    return None
 
 
 def refuse_shared_job_dir(config: DictConfig, task: list[str]) -> None:

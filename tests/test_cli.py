@@ -103,6 +103,55 @@ def test_a_job_dir_shared_by_the_jobs_of_a_sweep_is_refused(tmp_path):
     assert len(list((tmp_path / "per").rglob("*.mcap"))) == 2
 
 
+def test_a_swept_key_left_out_of_override_dirname_is_refused(tmp_path):
+    """``hydra.sweep.subdir=${hydra.job.override_dirname}`` with the swept margin in ``exclude_keys``: both jobs
+    shared one directory and the second replaced the first's logs. Excluding the seed stays allowed: it is in
+    every log's name."""
+    dirname = "hydra.sweep.subdir=${hydra.job.override_dirname}"
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "scenario.max_steps=3", "planner=auto", dirname,
+                    "hydra.job.config.override_dirname.exclude_keys=[planner.safety_margin_cm]",
+                    "planner.safety_margin_cm=10,12")
+    assert one_error_line(res).startswith("error: config: hydra.job.config.override_dirname.exclude_keys: "
+                                          "planner.safety_margin_cm is swept but left out of hydra.sweep.subdir")
+    assert not (tmp_path / "s").exists()
+    res = run_sweep(f"hydra.sweep.dir={tmp_path / 'seeds'}", "scenario.max_steps=3", "planner=auto", dirname,
+                    "hydra.job.config.override_dirname.exclude_keys=[seed]", "seed=0,1")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert len(list((tmp_path / "seeds").rglob("*.mcap"))) == 2
+
+
+def test_a_log_never_replaces_another_episodes_log(tmp_path):
+    """Whatever shares a directory (two runs with different configs into one ``hydra.run.dir``), a finished log of
+    another episode is never replaced: one line, exit 1, the first log intact. The same episode again is a re-run
+    and replaces its own log."""
+    def run(*overrides):
+        return subprocess.run([sys.executable, "-m", "runners.run", f"hydra.run.dir={tmp_path}",
+                               "scenario.max_steps=3", *overrides], cwd=ROOT, capture_output=True, text=True,
+                              timeout=300)
+
+    assert run().returncode == 0
+    (log,) = tmp_path.glob("*.mcap")
+    before = log.read_bytes()
+    res = run("planner.safety_margin_cm=12")
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode == 1 and len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
+    assert lines[0] == (f"error: {log}: cannot write the log: the log of another episode (another config) is already "
+                        "there and would be replaced (choose another output directory; in a sweep, a "
+                        "hydra.sweep.subdir per job)")
+    assert log.read_bytes() == before and [p.name for p in tmp_path.glob(".*.partial")] == []
+    assert run().returncode == 0
+
+
+def test_a_sweep_in_a_single_run_is_one_line(tmp_path):
+    """``runners.run planner=auto,wait``: Hydra printed five lines of options."""
+    res = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.run.dir={tmp_path / 'o'}", "planner=auto,wait"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert one_error_line(res) == ("error: config: planner: 'auto,wait' is a sweep and runners.run runs one "
+                                   "configuration: use python -m runners.sweep (or quote the value for a string: "
+                                   "planner='...')")
+    assert not (tmp_path / "o").exists()
+
+
 def test_an_empty_sweep_is_refused(tmp_path):
     res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "seed=range(5,0)", "planner=auto")
     assert one_error_line(res) == "error: config: seed: range(5,0) selects no value (an empty sweep)"
