@@ -138,7 +138,7 @@ TOPIC_SCHEMAS = {"/scene": "foxglove.SceneUpdate", "/laser": "foxglove.LaserScan
                  "/sonar": "fuzzynav.Sonar", "/tracks": "fuzzynav.Tracks", "/robot/state": "fuzzynav.RobotState",
                  "/obstacles/truth": "fuzzynav.ObstaclesTruth", "/tpt": "fuzzynav.TPT",
                  "/planner/decision": "fuzzynav.Decision", "/episode": "fuzzynav.Episode"}
-"""The schema each topic read must declare (when its channel declares one: hand-written test logs do not)."""
+"""The schema each topic read must declare (a JSON schema of this name; fuzzynav's writer declares every one)."""
 
 
 def check_message(topic: str, msg: Any) -> None:

@@ -188,7 +188,8 @@ class LogFile:
         """Nothing to release: the file was read whole when opened."""
 
     def _check_channels(self) -> None:
-        """Each topic on one channel, JSON-encoded, with the schema its name says (when it declares one)."""
+        """Each of fuzzynav's topics on one channel, JSON-encoded, declaring the JSON schema its name says (the writer
+        declares one for every topic)."""
         seen: set[str] = set()
         for topic, sid, encoding in self._content.channels.values():
             if topic in seen:
@@ -199,11 +200,14 @@ class LogFile:
                 continue
             if encoding != "json":
                 raise LogError(f"{self.path}: {topic} is encoded as {encoding!r}, not json", "schema")
-            if sid:
-                name = self._content.schemas[sid][0]
-                if name != expected:
-                    raise LogError(f"{self.path}: {topic} declares schema {name!r}, expected {expected!r}",
-                                   "schema")
+            if not sid:
+                raise LogError(f"{self.path}: {topic} declares no schema, expected {expected!r}", "schema")
+            name, schema_encoding = self._content.schemas[sid]
+            if name != expected:
+                raise LogError(f"{self.path}: {topic} declares schema {name!r}, expected {expected!r}", "schema")
+            if schema_encoding != "jsonschema":
+                raise LogError(f"{self.path}: {topic} declares a {schema_encoding!r} schema, expected 'jsonschema'",
+                               "schema")
 
     def metadata(self) -> dict[str, str]:
         """The ``fuzzynav.run`` metadata record (exactly one)."""

@@ -7,6 +7,8 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from runners.mcap_log import SCHEMAS, TOPICS
+
 GOAL = (500.0, 500.0)
 
 
@@ -25,6 +27,14 @@ def _loop(points_cm) -> dict:
     return {"type": 1, "points": [{"x": x / 100, "y": y / 100, "z": 0.0} for x, y in points_cm]}
 
 
+def register_topic(writer: Writer, topic: str) -> int:
+    """A JSON channel for one of fuzzynav's topics, declaring the schema the writer declares for it (name and
+    text, as ``runners.mcap_log`` embeds them); its channel id."""
+    name = TOPICS[topic]
+    schema = writer.register_schema(name, "jsonschema", json.dumps(SCHEMAS[name]()).encode())
+    return writer.register_channel(topic, "json", schema)
+
+
 def write_log(path: Path, poses, *, radius: float = 20.0, statics=(), obstacles=None, modes=None, speeds=None,
               contacts_static=None, outcome: str = "goal", bounds=(-200.0, -200.0, 800.0, 800.0),
               goal=GOAL, tolerance: float = 20.0, meta=None, truncate: bool = False) -> Path:
@@ -36,8 +46,8 @@ def write_log(path: Path, poses, *, radius: float = 20.0, statics=(), obstacles=
     contacts_static = contacts_static or [False] * n
     w = Writer(open(path, "wb"), compression=CompressionType.ZSTD)  # noqa: SIM115 - closed by finish()
     w.start()
-    ch = {t: w.register_channel(t, "json", 0) for t in
-          ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/episode")}
+    ch = {t: register_topic(w, t) for t in ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision",
+                                            "/episode")}
     metadata = {"config": "dt: 1.0\n", "seed": "0", "scenario": "handmade", "strategy": "auto", "h_wait": "2",
                 "controller": "table1", "perception": "laser"}
     metadata.update(meta or {})

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -27,9 +27,12 @@ class Twice:
 
 
 def rewrite(src: Path, dst: Path, *, metadata: Callable[[dict[str, str]], dict[str, str]] | None = None,
-            message: MessageEdit | None = None, compression: CompressionType = CompressionType.ZSTD) -> Path:
+            message: MessageEdit | None = None, compression: CompressionType = CompressionType.ZSTD,
+            schemas: Mapping[str, tuple[str, str] | None] | None = None) -> Path:
     """Copy ``src`` to ``dst`` record by record: ``metadata(run_metadata)`` returns the new ``fuzzynav.run``
-    record, ``message(topic, index, msg)`` the new message (any JSON value; DROP leaves it out, Twice repeats it)."""
+    record, ``message(topic, index, msg)`` the new message (any JSON value; DROP leaves it out, Twice repeats it),
+    ``schemas[topic]`` the (name, encoding) of the schema that topic's channel declares instead of its own (the
+    schema's text is kept), None for no schema record (schema id 0)."""
     with open(src, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -39,9 +42,14 @@ def rewrite(src: Path, dst: Path, *, metadata: Callable[[dict[str, str]], dict[s
     with open(dst, "wb") as out:
         writer = Writer(out, compression=compression)
         writer.start()
-        schemas = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
-        channels = {cid: writer.register_channel(c.topic, c.message_encoding, schemas.get(c.schema_id, 0))
-                    for cid, c in summary.channels.items()}
+        ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        channels = {}
+        for cid, c in summary.channels.items():
+            sid = ids.get(c.schema_id, 0)
+            if schemas is not None and c.topic in schemas:
+                new = schemas[c.topic]
+                sid = 0 if new is None else writer.register_schema(new[0], new[1], summary.schemas[c.schema_id].data)
+            channels[cid] = writer.register_channel(c.topic, c.message_encoding, sid)
         for name, meta in records:
             writer.add_metadata(name, metadata(dict(meta)) if metadata and name == "fuzzynav.run" else meta)
         for channel, m in messages:

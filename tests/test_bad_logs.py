@@ -64,6 +64,31 @@ def test_a_truncated_log_is_left_out_as_truncated():
     assert df.empty and left_out["reason"].iloc[0].startswith("truncated:")
 
 
+@pytest.mark.parametrize("schema, expect", [
+    (None, "/robot/state declares no schema, expected 'fuzzynav.RobotState'"),
+    (("fuzzynav.Sonar", "jsonschema"), "/robot/state declares schema 'fuzzynav.Sonar', expected 'fuzzynav.RobotState'"),
+    (("fuzzynav.RobotState", "protobuf"), "/robot/state declares a 'protobuf' schema, expected 'jsonschema'"),
+])
+def test_a_topic_without_its_schema_is_refused_and_left_out(schema, expect, tmp_path, capsys, good):
+    """A /robot/state channel with no schema record (schema id 0) was replayed ("all 14 decisions reproduced") and
+    analysed as good; fuzzynav's writer declares the schema of every topic."""
+    log = rewrite(good, tmp_path / "bad.mcap", schemas={"/robot/state": schema})
+    assert replay.main([str(log), "--verify"]) == 2
+    assert one_error_line(capsys.readouterr().err) == f"error: {log}: {expect}"
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["schema"] and list(left_out["reason"]) == [f"{log}: {expect}"]
+    assert report.main([str(log), "--out", str(tmp_path / "rep"), "--jobs", "1"]) == 0
+    assert "1 log(s) left out (1 schema)" in capsys.readouterr().out
+    assert expect in (tmp_path / "rep" / "report.md").read_text()
+
+
+def test_a_log_re_written_with_its_own_schemas_is_still_good(tmp_path, capsys, good):
+    """The surgery above changes nothing but the schema: the same copy with the schemas kept is replayed."""
+    log = rewrite(good, tmp_path / "same.mcap", schemas={"/robot/state": ("fuzzynav.RobotState", "jsonschema")})
+    assert replay.main([str(log), "--verify"]) == 0
+    assert "decisions reproduced" in capsys.readouterr().out
+
+
 # -- which files are read -----------------------------------------------------------------------------------
 @pytest.fixture
 def sweep_dir(tmp_path, good):

@@ -24,6 +24,7 @@ from fuzzynav.config import episode_config_from_dict
 from fuzzynav.fuzzy_fast import FastEvaluator
 from runners.run import run_episode
 from tests.conftest import load_controller, load_scenario
+from tests.handmade import register_topic
 from tests.log_surgery import record_offsets, rewrite
 
 OUT = Path(__file__).resolve().parent / "logs"
@@ -58,7 +59,7 @@ def main() -> None:
     with open(OUT / "no_run_metadata.mcap", "wb") as f:
         w = Writer(f, compression=CompressionType.ZSTD)
         w.start()
-        ch = w.register_channel("/robot/state", "json", 0)
+        ch = register_topic(w, "/robot/state")  # with its schema: only the metadata is missing
         w.add_message(ch, 0, json.dumps({"step": 0}).encode(), 0)
         w.finish()
 
