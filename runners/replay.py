@@ -249,7 +249,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("log", help="an episode log (.mcap)")
     parser.add_argument("overrides", nargs="*", help="key=value changes of the recorded config (counterfactual)")
     parser.add_argument("--verify", action="store_true", help="re-decide every step; exit 1 at the first change")
-    parser.add_argument("--controller", help="counterfactual controller: a name in conf/controller/ or a YAML file")
+    parser.add_argument("--controller", action="append",
+                        help="counterfactual controller: a name in conf/controller/ or a YAML file")
     parser.add_argument("--animate", action="store_true", help="also write an animated GIF")
     parser.add_argument("--steps", help="comma-separated steps to draw snapshots at")
     parser.add_argument("--out", help="output path stem for the PNG/GIF (default: beside the log)")
@@ -268,6 +269,10 @@ def _run(args: argparse.Namespace) -> int:
     steps = parse_steps(args.steps) if args.steps is not None else None
     overrides = [parse_override(item) for item in args.overrides]
     check_overrides(overrides)
+    if args.controller is not None:
+        if len(args.controller) > 1:
+            raise ReplayError(f"--controller: given {len(args.controller)} times (one controller per replay)")
+        args.controller = args.controller[0]
     if args.verify and (args.controller or overrides):
         raise ReplayError("--verify: re-decides with the recorded config; it cannot be combined with "
                           "--controller/overrides (without --verify they list every step that differs)")

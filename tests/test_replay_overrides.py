@@ -73,6 +73,12 @@ def test_a_key_given_twice_is_refused_naming_it(args, expect, capsys, tmp_path, 
     assert one_error_line(err).startswith(f"error: {expect}")
 
 
+def test_a_second_controller_is_refused(capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, "--controller", "listing", "--controller", "table1")
+    assert code == 2 and out == ""
+    assert one_error_line(err) == "error: --controller: given 2 times (one controller per replay)"
+
+
 @pytest.mark.parametrize("override", ["scenario=u_trap", "seed=5", "scenario.max_steps=3", "sensors.laser.beams=90",
                                       "sensors.sonar.range_cm=100", "sensors={}", "perception.mode=ground_truth",
                                       "terminate_on_collision=false", "episodes=3"])
