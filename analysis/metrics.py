@@ -24,7 +24,8 @@ import shapely
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import SKIPPED_KINDS, LogError, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
-from fuzzynav.portable_math import dist, dot2, norm2
+from fuzzynav.geometry import swept_distance, wrap_180
+from fuzzynav.portable_math import dist, norm2
 
 PARAMETERS = EPISODE_PARAMETERS
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
@@ -38,25 +39,11 @@ class MetricOptions:
     turn_threshold_deg: float = 5.0
 
 
-def _wrap(deg: np.ndarray) -> np.ndarray:
-    return (deg + 180.0) % 360.0 - 180.0
-
-
 def turn_count(heading_changes_deg: np.ndarray, threshold_deg: float = 5.0) -> int:
     """Maximal runs of consecutive steps whose heading change has the same sign and |change| >= threshold."""
     sign = np.where(np.abs(heading_changes_deg) >= threshold_deg, np.sign(heading_changes_deg), 0)
     starts = (sign != 0) & (np.concatenate([[0], sign[:-1]]) != sign)
     return int(starts.sum())
-
-
-def _swept_gap(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray) -> np.ndarray:
-    """Closest centre distance while two points move straight from (p0, o0) to (p1, o1), per row (the
-    robot's ``p0``, ``p1`` may be one point (2,) or one per row (N, 2))."""
-    rel0 = p0 - o0
-    d = (p1 - p0) - (o1 - o0)
-    dd = dot2(d, d)
-    s = np.clip(-dot2(rel0, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    return norm2(rel0 + s[:, None] * d)
 
 
 def _static_gaps(solid: shapely.Geometry, pos: np.ndarray, steps: int) -> np.ndarray:
@@ -85,7 +72,7 @@ def _dynamic_gaps(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, s
     o0 = np.array([(o["x_cm"], o["y_cm"]) for _, o in pairs])
     o1 = np.array([(o["next_x_cm"], o["next_y_cm"]) for _, o in pairs])
     radii = np.array([o["radius_cm"] for _, o in pairs])
-    gaps = _swept_gap(pos[k], pos[k + 1], o0, o1) - radius - radii
+    gaps = swept_distance(pos[k], pos[k + 1], o0, o1) - radius - radii
     for i in np.nonzero(gaps < -1e-9)[0]:
         touching[k[i]].add(pairs[i][1]["id"])
     return float(gaps.min()), touching
@@ -111,7 +98,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row.update(log=str(log.path), outcome=log.outcome, steps=log.steps)
     seg = norm2(np.diff(pos, axis=0)) if len(pos) > 1 else np.zeros(0)
     row["path_length_cm"] = math.fsum(seg.tolist())
-    dh = _wrap(np.diff(log.headings)) if len(pos) > 1 else np.zeros(0)
+    dh = wrap_180(np.diff(log.headings)) if len(pos) > 1 else np.zeros(0)
     row["turn_count"] = turn_count(dh, opt.turn_threshold_deg)
     row["heading_change_deg_total"] = math.fsum(np.abs(dh).tolist())
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fuzzynav.portable_math import dot2, norm2
+from fuzzynav.geometry import segment_point_distance
 
 
 def segment_point_clearance(start: np.ndarray, ends: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -14,8 +14,4 @@ def segment_point_clearance(start: np.ndarray, ends: np.ndarray, points: np.ndar
     if points is None or len(points) == 0:
         return np.full(len(ends), np.inf)
     start = np.asarray(start, dtype=float)
-    seg = ends - start[None, :]  # (S, 2)
-    rel = points[None, :, :] - start[None, None, :]  # (1, P, 2)
-    ll = dot2(seg, seg)[:, None]
-    s = np.clip(dot2(rel, seg[:, None, :]) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
-    return norm2(rel - s[..., None] * seg[:, None, :]).min(axis=1)
+    return segment_point_distance(start, ends[:, None, :], points).min(axis=1)

@@ -24,6 +24,7 @@ from fuzzynav import portable_math
 from fuzzynav.checks import check_config_fields
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec
+from fuzzynav.geometry import swept_distance, wrap_360
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.laser import LaserConfig, LaserScan
 from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation
@@ -125,7 +126,7 @@ class Episode:
     def reset(self) -> None:
         """Back to the start (same seed, same run)."""
         robot = self.scenario.robot
-        self.state = RobotState(robot.start[0], robot.start[1], robot.heading % 360.0, 0.0)
+        self.state = RobotState(robot.start[0], robot.start[1], wrap_360(robot.heading), 0.0)
         self.step_index = 0
         self.outcome: str | None = None
         self.contacts = 0
@@ -195,9 +196,5 @@ def _swept_contacts(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarr
     straight from (p0, o0) to (p1, o1) over the step."""
     if len(o0) == 0:
         return []
-    rel0 = p0[None, :] - o0
-    d = (p1 - p0)[None, :] - (o1 - o0)
-    dd = portable_math.dot2(d, d)
-    s = np.clip(-portable_math.dot2(rel0, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    closest = portable_math.norm2(rel0 + s[:, None] * d)
+    closest = swept_distance(p0, p1, o0, o1)
     return [int(k) for k in np.nonzero(closest < radius + radii)[0]]

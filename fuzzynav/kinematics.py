@@ -5,6 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fuzzynav import portable_math
+from fuzzynav.geometry import wrap_180, wrap_360
+from fuzzynav.portable_math import bearing_deg
+
+# navigator.py takes its goal bearing and heading wrap from here, under these names
+wrap_deg = wrap_180
+__all__ = ["RobotLimits", "RobotState", "bearing_deg", "step_unicycle", "wrap_deg"]
 
 
 @dataclass(frozen=True)
@@ -36,23 +42,13 @@ class RobotState:
         return (self.x, self.y)
 
 
-def wrap_deg(angle: float) -> float:
-    """Wrap an angle in degrees to [-180, 180)."""
-    return (angle + 180.0) % 360.0 - 180.0
-
-
-def bearing_deg(x: float, y: float, tx: float, ty: float) -> float:
-    """Absolute bearing in degrees [0, 360) from (x, y) to (tx, ty)."""
-    return portable_math.bearing_deg(x, y, tx, ty)
-
-
 def step_unicycle(state: RobotState, dtheta_deg: float, v_cm_s: float, dt: float,
                   limits: RobotLimits) -> RobotState:
     """Turn by ``dtheta_deg`` (clamped to ±max_turn_deg), then move ``v·dt`` along the new heading.
 
     ``v_cm_s`` is clamped to [v_min, v_max]; a speed of 0 (or less) means stand still (waiting)."""
     dtheta = max(-limits.max_turn_deg, min(limits.max_turn_deg, dtheta_deg))
-    heading = (state.heading + dtheta) % 360.0
+    heading = wrap_360(state.heading + dtheta)
     v = 0.0 if v_cm_s <= 0.0 else max(limits.v_min, min(limits.v_max, v_cm_s))
     sin, cos = portable_math.sin_cos_deg(heading)
     return RobotState(x=state.x + v * dt * cos, y=state.y + v * dt * sin, heading=heading, v=v)

@@ -56,8 +56,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzynav.clearance import segment_point_clearance
-from fuzzynav.kinematics import wrap_deg
-from fuzzynav.portable_math import atan2_deg, dist, dot2, norm2, sin_cos_deg_array
+from fuzzynav.geometry import angle_difference_deg, swept_distance, wrap_180, wrap_360
+from fuzzynav.portable_math import atan2_deg, bearing_deg, dist, norm2, sin_cos_deg_array
 from fuzzynav.tpt import TrajectoryPredictionTable
 
 STRATEGIES = ("auto", "wait", "detour", "none")
@@ -173,11 +173,11 @@ def phi_low(theta_deg: float, phi_deg: float, rule: str = "paper") -> float:
     """Lines 39-49: the first of the 19 successor headings (degrees, [0, 360)).
 
     ``theta_deg``: bearing from the robot to rG; ``phi_deg``: the obstacle's moving angle (both [0, 360))."""
-    theta, phi = theta_deg % 360.0, phi_deg % 360.0
+    theta, phi = wrap_360(theta_deg), wrap_360(phi_deg)
     if rule == "toward_goal":
-        return (theta - 90.0) % 360.0
+        return wrap_360(theta - 90.0)
     if rule == "target_side":
-        return phi if (theta - phi) % 360.0 < 180.0 else (phi + 180.0) % 360.0
+        return phi if wrap_360(theta - phi) < 180.0 else wrap_360(phi + 180.0)
     if phi < 180.0:
         return phi if theta < phi + 180.0 else phi + 180.0
     return phi - 180.0 if theta < phi else phi
@@ -190,14 +190,14 @@ def get_successors(r: Sequence[float], r_goal: Sequence[float], phi_deg: float, 
 
     Returns positions (S, 2) cm in the listing's order (speed outer, heading inner), their speeds (cm/s),
     their headings (degrees) and φLow."""
-    theta = atan2_deg(r_goal[1] - r[1], r_goal[0] - r[0]) % 360.0
+    theta = bearing_deg(r[0], r[1], r_goal[0], r_goal[1])
     low = phi_low(theta, phi_deg, rule)
     headings = low + heading_step_deg * np.arange(n_headings)
     v = np.repeat(np.asarray(speeds, dtype=float), n_headings)
     h = np.tile(headings, len(speeds))
     sin, cos = sin_cos_deg_array(h)
     pos = np.stack([r[0] + v * dt * cos, r[1] + v * dt * sin], axis=1)
-    return pos, v, h % 360.0, low
+    return pos, v, wrap_360(h), low
 
 
 def obstacle_gaps(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.ndarray, step: int) -> np.ndarray:
@@ -207,11 +207,7 @@ def obstacle_gaps(tpt: TrajectoryPredictionTable, start: np.ndarray, ends: np.nd
     ends = np.atleast_2d(ends)
     o0 = tpt.obstacles_at(step - 1)  # (J, 2)
     o1 = tpt.obstacles_at(step)
-    p0 = start[None, None, :] - o0[None, :, :]  # relative position at the start, (1, J, 2)
-    dp = (ends[:, None, :] - start[None, None, :]) - (o1 - o0)[None, :, :]  # (S, J, 2)
-    dd = dot2(dp, dp)
-    s = np.clip(-dot2(p0, dp) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    closest = norm2(p0 + s[..., None] * dp)
+    closest = swept_distance(start, ends[:, None, :], o0, o1)  # (S, J)
     return closest - tpt.robot_radius - tpt.obstacle_radii[None, :]
 
 
@@ -279,7 +275,7 @@ def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, headin
         f = g + norm2(succ - r_goal)
         bad = moves_collide(tpt, current, succ, time + 1, static_points, static_clearance)
         if config.respect_turn_limit:
-            bad |= np.abs((heads - head + 180.0) % 360.0 - 180.0) > max_turn_deg + 1e-9
+            bad |= np.abs(angle_difference_deg(heads, head)) > max_turn_deg + 1e-9
         return succ, heads, np.where(bad, np.inf, f), low
 
     search = _greedy if config.detour_search == "greedy" else _astar
@@ -362,7 +358,7 @@ def _astar(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndar
 
 def _bearing(p: np.ndarray, goal: Sequence[float], default: float) -> float:
     dx, dy = goal[0] - p[0], goal[1] - p[1]
-    return default if dx == 0 and dy == 0 else atan2_deg(dy, dx) % 360.0
+    return default if dx == 0 and dy == 0 else bearing_deg(p[0], p[1], goal[0], goal[1])
 
 
 def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading_deg: float,
@@ -483,4 +479,6 @@ def plan_heading_change(heading_deg: float, here: Sequence[float], target: Seque
     """Steering increment (degrees) that points the robot at ``target``; 0 when already there."""
     if dist(here, target) < 1e-9:
         return 0.0
-    return wrap_deg(atan2_deg(target[1] - here[1], target[0] - here[0]) - heading_deg)
+    # the direction in [-180, 180] straight from atan2, not bearing_deg's [0, 360): wrapping to [0, 360)
+    # first rounds a small negative angle (a + 360) and would change the recorded commands
+    return wrap_180(atan2_deg(target[1] - here[1], target[0] - here[0]) - heading_deg)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fuzzynav.geometry import segment_point_distance
 from fuzzynav.portable_math import norm2
 
 
@@ -27,7 +28,8 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     ox, oy = float(origin[0]), float(origin[1])
     segments, circles = segments.reshape(-1, 4), circles.reshape(-1, 3)
     reach = max_range * (1.0 + 1e-9) + 1e-9  # a hair of slack: culling must never drop a hit at the range
-    seg_ids = np.nonzero(_segments_within(segments, ox, oy, reach))[0]
+    seg_gaps = segment_point_distance(segments[:, :2], segments[:, 2:], np.array([ox, oy]))
+    seg_ids = np.nonzero(seg_gaps <= reach)[0]
     circ_ids = np.nonzero(norm2(circles[:, :2] - (ox, oy)) - circles[:, 2] <= reach)[0]
     all_segments = len(segments)
     segments, circles = segments[seg_ids], circles[circ_ids]
@@ -64,13 +66,3 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
         best = np.where(closer, tj, best)
         hit = np.where(closer, all_segments + circ_ids[j], hit)
     return best, hit
-
-
-def _segments_within(segments: np.ndarray, ox: float, oy: float, max_range: float) -> np.ndarray:
-    """Mask (M,) of the segments that come within ``max_range`` of (ox, oy)."""
-    ax, ay = segments[:, 0] - ox, segments[:, 1] - oy
-    ex, ey = segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1]
-    ee = ex * ex + ey * ey
-    s = np.clip(-(ax * ex + ay * ey) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
-    px, py = ax + s * ex, ay + s * ey
-    return np.sqrt(px * px + py * py) <= max_range

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzynav.portable_math import atan2_deg_array, dot2, hypot, norm2
+from fuzzynav.geometry import closest_approach, wrap_360
+from fuzzynav.portable_math import atan2_deg_array, hypot, norm2
 from fuzzynav.tracking import Track
 
 
@@ -53,7 +54,7 @@ class TrajectoryPredictionTable:
     def obstacle_angles_deg(self) -> np.ndarray:
         """Moving angle φ of each obstacle, degrees [0, 360)."""
         v = self.obstacle_velocities.reshape(-1, 2)
-        return atan2_deg_array(v[:, 1], v[:, 0]) % 360.0
+        return wrap_360(atan2_deg_array(v[:, 1], v[:, 0]))
 
     @property
     def any_collision(self) -> bool:
@@ -107,10 +108,9 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     limit = robot_radius + radii[None, :] + safety_margin
     collide = norm2(rel) < limit
     if swept and n_traj >= 1 and j:
-        d = rel[1:] - rel[:-1]  # relative motion over each step
-        dd = dot2(d, d)
-        s = np.clip(-dot2(rel[:-1], d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        between = norm2(rel[:-1] + s[..., None] * d) < limit
+        # the relative motion over each step from the table's rows, not geometry.swept_distance's
+        # (p1 - p0) - (o1 - o0): the two round differently and the recorded tables depend on these bits
+        between = closest_approach(rel[:-1], rel[1:] - rel[:-1]) < limit
         earlier = collide[:-1].copy()  # a pass that starts in a marked predicted row is already in the table
         earlier[0] = False  # ... but row 0 is the present, not a prediction
         collide[1:] |= between & ~earlier

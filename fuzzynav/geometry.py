@@ -1,0 +1,65 @@
+"""Plane geometry shared by the simulation and the analysis: closest approach of straight motions over one
+step, and angle wrapping.
+
+Pure functions over floats and numpy arrays (arrays broadcast; points and vectors have a last axis of
+length 2). Lengths in cm, angles in degrees (counter-clockwise from +x), the step's duration as the
+fraction 0..1 of one time step. Built only on :mod:`fuzzynav.portable_math`'s primitives, with a fixed order
+of operations, so every result is the same bits on every CPU (no BLAS, no reduction whose order numpy may
+choose). The recorded logs depend on that order to the last bit: a call site whose inputs come in a
+different order (e.g. :func:`fuzzynav.tpt.build_tpt`'s relative positions) computes them itself and passes
+them to :func:`closest_approach`, rather than rearranging them to fit a wrapper.
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import numpy as np
+
+from fuzzynav.portable_math import dot2, norm2
+
+Angle = TypeVar("Angle", float, np.ndarray)
+
+
+def closest_approach_fraction(rel0: np.ndarray, rel_step: np.ndarray) -> np.ndarray:
+    """Fraction s in [0, 1] of the step at which ``|rel0 + s·rel_step|`` is smallest: the time of closest
+    approach in units of the step's duration, for a relative position ``rel0`` (cm) at the start of the
+    step that changes by ``rel_step`` (cm) over it. 0 when ``rel_step`` is zero (nothing moves)."""
+    dd = dot2(rel_step, rel_step)
+    return np.clip(-dot2(rel0, rel_step) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+
+
+def closest_approach(rel0: np.ndarray, rel_step: np.ndarray) -> np.ndarray:
+    """Smallest length (cm) of the relative position ``rel0 + s·rel_step`` over s in [0, 1]: the exact
+    minimum distance of two points that both move straight and uniformly during the step, given their
+    relative position at the start (cm) and its change over the step (cm). Also the distance from the
+    segment ``p + [0, 1]·rel_step`` to a point q when ``rel0 = p - q``."""
+    s = closest_approach_fraction(rel0, rel_step)
+    return norm2(rel0 + s[..., None] * rel_step)
+
+
+def swept_distance(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray) -> np.ndarray:
+    """Closest distance (cm) between two points moving straight over the same step, one from ``p0`` to
+    ``p1``, the other from ``o0`` to ``o1`` (positions in cm, broadcast against each other)."""
+    return closest_approach(p0 - o0, (p1 - p0) - (o1 - o0))
+
+
+def segment_point_distance(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance (cm) from the segment ``a`` -> ``b`` to ``points`` (all in cm, broadcast against each
+    other); the distance to ``a`` when ``a == b``."""
+    return closest_approach(a - points, b - a)
+
+
+def wrap_360(angle_deg: Angle) -> Angle:
+    """An angle (degrees) wrapped to [0, 360)."""
+    return angle_deg % 360.0
+
+
+def wrap_180(angle_deg: Angle) -> Angle:
+    """An angle (degrees) wrapped to [-180, 180): -180 for the half turn."""
+    return (angle_deg + 180.0) % 360.0 - 180.0
+
+
+def angle_difference_deg(a_deg: Angle, b_deg: Angle) -> Angle:
+    """The turn (degrees, [-180, 180)) that brings angle ``b_deg`` to angle ``a_deg``."""
+    return wrap_180(a_deg - b_deg)
