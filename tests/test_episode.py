@@ -81,5 +81,9 @@ def test_config_from_dict_rejects_unknown_and_wrong_types():
         episode_config_from_dict({"planner": {"h_wiat": 2}})
     with pytest.raises(ValueError, match=r"planner\.h_wait: expected an integer"):
         episode_config_from_dict({"planner": {"h_wait": "two"}})
-    assert episode_config_from_dict({"planner": {"successor_speeds": [5, 10]}}).planner.successor_speeds == (5, 10)
+    assert episode_config_from_dict({"planner": {"successor_speeds": [10, 30]}}).planner.successor_speeds == (10, 30)
+    # a planned speed the robot cannot drive (v_min 10) is refused, not clamped behind the table's back
+    with pytest.raises(ValueError, match=r"planner\.successor_speeds\[0\]: 5 cm/s is outside the robot's speed range"):
+        episode_config_from_dict({"planner": {"successor_speeds": [5, 10]}})
+    assert episode_config_from_dict({"robot": {"v_min": 5.0}, "planner": {"successor_speeds": [5, 10]}})
     assert isinstance(PlannerConfig(), PlannerConfig)
