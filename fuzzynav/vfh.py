@@ -108,13 +108,16 @@ class VfhConfig:
 
 def perimeter_points(tracks: tuple[Track, ...], spacing_cm: float) -> np.ndarray:
     """Points (M x 2, cm) every ``spacing_cm`` or closer around each track's disc at its present position
-    (at least 8 per disc)."""
-    parts = []
-    for t in tracks:
-        count = max(8, math.ceil(2.0 * math.pi * t.radius / spacing_cm))
-        sin, cos = sin_cos_deg_array(np.arange(count) * (360.0 / count))
-        parts.append(np.stack([t.x + t.radius * cos, t.y + t.radius * sin], axis=1))
-    return np.concatenate(parts) if parts else np.zeros((0, 2))
+    (at least 8 per disc), the tracks' points one after the other."""
+    if not tracks:
+        return np.zeros((0, 2))
+    counts = [max(8, math.ceil(2.0 * math.pi * t.radius / spacing_cm)) for t in tracks]
+    angles = np.concatenate([np.arange(c) * (360.0 / c) for c in counts])
+    centre_x = np.repeat([t.x for t in tracks], counts)
+    centre_y = np.repeat([t.y for t in tracks], counts)
+    radius = np.repeat([t.radius for t in tracks], counts)
+    sin, cos = sin_cos_deg_array(angles)  # one call for all discs: the cost is per call, not per point
+    return np.stack([centre_x + radius * cos, centre_y + radius * sin], axis=1)
 
 
 def occupied_cells(points: np.ndarray, cell_cm: float) -> np.ndarray:
@@ -243,7 +246,9 @@ def vfh_command(x: float, y: float, heading_deg: float, goal: tuple[float, float
     ``density_heading``, the smoothed density h'_c in the heading's sector."""
     cloud = np.concatenate([np.asarray(points, dtype=float).reshape(-1, 2),
                             perimeter_points(tracks, config.perimeter_spacing_cm)])
-    cells = occupied_cells(cloud, config.cell_cm)
+    # a point farther than the window plus a cell cannot have its cell's centre inside the window
+    near = norm2(cloud - np.array([x, y])) < config.window_cm + config.cell_cm
+    cells = occupied_cells(cloud[near], config.cell_cm)
     h = smooth_histogram(polar_histogram(x, y, cells, config, robot_radius + config.safety_cm),
                          config.smoothing_l)
     h_c = float(h[sector_of(heading_deg, config.sector_deg, config.sectors)])
