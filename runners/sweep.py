@@ -288,6 +288,10 @@ class SweepProgress(Callback):
             print(f"error: {line}", file=sys.stderr)
             sys.exit(1)
         prewarm_workers(config)
+        if "SlurmLauncher" in str(config.hydra.launcher.get("_target_", "")):
+            from runners.sweep_slurm import use_squeue_without_sacct
+
+            use_squeue_without_sacct()  # else a job that died unnoticed by sacct-less Slurm is waited for forever
         total = count_episodes(config)
         tip = short_jobs_tip(total, int(config.get("episodes", 1)))
         if tip:

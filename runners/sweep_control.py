@@ -192,8 +192,10 @@ def launcher_failed(run: SweepRun, err: Exception) -> None:
         return
     text = str(err)
     codes = re.search(r"exit codes of the workers are (\{[^}]*\})", text)  # loky names the signal: SIGKILL(-9)
+    # Submitit puts the job and the result file's path on its first line, its Slurm state on the second
+    job = re.match(r"Job (\S+) .*\n(has not produced any output \(state: [^)]*\))", text)
     first = (text.strip().splitlines() or [""])[0][:200]
-    detail = f"exit codes {codes.group(1)}" if codes else first
+    detail = f"exit codes {codes.group(1)}" if codes else f"job {job.group(1)} {job.group(2)}" if job else first
     run.fail(f"a worker process was lost ({type(err).__name__}{': ' + detail if detail else ''})")
 
 

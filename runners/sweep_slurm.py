@@ -1,0 +1,66 @@
+"""Slurm sweeps (``hydra/launcher=slurm``) on clusters without job accounting.
+
+Submitit learns the state of its Slurm jobs from ``sacct`` alone. A cluster without ``slurmdbd`` (small clusters,
+and the one-node cluster of ``tests/test_slurm.py``) answers ``sacct`` with "Slurm accounting storage is
+disabled": Submitit then logs three warnings per poll and, worse, never learns that a job died without writing its
+result (cancelled with SIGKILL, out of memory, over its time limit, on a lost node), so the launching process
+waited for it forever instead of reporting the lost episodes and the resume command.
+
+:func:`use_squeue_without_sacct` gives Submitit a watcher that asks ``sacct`` once and, where it fails, asks
+``squeue --states=all`` instead, which knows every job of the cluster, finished ones included for ``MinJobAge``
+(300 s by default) after they end, in the same ``JobID|State|NodeList`` form.
+"""
+
+from __future__ import annotations
+
+import subprocess
+
+from submitit.slurm import slurm as submitit_slurm
+
+SACCT_COLUMNS = "JobID|State|NodeList"  # the header of sacct's answer, which Submitit's parser reads
+# Submitit polls ever less often while a job runs, up to every ``delay_s`` (600 s); squeue forgets a finished job
+# after MinJobAge (300 s by default), so without sacct it is asked at least once a minute
+SQUEUE_DELAY_S = 60
+
+
+class SqueueFallbackWatcher(submitit_slurm.SlurmInfoWatcher):
+    """Submitit's Slurm watcher, asking ``squeue`` when ``sacct`` does not work (no job accounting)."""
+
+    def __init__(self, delay_s: int = 600) -> None:
+        super().__init__(delay_s=delay_s)
+        self.sacct_works: bool | None = None  # None: not asked yet
+
+    def _make_command(self) -> list[str] | None:
+        command = super()._make_command()
+        if command is None or self.sacct_works is not False:
+            return command
+        ids = [command[i + 1] for i, arg in enumerate(command) if arg == "-j"]
+        # %i names array tasks as sacct does (12_3, or 12_[4-7] while pending); --states=all includes ended jobs
+        return ["squeue", "--noheader", "--states=all", "--format=%i|%T|%N", f"--jobs={','.join(ids)}"]
+
+    def update(self) -> None:
+        if self.sacct_works is None:
+            command = super()._make_command()
+            if command is None:
+                return
+            # asked once, quietly: where it fails, every later poll would log the same warning three times
+            try:
+                self.sacct_works = subprocess.run(command, capture_output=True, timeout=60).returncode == 0
+            except (OSError, subprocess.TimeoutExpired):
+                self.sacct_works = False
+            if not self.sacct_works:
+                self._delay_s = min(self._delay_s, SQUEUE_DELAY_S)
+        super().update()
+
+    def read_info(self, string: bytes | str) -> dict[str, dict[str, str]]:
+        if self.sacct_works is False:
+            text = string.decode() if isinstance(string, bytes) else string
+            string = f"{SACCT_COLUMNS}\n{text}"
+        return super().read_info(string)
+
+
+def use_squeue_without_sacct() -> None:
+    """Make Submitit's Slurm jobs (in this process) use :class:`SqueueFallbackWatcher`. Jobs share one watcher,
+    a class attribute of Submitit's ``SlurmJob``; replaced once, before any job is submitted."""
+    if not isinstance(submitit_slurm.SlurmJob.watcher, SqueueFallbackWatcher):
+        submitit_slurm.SlurmJob.watcher = SqueueFallbackWatcher(delay_s=600)

@@ -1,0 +1,427 @@
+"""The Slurm launcher (``hydra/launcher=slurm``) against a real one-node Slurm cluster on this machine.
+
+The module's fixture generates a munge key, ``slurm.conf`` and ``cgroup.conf`` into a temporary directory (one node,
+this host, with the machine's CPUs; no cgroups, no accounting database; free ports), starts ``munged``,
+``slurmctld`` and ``slurmd`` and waits for the node to be idle; every Slurm command, and the sweep, is pointed at
+the configuration by ``SLURM_CONF``. The daemons are stopped at the end, also when a test fails, and the fixture
+checks that no process of the cluster is left.
+
+- a sweep submitted as a job array gives the same logs (message content), ``summary.csv`` and report tables as
+  the same sweep on ``all_cores`` (compute times excluded);
+- ``scancel`` of one array task mid-run (SIGTERM, as Slurm sends it, and SIGKILL, as a dead node or the
+  out-of-memory killer ends a job) ends the sweep with one line, the summary and the resume command; ``resume=true``
+  completes it with every episode exactly once.
+
+Needs root and Debian's ``slurm-wlm`` and ``munge`` (``.ci/run`` installs them). Without them the tests skip with
+the reason, except in CI (``CI=true``), where that is a failure: CI must show that they ran.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.logs import episode_summary, is_complete, read_metadata
+from fuzzynav.episode_identity import episode_key_of
+from runners.dataset import content_digests
+from runners.log_diff import diff_logs
+from tests.conftest import ROOT
+
+pytestmark = pytest.mark.slurm
+
+DAEMONS = ("munged", "slurmctld", "slurmd")
+COMMANDS = ("munge", "sinfo", "sbatch", "squeue", "scancel")
+PARTITION = "fuzzynav"
+# a 20 km corridor (tests/scenarios/scenario/endless_corridor.yaml): an episode that max_steps or a signal ends
+SEARCH = f"hydra.searchpath=[file://{ROOT / 'tests' / 'scenarios'}]"
+
+
+def unavailable(reason: str) -> None:
+    """Skip, or in CI fail: the CI output must show that the cluster tests ran."""
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"CI=true but the Slurm test cannot run: {reason}", pytrace=False)
+    pytest.skip(f"no Slurm cluster can be started here: {reason}")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float, step: float = 0.2) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(step)
+    return predicate()
+
+
+@dataclass
+class Cluster:
+    """A running one-node cluster: its directory, the environment that points Slurm commands at it, the daemons."""
+
+    root: Path
+    env: dict[str, str]
+    node: str
+    cpus: int
+    version: str
+    daemons: dict[str, subprocess.Popen] = field(default_factory=dict)
+
+    def run(self, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+        return subprocess.run(list(args), env=self.env, capture_output=True, text=True, timeout=60, check=check)
+
+    def jobs(self) -> dict[str, str]:
+        """Every job the controller knows (finished ones too, for MinJobAge): id -> state."""
+        out = self.run("squeue", "--noheader", "--states=all", "--format=%i %T").stdout
+        return dict(line.split() for line in out.splitlines() if line.strip())
+
+    def idle(self) -> bool:
+        """No job pending or running."""
+        return not self.run("squeue", "--noheader", "--format=%i").stdout.strip()
+
+    def logs(self, limit: int = 3000) -> str:
+        """The end of every daemon's log, for a failure message."""
+        files = sorted(self.root.glob("*.log"))
+        return "\n".join(f"== {p.name}\n{p.read_text(errors='replace')[-limit:]}" for p in files)
+
+
+def config_files(root: Path, node: str, hardware: str, ports: tuple[int, int]) -> tuple[str, str]:
+    """slurm.conf and cgroup.conf of a one-node cluster in ``root``: ``hardware`` is ``slurmd -C``'s line for
+    this machine (CPUs, sockets, cores, memory), so that slurmd registers the node as configured."""
+    slurm = f"""\
+ClusterName=fuzzynav-ci
+SlurmctldHost={node}
+SlurmctldPort={ports[0]}
+SlurmdPort={ports[1]}
+SlurmUser=root
+SlurmdUser=root
+AuthType=auth/munge
+CredType=cred/munge
+AuthInfo=socket={root}/munge/munge.socket
+StateSaveLocation={root}/state
+SlurmdSpoolDir={root}/spool
+SlurmctldPidFile={root}/slurmctld.pid
+SlurmdPidFile={root}/slurmd.pid
+SlurmctldLogFile={root}/slurmctld.log
+SlurmdLogFile={root}/slurmd.log
+# no cgroups (containers and CI machines often cannot delegate them): plain process tracking, no task binding
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+JobAcctGatherType=jobacct_gather/none
+# no slurmdbd: sacct does not work here, as on small clusters (runners.sweep_slurm asks squeue instead)
+AccountingStorageType=accounting_storage/none
+JobCompType=jobcomp/none
+SelectType=select/cons_tres
+SelectTypeParameters=CR_CPU
+MpiDefault=none
+SwitchType=switch/none
+ReturnToService=2
+InactiveLimit=0
+KillWait=30
+MinJobAge=600
+{hardware} NodeAddr=127.0.0.1 State=UNKNOWN
+PartitionName={PARTITION} Nodes={node} Default=YES MaxTime=INFINITE State=UP
+"""
+    return slurm, "CgroupPlugin=autodetect\nIgnoreSystemd=yes\n"
+
+
+def cluster_processes(conf: Path) -> list[tuple[int, str]]:
+    """Live processes started for this cluster: those given its SLURM_CONF (daemons, job steps, jobs) or naming its
+    directory on their command line (munged)."""
+    found = []
+    marker = f"SLURM_CONF={conf}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if (entry / "stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
+                continue
+            cmdline = (entry / "cmdline").read_bytes()
+            if marker in (entry / "environ").read_bytes().split(b"\0") or str(conf.parent).encode() in cmdline:
+                found.append((int(entry.name), cmdline.replace(b"\0", b" ").decode(errors="replace")[:120]))
+        except (OSError, IndexError):
+            continue
+    return found
+
+
+def stop_cluster(cluster: Cluster) -> list[tuple[int, str]]:
+    """Cancel every job, stop the daemons (SIGTERM, then SIGKILL), kill whatever of the cluster is left; returns
+    what was left over after the daemons stopped (nothing should be)."""
+    if "slurmctld" in cluster.daemons:
+        with contextlib.suppress(Exception):
+            cluster.run("scancel", "--full", "--user=root", check=False)
+            wait_for(cluster.idle, 20)
+    for name in reversed(list(cluster.daemons)):  # slurmd, slurmctld, then munged that they authenticate with
+        proc = cluster.daemons[name]
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout=10)
+    conf = Path(cluster.env["SLURM_CONF"])
+    wait_for(lambda: not cluster_processes(conf), 10)
+    left = cluster_processes(conf)
+    for pid, _ in left:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    return left
+
+
+@pytest.fixture(scope="module")
+def slurm(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> Iterator[Cluster]:
+    """A one-node Slurm cluster on this machine for the module's tests; stopped at the end, whatever happened."""
+    missing = [name for name in (*DAEMONS, *COMMANDS) if shutil.which(name) is None]
+    if missing:
+        unavailable(f"{', '.join(missing)} not found (apt-get install slurm-wlm munge)")
+    if os.geteuid() != 0:
+        unavailable("slurmd must run as root to start jobs")
+    tic = time.monotonic()
+    # a short path: munge's socket path must fit a sockaddr_un (108 bytes)
+    root = Path(tmp_path_factory.mktemp("slurm", numbered=True))
+    for sub in ("munge", "state", "spool"):
+        (root / sub).mkdir()
+    (root / "munge").chmod(0o755)  # munged refuses a key or socket directory writable by others
+    key = root / "munge" / "munge.key"
+    key.write_bytes(os.urandom(1024))
+    key.chmod(0o600)
+    node = socket.gethostname().split(".")[0]
+    hardware = subprocess.run(["slurmd", "-C"], capture_output=True, text=True, timeout=60).stdout.splitlines()
+    hardware_line = next((line for line in hardware if line.startswith("NodeName=")), "")
+    if not hardware_line:
+        unavailable(f"slurmd -C did not describe this machine: {hardware!r}")
+    hardware_line = re.sub(r"^NodeName=\S+", f"NodeName={node}", hardware_line)
+    slurm_conf, cgroup_conf = config_files(root, node, hardware_line, (free_port(), free_port()))
+    (root / "slurm.conf").write_text(slurm_conf)
+    (root / "cgroup.conf").write_text(cgroup_conf)
+    env = {**os.environ, "SLURM_CONF": str(root / "slurm.conf")}
+    version = subprocess.run(["sinfo", "--version"], capture_output=True, text=True, env=env).stdout.strip()
+    cpus = int(re.search(r"CPUs=(\d+)", hardware_line).group(1))  # type: ignore[union-attr]
+    cluster = Cluster(root, env, node, cpus, version)
+
+    def start(name: str, *args: str) -> None:
+        with open(root / f"{name}.out.log", "w") as out:
+            cluster.daemons[name] = subprocess.Popen([name, *args], env=env, stdout=out, stderr=subprocess.STDOUT,
+                                                     stdin=subprocess.DEVNULL, start_new_session=True)
+
+    try:
+        start("munged", "--foreground", "--force", f"--socket={root}/munge/munge.socket", f"--key-file={key}",
+              f"--log-file={root}/munged.log", f"--pid-file={root}/munge/munged.pid", f"--seed-file={root}/munge/seed")
+        assert wait_for((root / "munge" / "munge.socket").exists, 30), cluster.logs()
+        start("slurmctld", "-D", "-i")
+        start("slurmd", "-D", "-N", node)
+        for name, proc in cluster.daemons.items():
+            assert proc.poll() is None, f"{name} exited with {proc.returncode}\n{cluster.logs()}"
+
+        def node_idle() -> bool:
+            out = cluster.run("sinfo", "--noheader", "--Node", "--format=%t", check=False).stdout.split()
+            return out == ["idle"]
+
+        assert wait_for(node_idle, 60, 0.5), f"the node did not become idle\n{cluster.logs()}"
+        started = time.monotonic() - tic
+        yield cluster
+    finally:
+        left = stop_cluster(cluster)
+    reporter = request.config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:  # a line in CI's output that says the cluster tests ran, and on what
+        reporter.write_line(f"\nslurm: {version}, one node ({node}, {cpus} CPUs) started in {started:.0f} s; tests "
+                            f"ran on it for {time.monotonic() - tic - started:.0f} s; daemons stopped")
+    assert not left, f"processes of the cluster were left running (killed now): {left}"
+
+
+# -- helpers -----------------------------------------------------------------------------------------------------
+def sweep_args(cluster: Cluster | None, args: list[str], sweep_dir: Path) -> list[str]:
+    launcher = ["hydra/launcher=slurm", f"hydra.launcher.partition={PARTITION}"] if cluster else []
+    return [sys.executable, "-m", "runners.sweep", *args, *launcher, f"hydra.sweep.dir={sweep_dir}"]
+
+
+def run_sweep(cluster: Cluster | None, args: list[str], sweep_dir: Path, timeout: float = 300
+              ) -> subprocess.CompletedProcess:
+    env = cluster.env if cluster else {k: v for k, v in os.environ.items() if k != "SLURM_CONF"}
+    return subprocess.run(sweep_args(cluster, args, sweep_dir), cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def logs(sweep_dir: Path) -> list[Path]:
+    return sorted(p for p in sweep_dir.rglob("*.mcap") if ".fuzzynav" not in p.parts)
+
+
+def partials(sweep_dir: Path) -> list[Path]:
+    return sorted(sweep_dir.glob("*/.*.mcap.partial"))
+
+
+def problem_lines(stderr: str) -> list[str]:
+    """stderr without Hydra's and Submitit's own log lines."""
+    return [line for line in stderr.splitlines() if line.strip() and "[HYDRA]" not in line]
+
+
+def array_tasks(sweep_dir: Path) -> list[str]:
+    """Slurm job ids of the sweep's jobs, from Submitit's folders: ``<array job>_<task>``."""
+    return sorted(p.name for p in (sweep_dir / ".submitit").iterdir() if re.fullmatch(r"\d+_\d+", p.name))
+
+
+def job_processes(task: str) -> list[int]:
+    """The Python processes that run the array task ``task`` (``<array job>_<task>``): the job step that Submitit
+    starts with srun, found by the job's environment."""
+    array_job, task_id = task.split("_")
+    wanted = {f"SLURM_ARRAY_JOB_ID={array_job}".encode(), f"SLURM_ARRAY_TASK_ID={task_id}".encode()}
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        with contextlib.suppress(OSError):
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+            if "python" in Path(argv[0].decode(errors="replace")).name and b"submitit.core._submit" in argv \
+                    and wanted <= set((entry / "environ").read_bytes().split(b"\0")):
+                found.append(int(entry.name))
+    return found
+
+
+def comparable_csv(path: Path, sweep_dir: Path) -> pd.DataFrame:
+    """A CSV of the summary or the report without compute times, with log paths relative to the sweep."""
+    frame = pd.read_csv(path)
+    frame = frame.drop(columns=[c for c in frame.columns if c.startswith("compute_time")])
+    if "metric" in frame.columns:
+        frame = frame[~frame["metric"].astype(str).str.startswith("compute_time")]
+    if "log" in frame.columns:
+        frame["log"] = [str(Path(p).relative_to(sweep_dir)) for p in frame["log"]]
+    return frame.sort_values(list(frame.columns)).reset_index(drop=True)
+
+
+# -- tests ---------------------------------------------------------------------------------------------------------
+def test_job_array_equals_the_same_sweep_on_all_cores(slurm: Cluster, tmp_path: Path) -> None:
+    """Two jobs of two episodes as one job array on the cluster, and on all_cores: the same logs (every message,
+    compute times excepted), summary.csv and report tables."""
+    args = ["sweep=quick", "scenario=head_on", "planner=auto,wait", "episodes=2", "scenario.max_steps=40"]
+    on_slurm, local = tmp_path / "slurm", tmp_path / "all_cores"
+    res = run_sweep(slurm, args, on_slurm)
+    assert res.returncode == 0, f"{res.stderr[-3000:]}\n{slurm.logs()}"
+    assert not problem_lines(res.stderr), res.stderr[-3000:]  # no sacct warnings: squeue answers instead
+    tasks = array_tasks(on_slurm)
+    assert len(tasks) == 2 and len({t.split("_")[0] for t in tasks}) == 1, tasks  # one array of two tasks
+    states = slurm.jobs()
+    assert all(states.get(t) == "COMPLETED" for t in tasks), states
+    res = run_sweep(None, args, local)
+    assert res.returncode == 0, res.stderr[-3000:]
+
+    names = [str(p.relative_to(on_slurm)) for p in logs(on_slurm)]
+    assert len(names) == 4 and names == [str(p.relative_to(local)) for p in logs(local)]
+    for name in names:
+        a, b = on_slurm / name, local / name
+        if content_digests(a)["sha256"] != content_digests(b)["sha256"]:
+            diff = diff_logs(b, a)
+            pytest.fail(f"{name}: the log on Slurm differs from all_cores': {diff.kind}, first {diff.first}, "
+                        f"floats {list(diff.floats)[:3]}")
+    pd.testing.assert_frame_equal(comparable_csv(on_slurm / "summary.csv", on_slurm),
+                                  comparable_csv(local / "summary.csv", local))
+    for table in ("episodes.csv", "groups.csv", "paired.csv"):
+        pd.testing.assert_frame_equal(comparable_csv(on_slurm / "report" / table, on_slurm),
+                                      comparable_csv(local / "report" / table, local), obj=table)
+    report = [(d / "report" / "report.md").read_text().replace(str(d), "<sweep>") for d in (on_slurm, local)]
+    assert report[0] == report[1]
+
+
+@pytest.mark.parametrize("signal_name", ["TERM", "KILL"])
+def test_scancel_of_one_array_task_then_resume_runs_every_episode_once(slurm: Cluster, tmp_path: Path,
+                                                                       signal_name: str) -> None:
+    """``scancel`` one task of the array while its first episode runs. SIGTERM (plain ``scancel``): the task ends
+    its episode as interrupted and asks the whole sweep to stop; exit 143. SIGKILL (a dead node, the OOM killer):
+    the task's episode is lost; exit 1. Either way one line on stderr, no traceback, the summary of what completed
+    and the resume command; the resume completes the sweep with every episode exactly once."""
+    sweep_dir = tmp_path / "s"
+    args = ["sweep=quick", SEARCH, "scenario=endless_corridor", "scenario.max_steps=1500", "planner=auto,wait",
+            "episodes=2"]
+    proc = subprocess.Popen(sweep_args(slurm, args, sweep_dir), cwd=ROOT, env=slurm.env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        # task 0 (job 0, directory 0/) is in its first episode; the other runs alongside if there is a free CPU
+        assert wait_for(lambda: bool(list((sweep_dir / "0").glob(".*.mcap.partial"))), 180), "task 0 did not start"
+        task = next(name for name in array_tasks(sweep_dir) if name.endswith("_0"))
+        if signal_name == "TERM":  # what Slurm does to a job it ends: SIGTERM, then SIGKILL after KillWait
+            slurm.run("scancel", task)
+        else:  # the job's process dies at once, as on a lost node or by the out-of-memory killer (scancel
+            # --signal=KILL would not do: Slurm treats it as a plain scancel)
+            pids = job_processes(task)
+            assert pids, f"no process of {task} found"
+            for pid in pids:
+                os.kill(pid, signal.SIGKILL)
+        out, err = proc.communicate(timeout=240)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    lines = problem_lines(err)
+    assert "Traceback" not in err and "Error executing job" not in err and len(lines) <= 2, err[-3000:]
+    if signal_name == "TERM":
+        assert proc.returncode == 143, err[-3000:]
+        assert re.search(r"stopped by SIGTERM: \d+ episode\(s\) finished, [12] interrupted", out), out[-3000:]
+    else:
+        assert proc.returncode == 1, err[-3000:]
+        assert re.fullmatch(r"error: a worker process was lost \(UncompletedJobError: job \d+_0 has not produced any "
+                            r"output \(state: FAILED\)\)", lines[0]), lines
+        assert re.search(r"incomplete: \d+ episode\(s\) finished, \d+ interrupted, [12] lost", out), out[-3000:]
+    hint = [line for line in out.splitlines() if line.startswith("to complete the sweep: python -m runners.sweep")]
+    assert len(hint) == 1 and "resume=true" in hint[0] and "hydra/launcher=slurm" in hint[0], out[-3000:]
+    assert wait_for(slurm.idle, 60), slurm.jobs()  # the other task ends too (the sweep's stop file)
+    before = {p: p.stat().st_mtime_ns for p in logs(sweep_dir) if episode_summary(p)["outcome"] == "timeout"}
+
+    res = run_sweep(slurm, [*args, "resume=true"], sweep_dir)
+    assert res.returncode == 0, f"{res.stderr[-3000:]}\n{slurm.logs()}"
+    assert f"resume: {len(before)} complete episode(s) kept, {4 - len(before)} run" in res.stdout, res.stdout[-2000:]
+    final = logs(sweep_dir)
+    keys = [episode_key_of(read_metadata(p)) for p in final]
+    assert len(final) == 4 and len(set(keys)) == 4 and not partials(sweep_dir), final
+    assert all(is_complete(p) and episode_summary(p)["outcome"] == "timeout" for p in final)
+    assert all(p.stat().st_mtime_ns == t for p, t in before.items())  # kept, not run again
+    summary = pd.read_csv(sweep_dir / "summary.csv")
+    assert len(summary) == 4 and summary["log"].is_unique and set(summary["outcome"]) == {"timeout"}
+    assert (sweep_dir / "report" / "report.html").exists()
+    what = "scancel" if signal_name == "TERM" else "SIGKILL to the job's process"
+    ended = next(line for line in out.splitlines() if line.startswith(("stopped by", "incomplete:")))
+    print(f"{what}: {' | '.join([*lines, ended])}; resume: {len(before)} episode(s) kept, {4 - len(before)} run")
+
+
+# -- without a cluster: the launcher's watcher where sacct does not work ----------------------------------------
+def fake_commands(bin_dir: Path, sacct: str, squeue: str) -> None:
+    """``sacct`` and ``squeue`` scripts in ``bin_dir`` that print the given text (a leading ``!`` fails instead)."""
+    bin_dir.mkdir()
+    for name, text in (("sacct", sacct), ("squeue", squeue)):
+        body = f"echo '{text[1:]}' >&2; exit 1" if text.startswith("!") else f"printf '{text}'"
+        (bin_dir / name).write_text(f"#!/bin/sh\n{body}\n")
+        (bin_dir / name).chmod(0o755)
+
+
+@pytest.mark.parametrize("accounting", [False, True])
+def test_job_states_come_from_squeue_when_sacct_does_not_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             accounting: bool) -> None:
+    """Submitit's watcher with sacct (accounting) as it was; without, the same states from squeue (a cancelled task
+    is done: the launcher reports it instead of waiting forever) and a poll at least once a minute."""
+    from runners.sweep_slurm import SQUEUE_DELAY_S, SqueueFallbackWatcher
+
+    sacct = "JobID|State|NodeList\\n12_0|CANCELLED by 0|vm\\n12_[1-2]|PENDING|\\n" if accounting else \
+        "!Slurm accounting storage is disabled"
+    fake_commands(tmp_path / "bin", sacct, "12_0|CANCELLED|vm\\n12_[1-2]|PENDING|\\n")
+    monkeypatch.setenv("PATH", f"{tmp_path / 'bin'}:{os.environ['PATH']}")
+    watcher = SqueueFallbackWatcher(delay_s=600)
+    for job in ("12_0", "12_1", "12_2"):
+        watcher.register_job(job)
+    assert watcher.get_state("12_0", mode="force").startswith("CANCELLED")
+    assert watcher.is_done("12_0", mode="cache") and not watcher.is_done("12_2", mode="cache")
+    assert watcher.get_state("12_2", mode="cache") == "PENDING"
+    assert watcher.sacct_works is accounting
+    assert watcher._delay_s == (600 if accounting else SQUEUE_DELAY_S)
