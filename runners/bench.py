@@ -317,6 +317,7 @@ def bench_memory(episodes: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(episodes):
             path = Path(tmp) / "ep.mcap"
+            path.unlink(missing_ok=True)  # one file reused (bounded disk use); a log never replaces another's
             run_episode(scenario, evaluator, cfg, k, path, "")
             if k + 1 == episodes // 10:
                 early = rss_mb()
