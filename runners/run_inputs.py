@@ -189,6 +189,22 @@ def check_job_dir(hydra_node: Any) -> None:
                          "relative path, without '..')")
 
 
+def check_output_dirs(hydra_node: Any) -> None:
+    """``hydra.run.dir`` and ``hydra.sweep.dir``, the directories a run's or a sweep's files go to: not empty (as
+    written, interpolations unresolved). An empty one is the current directory, which would receive the logs,
+    ``run.log`` and ``.hydra/`` of the run beside whatever else is there."""
+    if hydra_node is None:
+        return
+    for group in ("run", "sweep"):
+        node = hydra_node.get(group)
+        if node is None:
+            continue
+        raw = (OmegaConf.to_container(node, resolve=False) if isinstance(node, DictConfig) else dict(node)).get("dir")
+        if raw is not None and not str(raw).strip():
+            raise ValueError(f"hydra.{group}.dir: {str(raw)!r} is empty (it would be the current directory): name "
+                             "the output directory")
+
+
 @dataclass(frozen=True)
 class RunInputs:
     """Everything a run needs, validated: seeds, episode config, evaluator, the scenario of each seed."""
@@ -207,6 +223,7 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
     if "hydra" in cfg:
         check_launcher(cfg.hydra)
         check_job_dir(cfg.hydra)
+        check_output_dirs(cfg.hydra)
     plain = plain_config(cfg)
     if not isinstance(plain.get("resume", False), bool):  # untyped in the schema (see runners.schema)
         raise ValueError(f"resume: expected true or false, got {show(plain.get('resume'))}")

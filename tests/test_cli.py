@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -177,3 +178,16 @@ def test_two_spellings_of_one_value_are_counted_as_a_duplicate(tmp_path):
     assert res.returncode == 0, res.stderr[-2000:]
     assert f"2 episode logs in {tmp_path / 's'} (1 left out: 1 duplicate)" in res.stdout, res.stdout
     assert "unreadable" not in res.stdout
+
+
+def test_an_empty_output_dir_is_refused(tmp_path):
+    """``hydra.run.dir=''`` wrote the log, run.log and .hydra/ into the current directory, exit 0."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}  # run from tmp_path, so that a file in the cwd is seen
+    for value in ("''", "' '"):
+        res = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.run.dir={value}"], cwd=tmp_path,
+                             capture_output=True, text=True, timeout=300, env=env)
+        assert one_error_line(res).startswith("error: config: hydra.run.dir: "), res.stderr
+        res = subprocess.run([sys.executable, "-m", "runners.sweep", f"hydra.sweep.dir={value}", "planner=auto"],
+                             cwd=tmp_path, capture_output=True, text=True, timeout=300, env=env)
+        assert one_error_line(res).startswith("error: config: hydra.sweep.dir: "), res.stderr
+    assert list(tmp_path.iterdir()) == []
