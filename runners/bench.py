@@ -326,11 +326,34 @@ def bench_memory(episodes: int) -> dict:
             "growth": (late - early) / early if early else float("nan")}
 
 
+def out_problem(out: Path) -> str | None:
+    """Why the results cannot be written to ``out``, or None. Checked before measuring: the benchmark takes
+    minutes, and an unwritable ``--out`` was only found when it ended."""
+    if out.is_dir():
+        return f"{out}: is a directory, not a file name"
+    if out.exists() and not out.is_file():
+        return f"{out}: not a regular file"
+    parent = out.parent
+    if not parent.exists():
+        return f"{out}: the directory {parent} does not exist"
+    if not parent.is_dir():
+        return f"{out}: {parent} is not a directory"
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"{out}: the directory {parent} is not writable"
+    if out.exists() and not os.access(out, os.W_OK):
+        return f"{out}: the file is not writable"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="reduced sizes (under a minute)")
     parser.add_argument("--out", default="bench.json", help="where to write the results (JSON)")
     args = parser.parse_args(argv)
+    problem = out_problem(Path(args.out))
+    if problem:
+        print(f"error: --out: {problem}", file=sys.stderr)
+        return 2
     warnings.filterwarnings("ignore", category=DeprecationWarning)
     n_single, n_ref, reps = (200, 20, 3) if args.quick else (1000, 200, 7)
     results = {"machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),

@@ -61,6 +61,18 @@ def test_bench_quick_writes_results(tmp_path):
     assert data["analysis"]["mean_steps"] > 80  # the target is stated for ~100-step episodes
 
 
+def test_bench_refuses_an_unwritable_out_before_measuring(tmp_path):
+    """``--out /proc/version/b.json`` measured for minutes, then failed: now one line at once."""
+    (tmp_path / "dir").mkdir()
+    for out, problem in ((tmp_path / "dir", "is a directory"), ("/proc/version/b.json", "is not a directory"),
+                         (tmp_path / "no" / "b.json", "does not exist"), ("/dev/null", "not a regular file")):
+        res = subprocess.run([sys.executable, "-m", "runners.bench", "--quick", "--out", str(out)], cwd=ROOT,
+                             capture_output=True, text=True, timeout=60)
+        assert one_error_line(res).startswith(f"error: --out: {out}: "), res.stderr
+        assert problem in res.stderr and res.stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir"]
+
+
 # -- issue 14: sweeps given malformed input ----------------------------------------------------------------------
 def run_sweep(*overrides: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on", "episodes=1",
