@@ -12,6 +12,7 @@ the field):
   :data:`~fuzzynav.limits.MAX_YAML_NODES` nodes once aliases are expanded (aliases themselves are fine:
   ``conf/controller/listing.yaml`` shares its sensor terms with one);
 - interpolations: any ``${`` in a key or value;
+- a key given twice in one mapping (YAML's loaders keep the last silently, dropping the first block);
 - YAML 1.1 base-60 numbers (``max_steps: 1:00`` is read as 60): quote them or write the number;
 - anything but one mapping at the top (Hydra's own message for that names no file).
 
@@ -113,13 +114,15 @@ def _yaml_error(err: yaml.MarkedYAMLError) -> str:
 
 
 class _Frame:
-    """An open sequence or mapping: its field, its node count so far, its anchor, the key being filled."""
+    """An open sequence or mapping: its field, its node count so far, its anchor, the key being filled and (of a
+    mapping) the plain keys seen so far; every key is a node, so the node limit bounds them too."""
 
-    __slots__ = ("anchor", "field", "index", "is_map", "key", "size", "want_key")
+    __slots__ = ("anchor", "field", "index", "is_map", "key", "keys", "size", "want_key")
 
     def __init__(self, field: str, is_map: bool, anchor: str | None) -> None:
         self.field, self.is_map, self.anchor = field, is_map, anchor
         self.size, self.index, self.want_key, self.key = 1, 0, True, "?"
+        self.keys: set[str] = set()
 
 
 class _Events:
@@ -151,6 +154,11 @@ class _Events:
         parent = self.stack[-1]
         if parent.is_map and parent.want_key:
             parent.key = key_text(scalar) if scalar is not None else "?"
+            # ``<<`` merges are keys of their own; ``sweep:`` written twice kept only the second block
+            if scalar is not None and scalar != "<<":
+                if scalar in parent.keys:
+                    self.fail(event, parent.field, f"duplicate key {_short(scalar)}")
+                parent.keys.add(scalar)
         parent.want_key = not parent.want_key
         parent.index += 1
         parent.size += size

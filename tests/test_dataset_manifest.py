@@ -169,3 +169,21 @@ def test_a_hostile_manifest_is_refused_in_one_line(tmp_path, capsys, monkeypatch
     assert len(err.strip().splitlines()) == 1, err
     assert err.startswith(f"error: {path}: {problem}"), err
     assert path.read_text() == before  # build rewrote nothing
+
+
+@pytest.mark.parametrize("command", ["build", "verify"])
+def test_a_manifest_with_a_key_twice_is_refused(tmp_path, capsys, monkeypatch, command):
+    """dst_dup_key_sweep: with ``sweep:`` twice the second block won and build rewrote the manifest without the
+    first; now the line of the second is named and nothing is rewritten."""
+    monkeypatch.setattr(dataset, "record_all", lambda *a, **k: pytest.fail("episodes ran"))
+    path = write(tmp_path, base())
+    text = path.read_text()
+    sweep = yaml.safe_dump({"sweep": base()["sweep"]}, sort_keys=False)
+    path.write_text(text + sweep.replace("seeds:\n  - 0\n  - 1", "seeds:\n  - 0\n  - 2"))
+    line = text.count("\n") + 1
+    before = path.read_text()
+    code = dataset.main([command, NAME, "--root", str(tmp_path), "--jobs", "1"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err == f"error: {path}:{line}: top level: duplicate key 'sweep'\n"
+    assert path.read_text() == before
