@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import copy
 import math
+import os
 import stat
 import sys
 from dataclasses import dataclass
@@ -35,7 +36,7 @@ from analysis.cli_args import OneLineParser
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, file_kind
 from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec
+from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState
 from fuzzynav.navigator import ActivePlan, Decision, Navigator, Observation
 from fuzzynav.tracking import Track
@@ -241,7 +242,27 @@ def _controller(name: str) -> dict[str, Any]:
         raise ReplayError(f"{path}: not valid YAML ({getattr(err, 'problem', None) or err})") from None
     if not isinstance(data, dict):
         raise ReplayError(f"{path}: a controller file is a mapping (inputs, outputs, rules)")
+    try:  # validated here, so that a bad rule names this file, not the log it is replayed against
+        ControllerSpec.from_dict(data)
+    except ControllerSpecError as err:
+        raise ReplayError(f"{path}: {err}") from None
     return data
+
+
+def check_out_stem(stem: Path) -> None:
+    """``--out``, the path stem of the PNG/GIF (``.png``/``.gif`` is appended): :class:`ReplayError` for a stem
+    that is an existing directory (the images went beside it, outside the directory named), a device, FIFO or
+    other non-regular file (``/dev/null`` became ``/dev/null.png``), or whose directory does not exist or is
+    not writable."""
+    if stem.is_dir():
+        raise ReplayError(f"--out: {stem}: is a directory; --out is a path stem (e.g. {stem / 'replay'})")
+    if (stem.exists() or stem.is_symlink()) and not stem.is_file():
+        raise ReplayError(f"--out: {stem}: not a regular file; --out is a path stem for the PNG/GIF")
+    parent = stem.parent
+    if not parent.is_dir():
+        raise ReplayError(f"--out: {stem}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ReplayError(f"--out: {stem}: the directory {parent} is not writable")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -276,6 +297,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.verify and (args.controller or overrides):
         raise ReplayError("--verify: re-decides with the recorded config; it cannot be combined with "
                           "--controller/overrides (without --verify they list every step that differs)")
+    if args.out is not None and not (args.verify or args.controller or overrides):
+        check_out_stem(Path(args.out))
     if not path.exists() and not path.is_symlink():
         raise ReplayError(f"{path}: no such file")
     try:

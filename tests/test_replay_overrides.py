@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import inspect
+import os
 from pathlib import Path
 from typing import Any
 
@@ -156,3 +157,35 @@ def test_each_source_reaches_its_argument_and_nothing_else_does(monkeypatch, goo
                        ("sensors.sonar.range_cm", 100.0), ("perception.mode", "ground_truth"),
                        ("terminate_on_collision", False)):
         assert _arguments(monkeypatch, _set(config, key, value)) == recorded, key
+
+
+def test_a_bad_controller_file_is_named_not_the_log(capsys, tmp_path, good):
+    """A rule on an unknown term in ``--controller c.yaml`` was reported against the log it was replayed on."""
+    text = (Path(replay.CONF) / "controller" / "table1.yaml").read_text()
+    bad = tmp_path / "c.yaml"
+    bad.write_text(text.replace("-> dtheta=NB, v=slow\"   # Table 1 row 1", "-> dtheta=HUGE, v=slow\"", 1))
+    assert bad.read_text() != text
+    code, out, err = run_replay(capsys, tmp_path, good, "--controller", str(bad))
+    assert code == 2 and out == ""
+    line = one_error_line(err)
+    assert line.startswith(f"error: {bad}: rules[0]: ") and "HUGE" in line and str(good) not in line
+
+
+@pytest.mark.parametrize("kind", ["dir", "devnull", "fifo", "no_parent", "parent_is_file"])
+def test_an_out_stem_that_cannot_be_a_file_stem_is_refused(kind, capsys, tmp_path, good):
+    """``--out DIR`` wrote ``DIR.png`` beside the directory and ``--out /dev/null`` wrote ``/dev/null.png``."""
+    work = tmp_path / "work"
+    work.mkdir()
+    stem = {"dir": work, "devnull": Path("/dev/null"), "fifo": work / "f", "no_parent": work / "no" / "x",
+            "parent_is_file": work / "file" / "x"}[kind]
+    if kind == "fifo":
+        os.mkfifo(stem)
+    if kind == "parent_is_file":
+        (work / "file").write_text("")
+    before = sorted(p.name for p in work.iterdir())
+    code = replay.main([str(good), "--quiet", "--out", str(stem)])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == ""
+    assert one_error_line(out.err).startswith(f"error: --out: {stem}: ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
+    assert sorted(p.name for p in work.iterdir()) == before
