@@ -22,6 +22,7 @@ The scanner and composer are libyaml's (C) when available: linear in the file si
 from __future__ import annotations
 
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,19 +62,24 @@ SCENARIO_OR_CONTROLLER = DataKind("a scenario or controller file", "scenario and
 MANIFEST = DataKind("a dataset manifest", "dataset manifests", limits.MAX_MANIFEST_BYTES, limits.MAX_MANIFEST_NODES)
 
 
-def check_data_file(path: Path) -> None:
-    """Check a scenario or controller file on disk (size first: a huge file is never read)."""
+def check_data_file(path: Path, kind: DataKind | None = None) -> bytes:
+    """Check a data file on disk (default: a scenario or controller file) and return its bytes. What the path
+    leads to (links followed) must be a regular file, and its size is checked before it is read: ``/dev/zero`` or
+    a FIFO would be read for ever, a huge file whole."""
+    kind = kind or SCENARIO_OR_CONTROLLER
     try:
-        size = path.stat().st_size
-        if not path.is_file():
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
             raise DataFileError(f"{path}: not a regular file")
-        if size > limits.MAX_DATA_FILE_BYTES:
-            raise DataFileError(f"{path}: {size:,} bytes, more than the limit of {limits.MAX_DATA_FILE_BYTES:,} "
-                                "for a scenario or controller file")
-        raw = path.read_bytes()
+        if info.st_size > kind.max_bytes:
+            raise DataFileError(f"{path}: {info.st_size:,} bytes, more than the limit of {kind.max_bytes:,} for "
+                                f"{kind.one}")
+        with path.open("rb") as f:
+            raw = f.read(kind.max_bytes + 1)  # a file growing since the stat is still read only this far
     except OSError as err:
         raise DataFileError(f"{path}: cannot read: {err.strerror or err}") from None
-    check_data_text(raw, str(path))
+    check_data_text(raw, str(path), kind)
+    return raw
 
 
 def check_data_text(raw: bytes | str, source: str, kind: DataKind | None = None) -> None:

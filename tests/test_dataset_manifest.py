@@ -8,6 +8,10 @@ from __future__ import annotations
 
 import copy
 import functools
+import os
+import resource
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -16,6 +20,7 @@ import pytest
 import yaml
 
 from runners import dataset
+from tests.conftest import ROOT
 
 NAME = "dsx"
 
@@ -187,3 +192,27 @@ def test_a_manifest_with_a_key_twice_is_refused(tmp_path, capsys, monkeypatch, c
     assert code == 2 and out == ""
     assert err == f"error: {path}:{line}: top level: duplicate key 'sweep'\n"
     assert path.read_text() == before
+
+
+def _bounded_memory() -> None:
+    """In the child: at most 4 GB of address space, so a manifest read for ever fails instead of filling RAM."""
+    resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+
+
+@pytest.mark.parametrize("target", ["/dev/zero", "dir"])
+def test_a_manifest_that_is_not_a_regular_file_is_refused(tmp_path, target):
+    """dst_manifest_devzero: a manifest linked to /dev/zero was read for ever (RSS growing by ~250 MB/s)."""
+    path = tmp_path / NAME / "manifest.yaml"
+    path.parent.mkdir()
+    if target == "dir":
+        (tmp_path / "d").mkdir()
+        target = str(tmp_path / "d")
+    os.symlink(target, path)
+    for command in (["verify", NAME], ["build", NAME], ["list"]):
+        done = subprocess.run([sys.executable, "-m", "runners.dataset", *command, "--root", str(tmp_path)],
+                              capture_output=True, text=True, timeout=120, cwd=ROOT, preexec_fn=_bounded_memory)
+        want = f"{path}: not a regular file"
+        if command == ["list"]:  # listed as a dataset that cannot be read
+            assert done.returncode == 0 and want in done.stdout and done.stderr == "", done
+        else:
+            assert done.returncode == 2 and done.stdout == "" and done.stderr == f"error: {want}\n", done
