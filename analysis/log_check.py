@@ -49,12 +49,13 @@ from analysis.json_checks import (
     points,
     string,
 )
+from fuzzynav import limits
 from fuzzynav.episode_identity import config_hash  # the hash runners.run records: one definition
 
 __all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash"]
 
 MAX_US = 1e12  # compute time of one decision (µs): 11 days
-MAX_DT_S = 1e6  # step length (s)
+MIN_DT_S, MAX_DT_S = limits.MIN_DT_S, limits.MAX_DT_S  # the step lengths (s) a run accepts: one definition
 MAX_CONFIG_BYTES = 1 << 20
 MAX_CONFIG_NODES = 100_000
 NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}")  # safe as a label and a file-name part (no "..")
@@ -75,7 +76,7 @@ HEADING = number(0.0, 360.0)
 STEP = integer()
 _POINT = obj(x=number(-MAX_CM / 100, MAX_CM / 100), y=number(-MAX_CM / 100, MAX_CM / 100))  # m
 
-_TPT_SCALARS = obj(step=STEP, n_traj=integer(1, 1_000_000), dt_s=number(1e-9, MAX_DT_S),
+_TPT_SCALARS = obj(step=STEP, n_traj=integer(1, 1_000_000), dt_s=number(MIN_DT_S, MAX_DT_S),
                    robot_radius_cm=POSITIVE_CM, obstacle_ids=array(integer()), obstacle_radii_cm=numbers(0.0))
 _TPT_TABLES = obj(robot_cm=points(1), obstacles_cm=point_rows(1), collide=boolean_rows(1))
 
@@ -185,7 +186,7 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
     dt = config.get("dt")
     if dt is not None:
         try:
-            number(1e-9, MAX_DT_S)(dt)
+            number(MIN_DT_S, MAX_DT_S)(dt)
         except CheckError as err:
             raise err.inside("config dt") from None
         dt = float(dt)

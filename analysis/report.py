@@ -370,6 +370,10 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
+    if analysis.episodes.empty:  # a report of no episode is no result: it only lists why each log was left out
+        print(f"error: none of the {len(analysis.excluded)} log(s) could be analysed "
+              f"({left_out_counts(analysis.excluded)}): see 'Logs left out' in {out / 'report.md'}", file=sys.stderr)
+        return 1
     if len(analysis.excluded):
         print(f"{len(analysis.excluded)} log(s) left out ({left_out_counts(analysis.excluded)}), each with its "
               "reason: see 'Logs left out' in the report")

@@ -158,7 +158,9 @@ class Episode:
         decision, self._plan = self.navigator.decide(obs, self._plan)
         compute_us = (time.perf_counter() - started) * 1e6
         nxt = step_unicycle(s, decision.dtheta_deg, decision.v_cm_s, dt, cfg.robot)
-        next_pos, _ = self.motion.at(t + dt)
+        # (k + 1)·dt, not t + dt: with dt = 0.7 the two differ in the last bit, and the obstacles' positions after
+        # this step would not be the positions the next step starts from
+        next_pos, _ = self.motion.at((self.step_index + 1) * dt)
         p0, p1 = np.array([s.x, s.y]), np.array([nxt.x, nxt.y])
         r = self.scenario.robot.radius
         static_hit = self.world.static_contact(p0, p1, r)

@@ -140,11 +140,15 @@ _R = "a distance in cm, at most the longest sensor range (100 m)"
 _S = "a speed in cm/s; the robot drives 10-40 cm/s"
 _N = "a noise standard deviation in cm; beyond 10 m it swamps every reading"
 
+MIN_DT_S = 1e-3  # a millisecond: below it a step is no navigation step, and speeds per step lose their digits
+MAX_DT_S = 60.0  # a minute: sensing and the TPT sample once per step
+
 #: The range of every numeric run-configuration field (dotted as on the command line).
 FIELD_RANGES: dict[str, Range] = {
     "seed": Range(0, MAX_SEED, why="numpy seeds are non-negative; see seed + episodes", integer=True),
     "episodes": Range(1, MAX_EPISODES_PER_RUN, why="at least one episode per run", integer=True),
-    "dt": Range(0, 60, "s", "seconds per step; sensing and the TPT sample once per step", lo_open=True),
+    "dt": Range(MIN_DT_S, MAX_DT_S, "s", "seconds per step; sensing and the TPT sample once per step (the "
+                "analysis reads logs in this range only)"),
     "robot.max_turn_deg": Range(0, 180, "deg", "turn per step; 180 reaches every heading", lo_open=True),
     "robot.v_min": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
     "robot.v_max": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),

@@ -348,7 +348,11 @@ def summarise(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = None
     analysed = ok.reindex(columns=[*keys, "outcome", "steps"]).assign(
         success=ok["success"].astype(float) if "success" in ok else math.nan, left_out=0)
     left_out = bad.dropna(subset=["variant"]).reindex(columns=keys).assign(left_out=1)  # readable metadata
-    rows = pd.concat([frame for frame in (analysed, left_out) if not frame.empty], ignore_index=True)
+    frames = [frame for frame in (analysed, left_out) if not frame.empty]
+    if not frames:  # every log left out, none with readable metadata (hostile14c swp_dt_0p7 crashed here)
+        return episodes, pd.DataFrame(columns=["scenario", "variant", "episodes", "success_rate", "goal",
+                                               "collision", "timeout", "left_out", "mean_steps"])
+    rows = pd.concat(frames, ignore_index=True)
     rows = rows.reindex(columns=[*keys, "outcome", "steps", "success", "left_out"]).astype(
         {"steps": float, "success": float})  # numbers even when every log of a group was left out
     table = rows.groupby(keys, sort=False).agg(

@@ -77,8 +77,9 @@ def test_a_topic_without_its_schema_is_refused_and_left_out(schema, expect, tmp_
     assert one_error_line(capsys.readouterr().err) == f"error: {log}: {expect}"
     df, left_out = metrics_table([log])
     assert df.empty and list(left_out["kind"]) == ["schema"] and list(left_out["reason"]) == [f"{log}: {expect}"]
-    assert report.main([str(log), "--out", str(tmp_path / "rep"), "--jobs", "1"]) == 0
-    assert "1 log(s) left out (1 schema)" in capsys.readouterr().out
+    # the only log is left out: the report lists why, and exits 1 (there is no result)
+    assert report.main([str(log), "--out", str(tmp_path / "rep"), "--jobs", "1"]) == 1
+    assert "none of the 1 log(s) could be analysed (1 schema)" in capsys.readouterr().err
     assert expect in (tmp_path / "rep" / "report.md").read_text()
 
 

@@ -63,7 +63,7 @@ def test_no_field_accepts_a_non_finite_number(field, bad):
 
 @pytest.mark.parametrize("value, problem", [
     (math.nan, "must be finite"), (True, "expected a number"), ("1", "expected a number"), (-1, "must be in"),
-    (61, "must be in"), (0, "must be in (0, 60] s")])
+    (61, "must be in"), (0, "must be in [0.001, 60] s"), (1e-300, "must be in [0.001, 60] s")])
 def test_check_number_names_the_field_and_the_range(value, problem):
     with pytest.raises(ValueError, match=r"^dt: ") as err:
         check_number(value, "dt", limits.FIELD_RANGES["dt"])
