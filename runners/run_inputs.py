@@ -99,7 +99,9 @@ def plain_config(cfg: DictConfig) -> dict[str, Any]:
         return {key: OmegaConf.to_container(cfg[key], resolve=True) if OmegaConf.is_config(cfg[key]) else cfg[key]
                 for key in cfg if key != "hydra"}
     except OmegaConfBaseException as err:
-        raise ValueError(f"cannot resolve the config: {str(err).splitlines()[0]}") from None
+        key = getattr(err, "full_key", None)  # ``planner.h_wait=${planner.h_wait}``: say which key
+        where = f"{key}: " if key else ""
+        raise ValueError(f"{where}cannot resolve the config: {str(err).splitlines()[0]}") from None
 
 
 def run_seeds(cfg: Mapping[str, Any]) -> list[int]:
