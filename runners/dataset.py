@@ -28,6 +28,7 @@ import argparse
 import hashlib
 import json
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -93,8 +94,22 @@ def _override_key(text: str) -> str:
     return override.get_key_element().lstrip("+~")
 
 
-def _check_override(text: Any, where: str, path: Path) -> None:
-    """One override of a manifest (``where`` names its field): a single ``key=value`` of the run config.
+#: the run-config keys a dataset decides itself, and why an override of one is refused: each was silently
+#: ignored or overridden (``seed=5``, ``episodes=3``: every episode still ran its sweep.seeds seed) while its
+#: text was recorded in the manifest, or it silently replaced what the episode's name says (``scenario=...``)
+DATASET_KEYS = {
+    "hydra": "hydra settings are not allowed in a dataset (the dataset decides where its episodes run)",
+    "seed": "set by the dataset (each episode's seed is one of sweep.seeds; verify --seeds FIRST:END checks some)",
+    "episodes": "set by the dataset (each episode is one seed of sweep.seeds)",
+    "resume": "set by the dataset (every episode is recorded afresh)",
+    "scenario": "set by the dataset (sweep.scenarios lists its scenarios; scenario.FIELD=VALUE changes one field)",
+    "sweep": "a sweep preset is no part of a dataset (sweep.scenarios, sweep.variants and sweep.seeds are its sweep)",
+}
+
+
+def _check_override(text: Any, where: str) -> None:
+    """One override (``where``: the manifest and its field, or the command line) is a single ``key=value`` of the
+    run config, of no key the dataset decides itself (:data:`DATASET_KEYS`).
 
     A sweep list (``planner=auto,wait``) would be a multirun inside one episode job (Hydra's traceback), and a
     ``hydra.*`` key is no part of the episode: it was silently ignored while its text became part of the log's
@@ -102,18 +117,19 @@ def _check_override(text: Any, where: str, path: Path) -> None:
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     if not isinstance(text, str):
-        raise DatasetError(f"{path}: {where}: expected an override key=value (a string), got {text!r:.60}")
+        raise DatasetError(f"{where}: expected an override key=value (a string), got {text!r:.60}")
     try:
         (override,) = OverridesParser.create().parse_overrides([text])
     except Exception as err:  # Hydra's parser errors have several types and lines
-        raise DatasetError(f"{path}: {where}: cannot read {text!r:.60}: {str(err).splitlines()[0]}") from None
+        raise DatasetError(f"{where}: cannot read {text!r:.60}: {str(err).splitlines()[0]}") from None
     key = override.get_key_element().lstrip("+~")
     if override.is_sweep_override():
-        raise DatasetError(f"{path}: {where}: {text!r:.60} is a sweep; a dataset runs one value per variant "
+        raise DatasetError(f"{where}: {text!r:.60} is a sweep; a dataset runs one value per variant "
                            "(list each value as its own variant)")
-    if key == "hydra" or key.startswith(("hydra.", "hydra/")):
-        raise DatasetError(f"{path}: {where}: {key}: hydra settings are not allowed in a dataset (the dataset "
-                           "decides where its episodes run)")
+    # ``hydra.run.dir``, ``hydra/launcher``, ``scenario@x``: the first part of the key or group path
+    top = re.split(r"[./@]", key, maxsplit=1)[0]
+    if top == "hydra" or (top in DATASET_KEYS and re.fullmatch(rf"{top}(@.*)?", key)):
+        raise DatasetError(f"{where}: {key:.60}: {DATASET_KEYS[top]}")
 
 
 def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = None) -> None:
@@ -136,9 +152,11 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
             raise DatasetError(f"{path}: sweep.variants[{i}]: expected an override or a list of them")
         parts = _variant_overrides(variant)
         for k, text in enumerate(parts):
-            _check_override(text, f"sweep.variants[{i}]" + (f"[{k}]" if len(parts) > 1 else ""), path)
+            _check_override(text, f"{path}: sweep.variants[{i}]" + (f"[{k}]" if len(parts) > 1 else ""))
     for i, text in enumerate(common):
-        _check_override(text, f"sweep.overrides[{i}]", path)
+        _check_override(text, f"{path}: sweep.overrides[{i}]")
+    for text in extra or []:
+        _check_override(text, "command line")
     _check_repeats(sweep, path)
     # a key set by a variant and by the common overrides: the latter won silently, so episodes named
     # planner-auto ran planner=wait

@@ -124,6 +124,27 @@ def test_a_bad_override_is_one_line_before_anything_runs(root, capsys, override,
     assert len(err.strip().splitlines()) == 1 and field in err, err
 
 
+@pytest.mark.parametrize(("override", "problem"), [
+    ("seed=5", "seed: set by the dataset (each episode's seed is one of sweep.seeds; verify --seeds FIRST:END "),
+    ("episodes=3", "episodes: set by the dataset"),
+    ("hydra.run.dir=/tmp/x", "hydra.run.dir: hydra settings are not allowed in a dataset"),
+    ("planner=auto,wait", "'planner=auto,wait' is a sweep"),
+])
+def test_an_override_of_what_the_dataset_decides_is_refused(root, capsys, monkeypatch, override, problem):
+    """verify's own overrides follow the manifest's rules: ``seed=5`` was silently replaced by each seed."""
+    monkeypatch.setattr(dataset, "record_all", lambda *a, **k: pytest.fail("episodes ran"))
+    code, out, err = run(capsys, "verify", "tiny", override, "--root", str(root))
+    assert code == 2 and out == ""
+    assert err.startswith(f"error: command line: {problem}") and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_field_of_the_scenario_may_be_overridden(tmp_path):
+    """``scenario.max_steps=5`` (one field of every scenario) is not the scenario group ``scenario=...``."""
+    _bad_manifest(tmp_path, {"overrides": ["scenario.max_steps=5"]})
+    manifest = dataset.load_manifest("bad", tmp_path)
+    dataset.check_sweep(manifest, dataset.manifest_path("bad", tmp_path), ["scenario.max_steps=6"])
+
+
 @pytest.mark.parametrize("jobs", ["0", "-5", "two"])
 def test_bad_jobs_is_one_line(root, capsys, jobs):
     with pytest.raises(SystemExit) as exit_:
@@ -164,6 +185,15 @@ BAD_SWEEPS = [  # issue 14: each was a traceback from every worker, or silently 
     ({"variants": ["planner=wait", "planner=auto_h2", "planner=auto_h2"]},
      "sweep.variants[2]: repeats sweep.variants[1]"),
     ({"scenarios": ["paper_fig5", "head_on", "paper_fig5"]}, "sweep.scenarios[2]: repeats sweep.scenarios[0]"),
+    # dst_override_seed, dst_override_episodes: ignored (every episode ran its sweep.seeds seed) but recorded
+    ({"overrides": ["seed=5"]}, "sweep.overrides[0]: seed: set by the dataset (each episode's seed is one of "),
+    ({"overrides": ["episodes=3"]}, "sweep.overrides[0]: episodes: set by the dataset"),
+    ({"overrides": ["planner.h_wait=3", "resume=true"]}, "sweep.overrides[1]: resume: set by the dataset"),
+    ({"overrides": ["scenario=head_on"]}, "sweep.overrides[0]: scenario: set by the dataset (sweep.scenarios "),
+    ({"overrides": ["sweep=quick"]}, "sweep.overrides[0]: sweep: a sweep preset is no part of a dataset"),
+    ({"overrides": ["hydra.job.chdir=true"]}, "sweep.overrides[0]: hydra.job.chdir: hydra settings are not allowed"),
+    ({"variants": [["planner=auto_h2", "seed=3"]]}, "sweep.variants[0][1]: seed: set by the dataset"),
+    ({"variants": ["planner=auto_h2", "+episodes=2"]}, "sweep.variants[1]: episodes: set by the dataset"),
 ]
 
 
