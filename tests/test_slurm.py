@@ -239,9 +239,12 @@ def slurm(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureReque
     finally:
         left = stop_cluster(cluster)
     reporter = request.config.pluginmanager.get_plugin("terminalreporter")
+    capture = request.config.pluginmanager.get_plugin("capturemanager")
     if reporter is not None:  # a line in CI's output that says the cluster tests ran, and on what
-        reporter.write_line(f"\nslurm: {version}, one node ({node}, {cpus} CPUs) started in {started:.0f} s; tests "
-                            f"ran on it for {time.monotonic() - tic - started:.0f} s; daemons stopped")
+        # (pytest captures a fixture's teardown output and drops it when the test passed: write around the capture)
+        with capture.global_and_fixture_disabled() if capture is not None else contextlib.nullcontext():
+            reporter.write_line(f"\nslurm: {version}, one node ({node}, {cpus} CPUs) started in {started:.0f} s; "
+                                f"tests ran on it for {time.monotonic() - tic - started:.0f} s; daemons stopped")
     assert not left, f"processes of the cluster were left running (killed now): {left}"
 
 
