@@ -124,8 +124,8 @@ def check_sonar_sectors(sonar: Any, field: str) -> None:
         # overlaps another (or repeats it) makes one obstacle count for two inputs, and swapped sectors mirror
         # every steering rule
         raise ValueError(f"{field}: the sectors must follow each other counter-clockwise without overlapping "
-                         f"(right, front, left; they may touch; together at most 360 degrees), got right [{r_lo:g}, {r_hi:g}], front "
-                         f"[{f_lo:g}, {f_hi:g}], left [{l_lo:g}, {l_hi:g}] degrees")
+                         "(right, front, left; they may touch; together at most 360 degrees), got right "
+                         f"[{r_lo:g}, {r_hi:g}], front [{f_lo:g}, {f_hi:g}], left [{l_lo:g}, {l_hi:g}] degrees")
     points = [max(2, math.ceil((hi - lo) / sonar.arc_step_deg) + 1) for lo, hi in (sonar.left, sonar.front,
                                                                                  sonar.right)]
     if len(set(points)) > 1:

@@ -1,7 +1,8 @@
 """Seeded scenario generators: plain parameters + seed -> a valid :class:`Scenario` (cm, s, degrees).
 
 Each generator is valid by construction (start and goal free, obstacles clear of the robot's start and of
-each other's start positions, moving obstacles starting outside the static ones) and deterministic: the same parameters and seed give the same scenario.
+each other's start positions, moving obstacles starting outside the static ones) and deterministic: the same
+parameters and seed give the same scenario.
 The generator's random stream is ``numpy.random.default_rng((seed, 7))``, independent of the episode's.
 """
 
