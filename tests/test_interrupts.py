@@ -1,0 +1,66 @@
+"""Issue 14: an interrupt at any point of an entry point's start-up (imports, checks, Hydra starting) ends the
+command with one line and exit 128 + signal (130 for SIGINT, 143 for SIGTERM), never a traceback."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import ROOT
+
+DELAYS_S = (0.2, 0.5, 1.0, 2.0)
+
+
+def commands(tmp_path: Path) -> dict[str, list[str]]:
+    """Each entry point, with arguments that make it start up and then work for a while."""
+    out = tmp_path / "out"
+    return {
+        "run": ["runners.run", f"hydra.run.dir={out}", "episodes=3"],
+        "sweep": ["runners.sweep", f"hydra.sweep.dir={out}", "scenario=head_on", "episodes=1",
+                  "hydra.launcher.n_jobs=1"],
+        "replay": ["runners.replay", str(tmp_path / "missing.mcap"), "--quiet"],
+        "dataset": ["runners.dataset", "verify", "tiny", "--root", str(out)],
+        "report": ["analysis.report", str(tmp_path), "--out", str(out)],
+    }
+
+
+def interrupt(args: list[str], delay: float, signum: int, cwd: Path) -> tuple[int, str]:
+    """(exit code, stderr) of ``python -m ARGS`` sent ``signum`` after ``delay`` seconds."""
+    proc = subprocess.Popen([sys.executable, "-m", *args], cwd=cwd, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    time.sleep(delay)
+    proc.send_signal(signum)
+    try:
+        _, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        raise AssertionError(f"{args[0]} did not end within 120 s of the signal") from None
+    return proc.returncode, err
+
+
+@pytest.mark.parametrize("entry", ["run", "sweep", "replay", "dataset", "report"])
+@pytest.mark.parametrize("delay", DELAYS_S)
+def test_sigint_during_start_up_is_one_line_and_exit_130(entry, delay, tmp_path):
+    args = commands(tmp_path)[entry]
+    code, err = interrupt(args, delay, signal.SIGINT, tmp_path)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert "Traceback" not in err and len(lines) <= 2, err[-3000:]
+    if code != 130:  # the command had already ended on its own: then normally, not killed by the signal
+        assert code >= 0, err[-3000:]
+    else:
+        assert len(lines) == 1, err  # the interrupt named by the entry point (the sweep has its own words)
+
+
+@pytest.mark.parametrize("entry", ["run", "replay", "report"])
+def test_sigterm_during_start_up_is_one_line_and_exit_143(entry, tmp_path):
+    code, err = interrupt(commands(tmp_path)[entry], 0.5, signal.SIGTERM, tmp_path)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 143 and len(lines) == 1 and "Traceback" not in err, (code, err[-3000:])
+    assert "terminated (SIGTERM)" in lines[0]
