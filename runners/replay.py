@@ -259,8 +259,10 @@ def check_out_stem(stem: Path) -> None:
     if (stem.exists() or stem.is_symlink()) and not stem.is_file():
         raise ReplayError(f"--out: {stem}: not a regular file; --out is a path stem for the PNG/GIF")
     parent = stem.parent
-    if not parent.is_dir():
+    if not parent.exists():
         raise ReplayError(f"--out: {stem}: the directory {parent} does not exist")
+    if not parent.is_dir():
+        raise ReplayError(f"--out: {stem}: {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ReplayError(f"--out: {stem}: the directory {parent} is not writable")
 

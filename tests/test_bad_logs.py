@@ -231,7 +231,7 @@ def test_replay_names_an_unwritable_picture(capsys, tmp_path, good):
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert replay.main([str(good), "--quiet", "--out", str(blocker / "x")]) == 2
-    assert one_error_line(capsys.readouterr().err) == f"error: {blocker / 'x.png'}: cannot write: Not a directory"
+    assert one_error_line(capsys.readouterr().err) == f"error: --out: {blocker / 'x'}: {blocker} is not a directory"
 
 
 def test_rejected_paths_keep_their_reason_in_worker_processes(sweep_dir, monkeypatch):
