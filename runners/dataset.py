@@ -434,6 +434,14 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
     return out
 
 
+def check_root(root: Path) -> None:
+    """``--root`` is an existing directory: a mistyped one listed nothing, exit 0."""
+    if not root.exists():
+        raise DatasetError(f"--root {root}: no such directory")
+    if not root.is_dir():
+        raise DatasetError(f"--root {root}: not a directory")
+
+
 def list_datasets(root: Path = DATASETS) -> list[dict[str, Any]]:
     rows = []
     for path in sorted(root.glob("*/manifest.yaml")):
@@ -481,10 +489,21 @@ def main(argv: list[str] | None = None) -> int:
     for p in (lister, b, v):
         p.add_argument("--root", type=Path, default=DATASETS,
                        help="directory holding the datasets (default: datasets/ of the repository)")
-    args = parser.parse_args(argv)
+    # overrides may follow the options (``verify tiny --root DIR planner.h_wait=3``): argparse leaves those it
+    # meets after an option unparsed, and parse_intermixed_args refuses parsers with subcommands
+    args, rest = parser.parse_known_args(argv)
+    if args.command == "verify":
+        args.overrides += [a for a in rest if not a.startswith("-")]
+        rest = [a for a in rest if a.startswith("-")]
+    if rest:
+        parser.error(f"unrecognized arguments: {' '.join(rest)}")
     try:
+        check_root(args.root)
         if args.command == "list":
-            for row in list_datasets(args.root):
+            rows = list_datasets(args.root)
+            if not rows:  # an empty listing said nothing of where it looked
+                print(f"no datasets in {args.root}")
+            for row in rows:
                 if "error" in row:
                     print(f"{row['name']:<12} error: {row['error']}")
                     continue

@@ -389,6 +389,35 @@ def test_old_manifests_classify_only_outcome_and_steps():
                                        "0 float-only, 1 unclassified (rebuild the manifest to classify them)"]
 
 
+@pytest.mark.parametrize("command", [["list"], ["verify", "tiny"], ["build", "tiny"]])
+def test_a_missing_root_is_an_error(tmp_path, capsys, command):
+    """dst_list_root_missing: ``list --root`` of a mistyped directory printed nothing, exit 0."""
+    for root, problem in ((tmp_path / "nope", "no such directory"), (tmp_path / "f", "not a directory")):
+        (tmp_path / "f").write_text("")
+        code, out, err = run(capsys, *command, "--root", str(root))
+        assert (code, out, err) == (2, "", f"error: --root {root}: {problem}\n")
+
+
+def test_an_empty_root_says_so(tmp_path, capsys):
+    code, out, err = run(capsys, "list", "--root", str(tmp_path))
+    assert (code, out, err) == (0, f"no datasets in {tmp_path}\n", "")
+
+
+def test_overrides_may_follow_the_options(root, capsys):
+    """dst_verify_override_after_root: an override after ``--root DIR`` was 'unrecognized arguments'; both orders
+    now verify the same thing, and the overrides keep their order (the last wins)."""
+    seeds = ("--seeds", "0:1")
+    before = run(capsys, "verify", "tiny", "planner.h_wait=1", "planner.h_wait=3", "--root", str(root), *seeds)[:2]
+    after = run(capsys, "verify", "tiny", "--root", str(root), "planner.h_wait=1", *seeds, "planner.h_wait=3")[:2]
+    assert before == after and before[0] == 1 and "1 of 1 episodes differ" in before[1], before
+    same = run(capsys, "verify", "tiny", "--root", str(root), "planner.h_wait=3", "planner.h_wait=2", *seeds)[:2]
+    assert same == (0, "tiny: seeds 0:1 of the dataset match\n"), same  # auto_h2's own h_wait, given last
+    with pytest.raises(SystemExit) as exit_:
+        dataset.main(["build", "tiny", "--root", str(root), "planner.h_wait=3"])  # build takes no overrides
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err == "error: unrecognized arguments: planner.h_wait=3 (see --help)\n"
+
+
 def test_root_option_lists_only_that_directory(root, capsys, tmp_path):
     shutil.copytree(root / "tiny", tmp_path / "tiny_copy")
     path = tmp_path / "tiny_copy" / "manifest.yaml"  # a manifest names its directory
