@@ -270,8 +270,8 @@ def evaluate(state: RobotState, goal: tuple[float, float], tracks: tuple[Track, 
     path, heading = rollouts(state, goal, cand, config.horizon_steps, dt)
     points = np.asarray(static_points, dtype=float).reshape(-1, 2)
     # a gap beyond this changes neither the capped clearance nor admissibility at any speed of the window
-    reach = max(config.clearance_cap_cm, config.margin_cm + float(np.max(cand.v_cm_s)) ** 2
-                / (2.0 * config.decel_cm_s2))
+    v_top = float(np.max(cand.v_cm_s))  # v * v, not v ** 2: pow is the C library's (portable numerics)
+    reach = max(config.clearance_cap_cm, config.margin_cm + v_top * v_top / (2.0 * config.decel_cm_s2))
     static_gap, static_near = _static_gaps(path, cand.v_cm_s > 0, points, robot_radius, reach)
     track_gap, track_near = _track_gaps(path, tracks, robot_radius, dt)
     gap = np.minimum(static_gap, track_gap)
