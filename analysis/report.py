@@ -371,8 +371,11 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
     if analysis.episodes.empty:  # a report of no episode is no result: it only lists why each log was left out
-        print(f"error: none of the {len(analysis.excluded)} log(s) could be analysed "
-              f"({left_out_counts(analysis.excluded)}): see 'Logs left out' in {out / 'report.md'}", file=sys.stderr)
+        n = len(analysis.excluded)
+        first = str(analysis.excluded["reason"].iloc[0]) if n else ""  # names the file and the problem
+        more = f"; and {n - 1} more" if n > 1 else ""
+        print(f"error: none of the {n} log(s) could be analysed ({left_out_counts(analysis.excluded)}): "
+              f"{first[:300]}{more} (all in 'Logs left out' of {out / 'report.md'})", file=sys.stderr)
         return 1
     if len(analysis.excluded):
         print(f"{len(analysis.excluded)} log(s) left out ({left_out_counts(analysis.excluded)}), each with its "

@@ -43,5 +43,6 @@ def test_a_report_of_no_analysable_log_exits_non_zero(tmp_path):
     res = run("analysis.report", str(notes), "--out", str(tmp_path / "report"), "--jobs", "1")
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert res.returncode == 1 and len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
-    assert lines[0].startswith("error: none of the 1 log(s) could be analysed (1 not-mcap): see 'Logs left out' in ")
+    assert lines[0].startswith(f"error: none of the 1 log(s) could be analysed (1 not-mcap): {notes}: not an MCAP "
+                               "file (no MCAP magic at the start) (all in 'Logs left out' of ")
     assert "Logs left out" in (tmp_path / "report" / "report.md").read_text()
