@@ -35,7 +35,7 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from analysis.logs import is_complete
-from runners import sweep_control, sweep_resume
+from runners import shm_leftovers, sweep_control, sweep_resume
 from runners.sweep_outputs import write_whole
 from runners.sweep_paths import job_logs
 
@@ -266,6 +266,7 @@ class SweepProgress(Callback):
         refuse_shared_job_dir(config, list(config.hydra.overrides.task))  # before anything runs or is written
         fault_tolerant_sweeper(config)
         run = sweep_control.begin_or_exit(sweep_dir)
+        shm_leftovers.remove_stale()  # pools of hard-stopped earlier sweeps (hostile14c flt_sigterm_twice_resume)
         if run.removed_partials:
             print(f"{run.removed_partials} partial log(s) of episodes killed in an earlier sweep removed (their "
                   "episodes run again)")
