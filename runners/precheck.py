@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -81,6 +82,15 @@ def _one_line(err: BaseException) -> str:
         hint = f" (available: {', '.join(options)})" if options else ""
         return f"config: no config '{missing.group(1)}'{hint}"
     return f"config: {texts[0].splitlines()[0]}"
+
+
+def _unavailable_search_path(caught: Sequence[warnings.WarningMessage]) -> str | None:
+    """Hydra only warns (on stderr, beside its error) when a ``hydra.searchpath`` entry does not exist."""
+    for w in caught:
+        found = re.search(r"provider=hydra\.searchpath in command-line, path=(.+) is not available", str(w.message))
+        if found:
+            return f"config: hydra.searchpath: {found.group(1)[:120]} is not available (no such directory or package)"
+    return None
 
 
 def _search_dirs(parsed: Sequence[Override]) -> list[Path]:
@@ -215,10 +225,17 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         for k, overrides in enumerate(trials):
-            try:
-                cfg = compose("config", overrides=overrides, return_hydra_config=True)
-            except Exception as err:
-                return _one_line(err)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    cfg = compose("config", overrides=overrides, return_hydra_config=True)
+                except Exception as err:
+                    cfg, problem = None, _one_line(err)
+            unavailable = _unavailable_search_path(caught)
+            if unavailable:  # a typo in hydra.searchpath: the config it should have provided is "missing"
+                return unavailable
+            if cfg is None:
+                return problem
             problem = check_composed(cfg)
             if problem:
                 return problem
