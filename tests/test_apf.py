@@ -10,49 +10,21 @@ import numpy as np
 import pytest
 
 from fuzzynav.apf import ApfConfig, ApfPolicy, apf_command, attractive_force, obstacle_discs, repulsive_force
-from fuzzynav.geometry import segment_point_distance
-from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
+from fuzzynav.kinematics import RobotState
 from fuzzynav.navigator import Observation
-from fuzzynav.policy import Policy, PolicyContext, make_policy
+from fuzzynav.policy import Policy, make_policy
 from fuzzynav.tracking import Track
+from tests import policy_scenes as scenes
+from tests.policy_scenes import CTX, drive, in_laser_range, wall
 
-CTX = PolicyContext(RobotLimits(), robot_radius=20.0)
 CFG = ApfConfig()
 NO_DISCS = (np.zeros((0, 2)), np.zeros(0))
-LASER_RANGE_CM = 250.0
 
 
 def observe(state: RobotState, goal: tuple[float, float], points: np.ndarray,
             tracks: tuple[Track, ...] = ()) -> Observation:
-    """What the robot senses: the obstacle points within laser range (no occlusion: enough for these tests,
-    whose obstacles are single walls seen from one side)."""
-    near = points[np.hypot(points[:, 0] - state.x, points[:, 1] - state.y) <= LASER_RANGE_CM]
-    return Observation(state, goal, (130.0, 130.0, 130.0), tracks, near)
-
-
-def drive(policy: Policy, goal: tuple[float, float], points: np.ndarray, steps: int,
-          tolerance: float = 20.0) -> tuple[list[RobotState], float]:
-    """Run ``policy`` from the origin heading +x among static ``points`` (cm) with the robot's kinematics
-    until it is within ``tolerance`` (cm) of ``goal`` or ``steps`` steps have passed: the states visited and
-    the smallest distance (cm) from the robot's centre to any point over every step's straight move."""
-    states, closest = [RobotState(0.0, 0.0, 0.0)], math.inf
-    policy.reset(0)
-    for _ in range(steps):
-        s = states[-1]
-        action = policy.act(observe(s, goal, points))
-        nxt = step_unicycle(s, action.dtheta_deg, action.v_cm_s, CTX.dt, CTX.limits)
-        gap = segment_point_distance(np.array([s.x, s.y]), np.array([nxt.x, nxt.y]), points)
-        closest = min(closest, float(gap.min()))
-        states.append(nxt)
-        if math.hypot(nxt.x - goal[0], nxt.y - goal[1]) <= tolerance:
-            break
-    return states, closest
-
-
-def wall(x: float, y_low: float, y_high: float, spacing: float = 5.0) -> np.ndarray:
-    """Laser-like returns (cm) every ``spacing`` cm along the segment x = const, y_low..y_high."""
-    ys = np.arange(y_low, y_high + spacing / 2, spacing)
-    return np.stack([np.full_like(ys, x), ys], axis=1)
+    """What the robot senses: the obstacle points within laser range."""
+    return scenes.observe(state, goal, in_laser_range(state, points), tracks)
 
 
 def test_in_free_space_the_force_points_at_the_goal_conic_far_quadratic_near():

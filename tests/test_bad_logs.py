@@ -18,7 +18,7 @@ from analysis import report
 from analysis.logs import RejectedLog, find_logs
 from analysis.metrics import metrics_table
 from runners import replay
-from tests.conftest import ROOT
+from tests.conftest import ROOT, one_error_line
 from tests.log_surgery import rewrite
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
@@ -30,12 +30,6 @@ CASES = yaml.safe_load((LOGS / "cases.yaml").read_text())
 def good(recorded_logs) -> Path:  # noqa: F811 - the fixture imported above
     """A complete, valid log (replay --verify reproduces it)."""
     return recorded_logs[0]
-
-
-def one_error_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
-    return lines[0]
 
 
 def test_every_log_case_is_a_file():

@@ -13,23 +13,12 @@ from fuzzynav.navigator import Observation
 from fuzzynav.policy import Policy, PolicyContext, make_policy
 from fuzzynav.portable_math import dist
 from fuzzynav.tracking import Track
+from tests.policy_scenes import NO_POINTS, observe, random_observation, wall
 
 LIMITS = RobotLimits()
 RADIUS = 20.0
 CTX = PolicyContext(LIMITS, RADIUS)
 CFG = DWAConfig()
-NO_POINTS = np.zeros((0, 2))
-
-
-def observe(state: RobotState, goal: tuple[float, float], points: np.ndarray = NO_POINTS,
-            tracks: tuple[Track, ...] = ()) -> Observation:
-    return Observation(state, goal, (130.0, 130.0, 130.0), tracks, np.asarray(points, dtype=float))
-
-
-def wall(x: float, y_from: float, y_to: float, spacing: float = 5.0) -> np.ndarray:
-    """Laser returns (cm) along the vertical line at ``x``."""
-    ys = np.arange(y_from, y_to + spacing / 2, spacing)
-    return np.column_stack([np.full(len(ys), x), ys])
 
 
 def rollout_gaps(state: RobotState, dtheta: float, v: float, points: np.ndarray, tracks: tuple[Track, ...],
@@ -145,12 +134,7 @@ def test_mirror_symmetric_tie_goes_to_the_right_turn():
 
 
 def test_same_observation_gives_the_same_action_bits():
-    rng = np.random.default_rng(7)
-    angles = rng.uniform(0.0, 2 * np.pi, 300)
-    ranges = rng.uniform(45.0, 250.0, 300)
-    points = np.column_stack([ranges * np.cos(angles), ranges * np.sin(angles)])
-    tracks = tuple(Track(i, *rng.uniform(-200, 200, 2), *rng.uniform(-30, 30, 2), 20.0) for i in range(5))
-    obs = observe(RobotState(10.0, -5.0, 33.0, 25.0), (400.0, 250.0), points, tracks)
+    obs = random_observation(7)
     first, second = act(obs), make_policy("dwa", {}, CTX).act(obs)
 
     def bits(a):

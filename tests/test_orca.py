@@ -29,12 +29,12 @@ from fuzzynav.orca import (
 from fuzzynav.policy import Policy, PolicyContext, make_policy
 from fuzzynav.portable_math import dist
 from fuzzynav.tracking import Track
+from tests.policy_scenes import NO_POINTS, observe, random_observation
 
 LIMITS = RobotLimits()
 RADIUS = 20.0
 CTX = PolicyContext(LIMITS, RADIUS)
 CFG = OrcaConfig()
-NO_POINTS = np.zeros((0, 2))
 LASER_RANGE_CM = 250.0
 SQRT21 = math.sqrt(21.0)
 
@@ -43,11 +43,6 @@ ABOVE_10 = Line((0.0, 10.0), (1.0, 0.0))
 BELOW_MINUS_10 = Line((0.0, -10.0), (-1.0, 0.0))
 LEFT_OF_20 = Line((20.0, 0.0), (0.0, 1.0))
 LEFT_OF_0 = Line((0.0, 0.0), (0.0, 1.0))
-
-
-def observe(state: RobotState, goal: tuple[float, float], points: np.ndarray = NO_POINTS,
-            tracks: tuple[Track, ...] = ()) -> Observation:
-    return Observation(state, goal, (130.0, 130.0, 130.0), tracks, np.asarray(points, dtype=float))
 
 
 def act(obs: Observation, params: dict | None = None):
@@ -205,12 +200,7 @@ def test_goal_is_approached_and_landed_on():
 
 
 def test_same_observation_gives_the_same_action_bits():
-    rng = np.random.default_rng(11)
-    angles = rng.uniform(0.0, 2 * np.pi, 300)
-    ranges = rng.uniform(45.0, 250.0, 300)
-    points = np.column_stack([ranges * np.cos(angles), ranges * np.sin(angles)])
-    tracks = tuple(Track(i, *rng.uniform(-200, 200, 2), *rng.uniform(-30, 30, 2), 20.0) for i in range(5))
-    obs = observe(RobotState(10.0, -5.0, 33.0, 25.0), (400.0, 250.0), points, tracks)
+    obs = random_observation(11)
     policy = make_policy("orca", {}, CTX)
     policy.reset(1)
     first = policy.act(obs)

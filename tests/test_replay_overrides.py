@@ -16,6 +16,7 @@ import pytest
 from analysis.episode_log import load_episode
 from fuzzynav.navigator import Navigator
 from runners import replay
+from tests.conftest import one_error_line
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
 VERIFY_REFUSAL = ("error: --verify: re-decides with the recorded config; it cannot be combined with "
@@ -26,12 +27,6 @@ VERIFY_REFUSAL = ("error: --verify: re-decides with the recorded config; it cann
 def good(recorded_logs) -> Path:  # noqa: F811 - the fixture imported above
     """A complete paper_fig5 log whose plans a changed planner decides differently."""
     return recorded_logs[0]
-
-
-def one_error_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
-    return lines[0]
 
 
 def run_replay(capsys, tmp_path: Path, log: Path, *args: str) -> tuple[int, str, str]:

@@ -26,7 +26,7 @@ from fuzzynav.vfh import (
     vfh_command,
     vfh_speed,
 )
-from tests.test_apf import CTX, drive, wall
+from tests.policy_scenes import CTX, drive, wall
 
 CFG = VfhConfig()
 NO_POINTS = np.zeros((0, 2))
