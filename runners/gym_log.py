@@ -1,0 +1,103 @@
+"""``RecordMcap``: a Gymnasium wrapper writing one MCAP log per episode of :mod:`fuzzynav.gym_env`.
+
+    from runners.gym_log import RecordMcap
+    env = RecordMcap(gymnasium.make("fuzzynav/Navigation-v0", scenario="crossing_right"), "logs/")
+
+Each episode's log has the name, writer (:class:`runners.mcap_log.EpisodeLogWriter`), metadata and ending
+messages that ``python -m runners.run`` writes for the same configuration and seed; driven by the configured
+policy through ``step_policy_action``, its message content is the same (``runners.dataset.content_digests``).
+An episode left unfinished by ``reset`` or ``close`` is finished as ``interrupted``; an exception inside a step
+finishes it as ``error`` (with the traceback in ``/log``) and propagates.
+
+One log can be open at a time per process (the writer's rule): wrap one environment per process, e.g. in a
+``gymnasium.vector.AsyncVectorEnv``, not several in a ``SyncVectorEnv``.
+"""
+
+from __future__ import annotations
+
+import traceback
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+
+from fuzzynav.gym_env import NavigationEnv
+from fuzzynav.policy import Action
+from runners.mcap_log import EpisodeLogWriter, run_metadata
+from runners.run import config_hash, log_path, scenario_yaml
+
+
+def outcome_reason(outcome: str, max_steps: int) -> str:
+    """The ``reason`` ``runners.run.run_episode`` logs with an outcome (part of the logged messages)."""
+    return {"goal": "within goal tolerance", "collision": "contact with an obstacle",
+            "timeout": f"max_steps {max_steps} reached"}.get(outcome, "")
+
+
+class RecordMcap(gymnasium.Wrapper):
+    """Writes each episode of the wrapped :class:`fuzzynav.gym_env.NavigationEnv` to ``out_dir`` (created if
+    needed) as ``runners.run`` names it (``<scenario>__…__s<seed>.mcap``); ``paths`` lists the logs written."""
+
+    def __init__(self, env: gymnasium.Env, out_dir: str | Path) -> None:
+        super().__init__(env)
+        if not isinstance(env.unwrapped, NavigationEnv):
+            raise ValueError(f"env: RecordMcap records fuzzynav/Navigation-v0, got {type(env.unwrapped).__name__}")
+        self.out_dir = Path(out_dir).absolute()
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.paths: list[Path] = []
+        self._log: EpisodeLogWriter | None = None
+
+    @property
+    def nav(self) -> NavigationEnv:
+        return self.env.unwrapped  # type: ignore[return-value]
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        self._finish("interrupted", "reset before the episode ended")
+        obs, info = self.env.reset(seed=seed, options=options)
+        nav = self.nav
+        episode, cfg, run = nav.episode, nav.episode_config, nav.run
+        seed_ = episode.seed
+        scenario = episode.scenario
+        config_yaml = run.config_yaml(seed_)
+        meta = run_metadata(config_yaml, seed_, scenario.name, {
+            "policy": cfg.policy, "strategy": cfg.planner.strategy, "h_wait": cfg.planner.h_wait,
+            "controller": nav.evaluator.spec.name, "perception": cfg.perception.mode,
+            "scenario_yaml": scenario_yaml(scenario), "config_hash": config_hash(config_yaml, seed_)})
+        path = log_path(self.out_dir, scenario.name, run.plain, seed_)
+        self._log = EpisodeLogWriter(path, episode, meta, cfg.planner.strategy, cfg.perception.mode)
+        self.paths.append(path)
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        return self._logged(lambda: self.env.step(action))
+
+    def step_policy_action(self, action: Action, policy_name: str) -> tuple[Any, float, bool, bool, dict]:
+        """:meth:`fuzzynav.gym_env.NavigationEnv.step_policy_action`, logged."""
+        inner = self.env.get_wrapper_attr("step_policy_action")
+        return self._logged(lambda: inner(action, policy_name))
+
+    def close(self) -> None:
+        self._finish("interrupted", "environment closed before the episode ended")
+        super().close()
+
+    def _logged(self, step) -> tuple[Any, float, bool, bool, dict]:
+        before = self.nav.last_record
+        try:
+            result = step()
+        except ValueError:  # a bad action: nothing was stepped, the episode goes on
+            raise
+        except Exception as err:
+            if self._log is not None and self.nav.last_record is before:
+                self._log.log(self._log._last_time, 4, traceback.format_exc())
+                self._finish("error", f"{type(err).__name__}: {err}")
+            raise
+        if self._log is not None:
+            self._log.step(self.nav.last_record)
+            episode = self.nav.episode
+            if episode.done:
+                self._finish(episode.outcome, outcome_reason(episode.outcome, episode.scenario.max_steps))
+        return result
+
+    def _finish(self, outcome: str, reason: str) -> None:
+        log, self._log = self._log, None
+        if log is not None:
+            log.finish(outcome, reason)
