@@ -6,6 +6,7 @@ what is wrong. Units are the caller's (the log checks use cm, cm/s, degrees, s).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from itertools import chain
 from operator import itemgetter
@@ -75,6 +76,14 @@ def one_of(*values: str) -> Check:
     def check(v: Any) -> None:
         if type(v) is not str or v not in allowed:
             raise CheckError("", f"{v!r} is not one of {', '.join(values)}")
+    return check
+
+
+def matching(pattern: re.Pattern[str], what: str) -> Check:
+    """A string the whole of which matches ``pattern`` (``what`` says what it should be)."""
+    def check(v: Any) -> None:
+        if type(v) is not str or not pattern.fullmatch(v):
+            raise CheckError("", f"{str(v)[:40]!r} is not {what}")
     return check
 
 

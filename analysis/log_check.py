@@ -40,6 +40,7 @@ from analysis.json_checks import (
     boolean_rows,
     integer,
     kind_of,
+    matching,
     nullable,
     number,
     numbers,
@@ -50,7 +51,8 @@ from analysis.json_checks import (
     string,
 )
 from fuzzynav import limits
-from fuzzynav.episode_identity import config_hash  # the hash runners.run records: one definition
+from fuzzynav.episode_identity import config_hash
+from fuzzynav.policy import DEFAULT_POLICY  # the hash runners.run records: one definition
 
 __all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash"]
 
@@ -64,7 +66,8 @@ STRATEGIES = ("auto", "wait", "detour", "none")
 PERCEPTIONS = ("laser", "ground_truth")
 OUTCOMES = ("goal", "collision", "timeout", "error", "interrupted")
 FINISHED = ("goal", "collision", "timeout")  # outcomes whose log must hold every step
-MODES = ("direct", "fuzzy", "wait", "detour", "evade", "stop")
+MODE = re.compile(r"[a-z][a-z0-9_]{0,31}")  # a plan's (wait, detour, evade, stop) or the policy's own mode
+POLICY = re.compile(r"[A-Za-z_][A-Za-z0-9_.]{0,199}")  # a registered name or the import path of a _target_
 PLAN_STRATEGIES = ("wait", "detour", "evade", "stop")
 TIME_TOLERANCE_NS = 1000  # log times are round(step * dt * 1e9): 1 µs of slack for the float product
 YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -115,7 +118,8 @@ MESSAGE_CHECKS: dict[str, Check] = {
     "/obstacles/truth": obj(step=STEP, obstacles=array(obj(id=string, x_cm=CM, y_cm=CM, next_x_cm=CM, next_y_cm=CM,
                                                            radius_cm=POSITIVE_CM))),
     "/planner/decision": obj(
-        step=STEP, mode=one_of(*MODES), new_plan=boolean, left_cm=READING, front_cm=READING, right_cm=READING,
+        step=STEP, mode=matching(MODE, "a mode such as fuzzy or wait"), new_plan=boolean, left_cm=READING,
+        front_cm=READING, right_cm=READING,
         angle_deg=number(0.0, 180.0), dtheta_deg=number(), v_cm_s=READING, strategy=string,
         planning=nullable(obj(strategy=one_of(*PLAN_STRATEGIES), tc=STEP, tS=STEP, tG=STEP, wait_time=STEP,
                               h_wait=STEP, reason=string)),
@@ -176,7 +180,14 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
     for key, allowed in (("strategy", STRATEGIES), ("perception", PERCEPTIONS)):
         if meta[key] not in allowed:
             raise CheckError(key, f"{meta[key][:40]!r} is not one of {', '.join(allowed)}")
+    if "policy" in meta and not POLICY.fullmatch(meta["policy"]):  # logs before policies existed have none
+        raise CheckError("policy", f"{meta['policy'][:80]!r} is not a policy name or import path")
     config = _parse_config(meta.get("config", ""))
+    navigator = config.get("navigator")
+    if "policy" in meta and isinstance(navigator, dict):
+        named = navigator.get("policy", navigator.get("_target_", DEFAULT_POLICY))
+        if str(named) != meta["policy"]:
+            raise CheckError("config navigator.policy", f"{named!r} disagrees with policy {meta['policy']!r}")
     for section, key, meta_key in _ALIASES:
         node = config.get(section)
         if isinstance(node, dict) and key in node and str(node[key]) != meta[meta_key]:

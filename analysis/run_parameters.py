@@ -3,7 +3,7 @@
 Every analysis that pools episodes (the report, the sweep's summary) groups them by **every run parameter whose
 resolved value differs among the logs analysed**, so that two settings are never averaged together silently.
 A log's parameters come from its ``fuzzynav.run`` metadata (:func:`parameters_of`): the always-shown ones
-(:data:`SHOWN`: scenario, strategy, h_wait, controller, perception) plus the resolved Hydra config flattened to
+(:data:`SHOWN`: scenario, policy, strategy, h_wait, controller, perception) plus the resolved Hydra config flattened to
 dotted keys (``planner.safety_margin_cm``), without bookkeeping (:data:`BOOKKEEPING`: which seeds, how many
 episodes, resume; Hydra's own settings and output directories are not in the logged config).
 
@@ -12,12 +12,14 @@ code are pooled and the difference is reported as a warning (a sweep resumed aft
 still pool); ``split_provenance=True`` makes those keys group dimensions as well.
 
 Labels: ``auto(h=2) · safety_margin_cm=5`` — the strategy (with h_wait where it is read, or where it differs),
-then each differing parameter by its shortest unambiguous key suffix. Differing ``scenario.*`` keys (a
-generated scenario's ``scenario.params.*``, an edited scenario file under the same name) belong to the
-scenario's label instead (``random_mixed · n_dynamic=5``): those episodes are different worlds and are never
-paired. ``scenario.*`` and ``controller.*`` keys that only differ together with the scenario or controller
-name are implied by the name and not repeated. A key missing from some logs (added to the config later) differs
-and shows as ``unset``; a log with no readable config differs only in ``config=none`` (its keys are unknown).
+then each differing parameter by its shortest unambiguous key suffix; where policies differ the policy leads
+(``dwa · none``) and groups are ordered by policy (the paper's ``fuzzy`` first, ``direct`` last). Differing
+``scenario.*`` keys (a generated scenario's ``scenario.params.*``, an edited scenario file under the same name)
+belong to the scenario's label instead (``random_mixed · n_dynamic=5``): those episodes are different worlds and
+are never paired. ``scenario.*`` and ``controller.*`` keys that only differ together with the scenario or
+controller name are implied by the name and not repeated. A key missing from some logs (added to the config
+later) differs and shows as ``unset``; a log with no readable config differs only in ``config=none`` (its keys
+are unknown).
 """
 
 from __future__ import annotations
@@ -32,18 +34,25 @@ from typing import Any
 
 import yaml
 
-EPISODE_PARAMETERS = ("scenario", "strategy", "h_wait", "seed", "controller", "perception")
+from fuzzynav.policies import BUILTIN
+from fuzzynav.policy import DEFAULT_POLICY  # a navigator section naming no policy
+
+EPISODE_PARAMETERS = ("scenario", "policy", "strategy", "h_wait", "seed", "controller", "perception")
 """Columns of every per-episode table, in this order (from the metadata; ``seed`` says which episode)."""
-SHOWN = ("scenario", "strategy", "h_wait", "controller", "perception")
+SHOWN = ("scenario", "policy", "strategy", "h_wait", "controller", "perception")
 """Run parameters every table shows, whether they differ or not."""
 BOOKKEEPING = frozenset({"seed", "episodes", "resume"})
 """Top-level config keys that choose which episodes run, not how: never group dimensions."""
 ALIASES = {"scenario.name": "scenario", "planner.strategy": "strategy", "planner.h_wait": "h_wait",
-           "controller.name": "controller", "perception.mode": "perception"}
+           "controller.name": "controller", "perception.mode": "perception", "navigator.policy": "policy",
+           "navigator._target_": "policy"}
 """Config keys that repeat a shown parameter (the metadata's value is used)."""
-NAMED_SUBTREES = {"scenario.": "scenario", "controller.": "controller"}
-"""Config subtrees described by a name: their keys are dimensions only where they differ under one name."""
+NAMED_SUBTREES = {"scenario.": "scenario", "controller.": "controller", "navigator.": "policy"}
+"""Config subtrees described by a name: their keys are dimensions only where they differ under one name (DWA's
+weights are not a dimension of a comparison of DWA with APF, but are of two DWA runs that differ in them)."""
+
 STRATEGY_ORDER = ("auto", "wait", "detour", "none")
+POLICY_ORDER = tuple(policy.name for policy in BUILTIN)  # the paper's first, then the baselines, direct last
 CONFIG = "config"  # "logged", or "none" for a log without a readable config: its config keys are unknown, not unset
 UNSET = "unset"  # label of a parameter a log does not have (e.g. a key added to the config later)
 SEP = " · "
@@ -100,6 +109,7 @@ def parameters_of(meta: Mapping[str, str], config: Mapping[str, Any] | None = No
     the shown parameters, provenance and ``config=none``."""
     params: dict[str, Any] = {key: meta.get(key) for key in SHOWN}
     params["h_wait"] = _int(params["h_wait"])
+    params["policy"] = params["policy"] or DEFAULT_POLICY  # logs written before policies could be chosen
     if config is None:
         try:
             config = yaml.load(meta.get("config") or "", Loader=_YAML_LOADER)
@@ -227,7 +237,11 @@ class Grouping:
         return SEP.join(self._parts(run, self.variant_keys))
 
     def variant_label(self, run: Mapping[str, Any]) -> str:
-        """The group's label within its scenario: ``auto(h=2) · safety_margin_cm=5``."""
+        """The group's label within its scenario: ``auto(h=2) · safety_margin_cm=5``; led by the policy where
+        policies differ (``dwa · auto(h=2)``)."""
+        if "policy" in self.variant_keys:
+            rest = [k for k in self.variant_keys if k != "policy"]
+            return SEP.join([format_value(run.get("policy")), self.strategy_label(run), *self._parts(run, rest)])
         return SEP.join([self.strategy_label(run), *self._parts(run, self.variant_keys)])
 
     def scenario_label(self, run: Mapping[str, Any]) -> str:
@@ -239,7 +253,10 @@ class Grouping:
         other parameters (numbers by value)."""
         strategy = str(run.get("strategy"))
         rank = STRATEGY_ORDER.index(strategy) if strategy in STRATEGY_ORDER else len(STRATEGY_ORDER)
-        return (str(run.get("scenario")), *(_order(run.get(k, _MISSING)) for k in self.scenario_keys),
+        policy = str(run.get("policy"))
+        policy_rank = ((POLICY_ORDER.index(policy) if policy in POLICY_ORDER else len(POLICY_ORDER), policy)
+                       if "policy" in self.variant_keys else ())
+        return (str(run.get("scenario")), *(_order(run.get(k, _MISSING)) for k in self.scenario_keys), *policy_rank,
                 rank, strategy, _order(run.get("h_wait")), *(_order(run.get(k, _MISSING)) for k in self.variant_keys))
 
     def columns(self, run: Mapping[str, Any]) -> dict[str, Any]:

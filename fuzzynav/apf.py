@@ -44,8 +44,7 @@ import numpy as np
 
 from fuzzynav.config import from_dict
 from fuzzynav.geometry import angle_difference_deg
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Action, PolicyContext, register_policy
+from fuzzynav.policy import Action, Observation, PolicyContext, register_policy
 from fuzzynav.portable_math import atan2_deg, dist, hypot, norm2, sin_cos_deg
 from fuzzynav.tracking import Track
 
@@ -145,6 +144,7 @@ class ApfPolicy:
     """Artificial potential field (see the module docstring)."""
 
     name = "apf"
+    config_class = ApfConfig
 
     def __init__(self, params: Mapping[str, Any], context: PolicyContext) -> None:
         self.config: ApfConfig = from_dict(ApfConfig, params, "navigator")

@@ -16,11 +16,14 @@ from typing import Any
 from fuzzynav import limits
 from fuzzynav.checks import check_key, check_number, field_name, kind_of, show
 from fuzzynav.episode import EpisodeConfig
+from fuzzynav.policy import policy_params, split_navigator_section
 
 
 def from_dict(cls: type, data: Mapping[str, Any] | None, path: str = "") -> Any:
     """Instantiate dataclass ``cls`` from ``data`` recursively (lists become tuples)."""
     data = {} if data is None else data
+    if isinstance(data, cls):  # already checked (a policy is given the config its configuration was read into)
+        return data
     if not isinstance(data, Mapping):
         raise ValueError(f"{path or cls.__name__}: expected a mapping, got {kind_of(data)}")
     hints = typing.get_type_hints(cls)
@@ -84,5 +87,20 @@ def _check_range(value: int | float, where: str) -> None:
 
 
 def episode_config_from_dict(data: Mapping[str, Any] | None) -> EpisodeConfig:
-    """An :class:`EpisodeConfig` from plain data (missing keys take their defaults)."""
-    return from_dict(EpisodeConfig, data)
+    """An :class:`EpisodeConfig` from plain data (missing keys take their defaults). The ``navigator`` section
+    names the policy (``policy``, or ``_target_`` for one defined outside fuzzynav; default ``fuzzy``) and holds
+    its parameters, checked by the policy's ``config_class``."""
+    data = {} if data is None else data
+    if not isinstance(data, Mapping) or "navigator" not in data:
+        return from_dict(EpisodeConfig, data)
+    if "policy" in data:
+        raise ValueError("policy: unknown key (the policy is chosen by navigator.policy)")
+    section = data["navigator"]
+    if section is not None and not isinstance(section, Mapping):
+        raise ValueError(f"navigator: expected a mapping, got {kind_of(section)}")
+    for key in section or {}:
+        check_key(key, "navigator")
+    name, params = split_navigator_section(section)
+    rest = {k: v for k, v in data.items() if k != "navigator"}
+    config = from_dict(EpisodeConfig, rest)
+    return dataclasses.replace(config, navigator=policy_params(name, params), policy=name)

@@ -13,8 +13,7 @@ from typing import Any
 
 from fuzzynav.config import from_dict
 from fuzzynav.geometry import wrap_180
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Action, PolicyContext, register_policy
+from fuzzynav.policy import Action, Observation, PolicyContext, register_policy
 from fuzzynav.portable_math import bearing_deg, dist
 
 
@@ -43,6 +42,7 @@ class DirectPolicy:
     """Straight to the goal (see the module docstring)."""
 
     name = "direct"
+    config_class = DirectConfig
 
     def __init__(self, params: Mapping[str, Any], context: PolicyContext) -> None:
         self.config: DirectConfig = from_dict(DirectConfig, params, "navigator")

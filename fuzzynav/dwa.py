@@ -57,8 +57,7 @@ import numpy as np
 from fuzzynav.config import from_dict
 from fuzzynav.geometry import angle_difference_deg, closest_approach_fraction, swept_distance, wrap_180
 from fuzzynav.kinematics import RobotLimits, RobotState
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Action, PolicyContext, register_policy
+from fuzzynav.policy import Action, Observation, PolicyContext, register_policy
 from fuzzynav.portable_math import atan2_deg_array, bearing_deg, dist, norm2, sin_cos_deg_array
 from fuzzynav.tracking import Track
 
@@ -331,6 +330,7 @@ class DWAPolicy:
     """The Dynamic Window Approach (see the module docstring)."""
 
     name = "dwa"
+    config_class = DWAConfig
 
     def __init__(self, params: Mapping[str, Any], context: PolicyContext) -> None:
         self.config: DWAConfig = from_dict(DWAConfig, params, "navigator")

@@ -16,6 +16,7 @@ import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -27,10 +28,11 @@ from fuzzynav.fuzzy_spec import ControllerSpec
 from fuzzynav.geometry import swept_distance, wrap_360
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.laser import LaserConfig, LaserScan
-from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation
+from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation, build_navigator
 from fuzzynav.obstacle_motion import ObstacleMotion
 from fuzzynav.perception import PerceptionConfig, perceive
 from fuzzynav.planner import PlannerConfig
+from fuzzynav.policy import Policy
 from fuzzynav.portable_random import NormalStream
 from fuzzynav.scenario import Scenario
 from fuzzynav.sonar import Sonar, SonarConfig
@@ -42,7 +44,9 @@ OUTCOMES = ("goal", "collision", "timeout")
 
 @dataclass(frozen=True)
 class EpisodeConfig:
-    """Everything but the scenario and the controller definition. ``dt`` in seconds."""
+    """Everything but the scenario and the controller definition. ``dt`` in seconds. ``policy`` names the
+    navigation policy (registered name or import path, :mod:`fuzzynav.policy`) and ``navigator`` holds its
+    parameters (for ``fuzzy``, a :class:`NavigatorConfig`)."""
 
     dt: float = 1.0
     robot: RobotLimits = field(default_factory=RobotLimits)
@@ -50,8 +54,9 @@ class EpisodeConfig:
     laser: LaserConfig = field(default_factory=LaserConfig)
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
-    navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
+    navigator: Any = field(default_factory=NavigatorConfig)
     terminate_on_collision: bool = True
+    policy: str = "fuzzy"
 
     def __post_init__(self) -> None:
         if not (self.dt > 0 and math.isfinite(self.dt)):
@@ -66,8 +71,9 @@ class EpisodeConfig:
         table predicted, and the plan's collision check would be about a motion that never happens."""
         lo, hi = self.robot.v_min, self.robot.v_max
         speeds = [(f"planner.successor_speeds[{i}]", v) for i, v in enumerate(self.planner.successor_speeds)]
-        speeds += [("planner.cruise_speed", self.planner.cruise_speed),
-                   ("navigator.direct_speed_cm_s", self.navigator.direct_speed_cm_s)]
+        speeds += [("planner.cruise_speed", self.planner.cruise_speed)]
+        if isinstance(self.navigator, NavigatorConfig):
+            speeds += [("navigator.direct_speed_cm_s", self.navigator.direct_speed_cm_s)]
         for field_, v in speeds:
             if not lo <= v <= hi:
                 raise ValueError(f"{field_}: {v:g} cm/s is outside the robot's speed range [{lo:g}, {hi:g}] cm/s "
@@ -109,7 +115,9 @@ class Episode:
     """One run of a scenario (see the module docstring)."""
 
     def __init__(self, scenario: Scenario, controller: ControllerSpec | FastEvaluator,
-                 config: EpisodeConfig | None = None, seed: int = 0) -> None:
+                 config: EpisodeConfig | None = None, seed: int = 0, policy: Policy | None = None) -> None:
+        """``policy``: drive with this policy object instead of the one ``config.policy`` names (the Gymnasium
+        environment puts its agent's actions there); the wait/detour layer runs on top of it either way."""
         self.scenario = scenario
         self.config = config or EpisodeConfig()
         self.seed = seed
@@ -119,8 +127,11 @@ class Episode:
         evaluator = controller if isinstance(controller, FastEvaluator) else FastEvaluator(controller)
         r = scenario.robot.radius
         self.sonar = Sonar(self.config.sonar, r)
-        self.navigator = Navigator(evaluator, self.config.planner, self.config.navigator, self.config.robot, r,
-                                   self.config.dt, self.config.sonar.front)
+        if policy is None:
+            self.navigator = build_navigator(self.config.policy, self.config.navigator, self.config.planner,
+                                             self.config.robot, r, self.config.dt, self.config.sonar.front, evaluator)
+        else:
+            self.navigator = Navigator(policy, self.config.planner, self.config.robot, r, self.config.dt)
         self.reset()
 
     def reset(self) -> None:
@@ -133,6 +144,7 @@ class Episode:
         self._noise = NormalStream(np.random.default_rng(self.seed))
         self._tracker = TrackerState()
         self._plan: ActivePlan | None = None
+        self.navigator.reset(self.seed)
         self._touching: set[str] = set()
 
     @property

@@ -71,13 +71,19 @@ class LaserScan:
         return self.xy[self.returned]
 
 
+def beam_directions(config: LaserConfig, heading_deg: float) -> np.ndarray:
+    """World-frame unit vectors (N, 2) of the beams of a robot heading ``heading_deg`` (degrees): the relative
+    directions rotated by the heading (one sin/cos per frame, not one per beam). Replay rebuilds a frame's
+    points with this same function, so that they are the episode's to the last bit."""
+    s, c = sin_cos_deg(heading_deg)
+    rel_sin, rel_cos = config.relative_directions
+    return np.stack([c * rel_cos - s * rel_sin, s * rel_cos + c * rel_sin], axis=1)
+
+
 def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: np.ndarray,
          static_circles: np.ndarray, discs: np.ndarray, noise: NormalStream | None = None) -> LaserScan:
     """Cast all beams from (x, y) cm against the static world and moving discs (K, 3: x, y, r in cm)."""
-    # beam directions: the relative ones rotated by the heading (one sin/cos per frame, not one per beam)
-    s, c = sin_cos_deg(heading_deg)
-    rel_sin, rel_cos = config.relative_directions
-    directions = np.stack([c * rel_cos - s * rel_sin, s * rel_cos + c * rel_sin], axis=1)
+    directions = beam_directions(config, heading_deg)
     circles = np.vstack([static_circles.reshape(-1, 3), discs.reshape(-1, 3)])
     ranges, hit = cast_rays(np.array([x, y]), directions, segments, circles, config.range_cm)
     n_static = len(segments) + len(static_circles)

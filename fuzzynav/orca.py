@@ -78,8 +78,7 @@ import numpy as np
 from fuzzynav.config import from_dict
 from fuzzynav.geometry import wrap_180
 from fuzzynav.kinematics import RobotLimits
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Action, PolicyContext, register_policy
+from fuzzynav.policy import Action, Observation, PolicyContext, register_policy
 from fuzzynav.portable_math import atan2_deg, bearing_deg, dist, hypot, norm2, sin_cos_deg
 from fuzzynav.tracking import Track
 
@@ -439,6 +438,7 @@ class OrcaPolicy:
     """Optimal Reciprocal Collision Avoidance for the robot (see the module docstring)."""
 
     name = "orca"
+    config_class = OrcaConfig
 
     def __init__(self, params: Mapping[str, Any], context: PolicyContext) -> None:
         self.config: OrcaConfig = from_dict(OrcaConfig, params, "navigator")

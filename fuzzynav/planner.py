@@ -278,6 +278,12 @@ def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, headin
             bad |= np.abs(angle_difference_deg(heads, head)) > max_turn_deg + 1e-9
         return succ, heads, np.where(bad, np.inf, f), low
 
+    standing = all(dist(p, tpt.robot[0]) == 0.0 for p in prefix)
+    if standing and dist(start, r_goal) <= config.detour_tolerance_cm:
+        # rG is where the robot stands (a policy commanding v = 0 is predicted standing): the "detour" would be no
+        # step at all (a plan with nothing to follow) or a wait labelled detour; the fallbacks decide instead
+        # (wait in place if that is safe, evade, stop)
+        return None, t_s1, 0.0, "rG is where the robot stands: no detour to make"
     search = _greedy if config.detour_search == "greedy" else _astar
     path, low, why = search(expand, start, heading, t_s1, r_goal, config)
     if path is None:

@@ -23,18 +23,44 @@ Rules for a policy, so that logs stay reproducible and comparable:
 - portable numerics: no BLAS/LAPACK (no ``@``, ``np.dot``, ``np.linalg``) and no CPU-dependent reductions
   (use :mod:`fuzzynav.portable_math`), so that a log is the same on every CPU;
 - ``fields`` are the policy's own values for the log (numbers and short strings), e.g. DWA's best score.
+
+Choosing a policy in a run (``conf/navigator/<name>.yaml``): ``navigator.policy`` names a registered policy
+(``fuzzy``, ``dwa``, ``apf``, ``vfh``, ``orca``, ``direct``), and the other keys of the ``navigator`` section are
+its parameters. A policy defined outside fuzzynav is named by ``navigator._target_`` instead, the import path
+of its factory (``my_package.my_module.MyPolicy``): it is called as ``MyPolicy(params, context)`` like the
+registered ones, and may set ``config_class`` (a frozen dataclass) to have its parameters checked when the
+configuration is read rather than when the first episode starts.
 """
 
 from __future__ import annotations
 
+import importlib
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from types import MappingProxyType
+from typing import Any, Protocol, runtime_checkable
 
-from fuzzynav.kinematics import RobotLimits
+import numpy as np
 
-if TYPE_CHECKING:
-    from fuzzynav.navigator import Observation
+from fuzzynav.kinematics import RobotLimits, RobotState
+from fuzzynav.tracking import Track
+
+#: the policy of a run when its ``navigator`` section names none: the paper's fuzzy controller
+DEFAULT_POLICY = "fuzzy"
+_IMPORT_PATH = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What the robot knows at one step: its own state (odometry), the goal (cm), sonar readings
+    (left, front, right; cm), perceived moving obstacles and static laser points (P, 2; cm)."""
+
+    state: RobotState
+    goal: tuple[float, float]
+    sonar: tuple[float, float, float]
+    tracks: tuple[Track, ...]
+    static_points: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -58,6 +84,9 @@ class PolicyContext:
     robot_radius: float
     dt: float = 1.0
     front_sector_deg: tuple[float, float] = (-30.0, 30.0)
+    controller: Any = None
+    """The run's fuzzy controller (:class:`fuzzynav.fuzzy_fast.FastEvaluator`, the ``controller`` group), for
+    policies that use one; None where none is configured."""
 
 
 @runtime_checkable
@@ -80,7 +109,8 @@ POLICIES: dict[str, PolicyFactory] = {}
 
 
 def register_policy(name: str) -> Callable[[PolicyFactory], PolicyFactory]:
-    """Class or function decorator: make a policy available as ``name`` (a name is registered once)."""
+    """Class or function decorator: make a policy available as ``name`` (a name is registered once). A factory
+    may carry ``config_class``, the frozen dataclass of its parameters (checked when a configuration is read)."""
 
     def add(factory: PolicyFactory) -> PolicyFactory:
         if name in POLICIES and POLICIES[name] is not factory:
@@ -91,9 +121,86 @@ def register_policy(name: str) -> Callable[[PolicyFactory], PolicyFactory]:
     return add
 
 
-def make_policy(name: str, params: Mapping[str, Any], context: PolicyContext) -> Policy:
-    """The registered policy ``name`` built with ``params`` (its YAML section) for a robot (``context``);
-    ``ValueError`` naming the policy for an unknown name or a bad parameter."""
-    if name not in POLICIES:
-        raise ValueError(f"policy: unknown policy {name!r} (known: {', '.join(sorted(POLICIES)) or 'none'})")
-    return POLICIES[name](params, context)
+def _builtin_policies() -> None:
+    """Register fuzzynav's own policies (imported here, on first use, so that importing this seam imports
+    none of them)."""
+    importlib.import_module("fuzzynav.policies")
+
+
+def policy_factory(name: str) -> PolicyFactory:
+    """The factory of policy ``name``: a registered name, or the import path of a factory defined outside
+    fuzzynav (``package.module.Factory``); ``ValueError`` naming ``navigator.policy`` / ``navigator._target_``."""
+    _builtin_policies()
+    if name in POLICIES:
+        return POLICIES[name]
+    if not _IMPORT_PATH.fullmatch(name):
+        raise ValueError(f"navigator.policy: unknown policy {name[:60]!r} (known: {', '.join(sorted(POLICIES))}; "
+                         "a policy of your own: navigator._target_=package.module.Factory)")
+    module_name, _, attr = name.rpartition(".")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as err:  # ModuleNotFoundError included; the module's own import errors too
+        raise ValueError(f"navigator._target_: cannot import {module_name!r} ({err}); is its directory on "
+                         "PYTHONPATH?") from None
+    except Exception as err:  # user code: any failure of its import is this field's error
+        raise ValueError(f"navigator._target_: importing {module_name!r} failed: {type(err).__name__}: "
+                         f"{str(err)[:200]}") from None
+    factory = getattr(module, attr, None)
+    if not callable(factory):
+        raise ValueError(f"navigator._target_: {module_name!r} has no callable {attr!r}")
+    return factory
+
+
+def split_navigator_section(data: Mapping[str, Any] | None) -> tuple[str, dict[str, Any]]:
+    """(policy name or import path, parameters) of a ``navigator`` config section: ``policy`` or ``_target_``
+    (not both; neither = :data:`DEFAULT_POLICY`), the other keys are the policy's parameters."""
+    params = dict(data or {})
+    name = params.pop("policy", None)
+    target = params.pop("_target_", None)
+    if name is not None and target is not None:
+        raise ValueError("navigator._target_: give either navigator.policy (a registered policy) or "
+                         "navigator._target_ (your own), not both")
+    if target is not None:
+        if target == "???":  # Hydra's mark of a mandatory value (conf/navigator/custom.yaml)
+            raise ValueError("navigator._target_: not given (navigator=custom needs "
+                             "navigator._target_=package.module.Factory)")
+        if not isinstance(target, str) or not _IMPORT_PATH.fullmatch(target):
+            raise ValueError(f"navigator._target_: expected an import path such as my_package.MyPolicy, got "
+                             f"{str(target)[:60]!r}")
+        return target, params
+    if name is None:
+        return DEFAULT_POLICY, params
+    if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_]{0,31}", name):
+        raise ValueError(f"navigator.policy: expected a policy name such as dwa, got {str(name)[:60]!r}")
+    return name, params
+
+
+def policy_params(name: str, params: Mapping[str, Any]) -> Any:
+    """The parameters of policy ``name`` checked and frozen: an instance of the factory's ``config_class``
+    where it has one (an unknown key or a bad value raises ``ValueError`` naming ``navigator.<key>``), else a
+    read-only mapping."""
+    factory = policy_factory(name)
+    config_class = getattr(factory, "config_class", None)
+    if config_class is None:
+        return MappingProxyType(dict(params))
+    from fuzzynav.config import from_dict  # fuzzynav.config imports the episode, which imports this module
+
+    return from_dict(config_class, params, "navigator")
+
+
+def make_policy(name: str, params: Any, context: PolicyContext) -> Policy:
+    """The policy ``name`` (registered, or an import path) built with ``params`` (its ``navigator`` section
+    without ``policy``, or the checked config from :func:`policy_params`) for a robot (``context``);
+    ``ValueError`` naming the field for an unknown name or a bad parameter."""
+    factory = policy_factory(name)
+    try:
+        policy = factory(params, context)
+    except ValueError:
+        raise
+    except Exception as err:  # a policy of the user's own: its failure is the config's error
+        raise ValueError(f"navigator: building policy {name!r} failed: {type(err).__name__}: "
+                         f"{str(err)[:200]}") from None
+    if not isinstance(policy, Policy):
+        raise ValueError(f"navigator: {name!r} built {type(policy).__name__}, which is not a policy (it needs "
+                         "name, reset(seed) and act(observation))")
+    return policy

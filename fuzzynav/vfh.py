@@ -46,8 +46,7 @@ import numpy as np
 
 from fuzzynav.config import from_dict
 from fuzzynav.geometry import angle_difference_deg, wrap_360
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Action, PolicyContext, register_policy
+from fuzzynav.policy import Action, Observation, PolicyContext, register_policy
 from fuzzynav.portable_math import atan2_deg_array, bearing_deg, dist, norm2, sequential_sum, sin_cos_deg_array
 from fuzzynav.tracking import Track
 
@@ -265,6 +264,7 @@ class VfhPolicy:
     """Vector field histogram (see the module docstring)."""
 
     name = "vfh"
+    config_class = VfhConfig
 
     def __init__(self, params: Mapping[str, Any], context: PolicyContext) -> None:
         self.config: VfhConfig = from_dict(VfhConfig, params, "navigator")

@@ -111,7 +111,7 @@ def _scenario_and_config(name: str):
     from runners.run import episode_config, load_evaluator, load_scenario
 
     base = {"sensors": yaml.safe_load((CONF / "sensors" / "default.yaml").read_text()),
-            "navigator": yaml.safe_load((CONF / "navigator" / "default.yaml").read_text()),
+            "navigator": yaml.safe_load((CONF / "navigator" / "fuzzy_tpt.yaml").read_text()),
             "planner": yaml.safe_load((CONF / "planner" / "auto.yaml").read_text()),
             "scenario": yaml.safe_load((CONF / "scenario" / f"{name}.yaml").read_text()),
             "controller": yaml.safe_load((CONF / "controller" / "table1.yaml").read_text())}
@@ -128,6 +128,7 @@ def bench_simulation(episodes: int, reps: int) -> dict:
     from fuzzynav import laser as laser_mod
     from fuzzynav import navigator as nav_mod
     from fuzzynav.episode import Episode
+    from fuzzynav.fuzzy_policy import FuzzyPolicy
     from fuzzynav.sonar import Sonar
     from runners.mcap_log import EpisodeLogWriter
     from runners.run import run_episode
@@ -159,7 +160,7 @@ def bench_simulation(episodes: int, reps: int) -> dict:
     timers.wrap(nav_mod, "build_tpt", "tpt")
     timers.wrap(nav_mod, "find_new_path", "planner")
     timers.wrap(nav_mod.Navigator, "_still_valid", "planner")
-    timers.wrap(nav_mod.Navigator, "fuzzy", "controller")
+    timers.wrap(FuzzyPolicy, "fuzzy", "controller")
     timers.wrap(EpisodeLogWriter, "step", "logging")
     timers.wrap(Episode, "step", "_episode_step")
     try:

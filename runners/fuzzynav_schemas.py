@@ -116,9 +116,13 @@ def decision() -> dict:
         "reason": _s("Why this strategy"),
         "path_cm": _arr(_xy("Position, cm"), "Planned positions for steps 1..L after this step, cm")})
     return _stamped("fuzzynav.Decision", "The navigation decision of one step", {
-        "mode": {"type": "string", "enum": ["direct", "fuzzy", "wait", "detour", "evade", "stop"],
-                 "description": "direct: to the target; fuzzy: the fuzzy controller; wait/detour/evade/stop: "
-                                "following a plan"},
+        "mode": {"type": "string", "pattern": "^[a-z][a-z0-9_]{0,31}$",
+                 "description": "wait/detour/evade/stop: following a plan of the TPT layer; otherwise the "
+                                "policy's own mode (fuzzy policy: direct = to the target, fuzzy = the fuzzy "
+                                "controller; dwa, apf, vfh, orca, direct, ...)"},
+        "policy": _s("The navigation policy (navigator.policy, or the import path of navigator._target_)"),
+        "policy_fields": {"type": "object", "additionalProperties": {"type": ["number", "boolean", "string"]},
+                          "description": "The policy's own values of this step (e.g. DWA's scores)"},
         "new_plan": _b("A plan was made on this step"),
         "left_cm": _n("Sonar left input, cm"), "front_cm": _n("Sonar front input, cm"),
         "right_cm": _n("Sonar right input, cm"),

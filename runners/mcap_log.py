@@ -346,7 +346,9 @@ class EpisodeLogWriter:
         self._write("/laser", rec.time_s, {
             "timestamp": stamp, "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
             "start_angle": 0.0, "end_angle": 2 * math.pi * (n - 1) / n,
-            "ranges": np.round(scan.ranges / 100.0, 6), "intensities": returned.astype(np.int64)})
+            # full precision: replay --verify rebuilds the static returns from these ranges, and policies that
+            # read every return (VFH's histogram cells, ORCA's constraints) can turn on a micrometre
+            "ranges": scan.ranges / 100.0, "intensities": returned.astype(np.int64)})
 
     def _write_tpt(self, t: float, stamp: dict[str, int], k: int, tpt) -> None:
         self._write("/tpt", t, {
@@ -372,6 +374,7 @@ class EpisodeLogWriter:
             "timestamp": stamp, "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
             "front_cm": _r(front), "right_cm": _r(right), "angle_deg": _r(angle), "dtheta_deg": _r(d.dtheta_deg),
             "v_cm_s": _r(d.v_cm_s), "strategy": self.strategy, "planning": planning,
+            "policy": d.policy, "policy_fields": _policy_fields(d.fields),
             "compute_time_us": round(rec.compute_time_us, 1)})
 
     def _write_scene(self, t: float, stamp: dict[str, int], rec: StepRecord) -> None:
@@ -505,6 +508,12 @@ def _errno_of(text: str) -> int | None:
     """The operating system error code in one of the SDK's error texts (``... Os { code: 28, ...``)."""
     match = _OS_CODE.search(text)
     return int(match.group(1)) if match else None
+
+
+def _policy_fields(fields: Mapping[str, Any]) -> dict[str, Any]:
+    """A policy's own values of one step for the log, in key order: numbers as floats (like every logged number),
+    booleans and strings as they are (the navigator has checked them: ``fuzzynav.navigator.checked_action``)."""
+    return {key: value if isinstance(value, bool | str) else _r(float(value)) for key, value in sorted(fields.items())}
 
 
 def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:

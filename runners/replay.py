@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import math
 import os
 import stat
 import sys
@@ -38,7 +37,8 @@ from analysis.logs import LogError, file_kind
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState
-from fuzzynav.navigator import ActivePlan, Decision, Navigator, Observation
+from fuzzynav.laser import LaserConfig, beam_directions
+from fuzzynav.navigator import ActivePlan, Decision, Navigator, Observation, build_navigator
 from fuzzynav.tracking import Track
 from runners.run import ConfigFileError, episode_config
 
@@ -48,14 +48,15 @@ ALL_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision",
 TOLERANCE = 1e-2  # degrees and cm/s: the log rounds to 1e-4
 MAX_SNAPSHOTS = 100  # --steps: snapshots drawn in one PNG
 MAX_CONTROLLER_BYTES = 1 << 20  # --controller: a controller file is a few KB
-NAVIGATOR_SOURCES = {"evaluator": "controller", "planner": "planner", "navigator": "navigator", "limits": "robot",
-                     "dt": "dt", "front_sector_deg": "sensors.sonar.front"}
-"""Per argument of :class:`Navigator` (but ``robot_radius``, which the log's /robot/state gives), the part of the
-run config :func:`navigator_for` builds it from (a test keeps this in step with both). Nothing else reaches a
-replayed decision, so an override of any other key is refused."""
+NAVIGATOR_SOURCES = {"controller": "controller", "planner": "planner", "policy": "navigator", "params": "navigator",
+                     "limits": "robot", "dt": "dt", "front_sector_deg": "sensors.sonar.front"}
+"""Per argument of :func:`build_navigator` (but ``robot_radius``, which the log's /robot/state gives), the part
+of the run config :func:`navigator_for` builds it from (a test keeps this in step with both). Nothing else
+reaches a replayed decision, so an override of any other key is refused."""
 RECORDED_INPUT_SOURCES = ("sensors.sonar.front",)  # the sector the recorded front readings were taken over: the
 # navigator compares the goal with that reading, so another sector would misread the recorded input
-OVERRIDABLE = tuple(source for source in NAVIGATOR_SOURCES.values() if source not in RECORDED_INPUT_SOURCES)
+OVERRIDABLE = tuple(dict.fromkeys(source for source in NAVIGATOR_SOURCES.values()
+                                  if source not in RECORDED_INPUT_SOURCES))
 """The keys (and the keys inside them) a counterfactual replay may change."""
 
 
@@ -134,8 +135,8 @@ def navigator_for(config: dict[str, Any], robot_radius: float) -> Navigator:
     gets only the parts :data:`NAVIGATOR_SOURCES` names."""
     ep = episode_config(config)
     evaluator = FastEvaluator(ControllerSpec.from_dict(config["controller"]))
-    return Navigator(evaluator=evaluator, planner=ep.planner, navigator=ep.navigator, limits=ep.robot,
-                     robot_radius=robot_radius, dt=ep.dt, front_sector_deg=ep.sonar.front)
+    return build_navigator(policy=ep.policy, params=ep.navigator, planner=ep.planner, limits=ep.robot,
+                           robot_radius=robot_radius, dt=ep.dt, front_sector_deg=ep.sonar.front, controller=evaluator)
 
 
 def check_overrides(overrides: list[tuple[str, Any]]) -> None:
@@ -175,11 +176,10 @@ def _observation(log: EpisodeLog, k: int, goal: tuple[float, float]) -> Observat
     returned = np.array(laser["intensities"]) > 0
     moving = np.zeros(len(ranges), dtype=bool)
     moving[tr.get("moving_beams", [])] = True
-    n = len(ranges)
-    angles = math.radians(s["heading_deg"]) + np.arange(n) * (2 * math.pi / n)
     keep = returned & ~moving
-    pts = np.stack([s["x_cm"] + ranges[keep] * np.cos(angles[keep]),
-                    s["y_cm"] + ranges[keep] * np.sin(angles[keep])], axis=1)
+    # the episode's own direction arithmetic (fuzzynav.laser), not a re-derivation with np.cos
+    d = beam_directions(LaserConfig(beams=len(ranges)), s["heading_deg"])
+    pts = np.stack([s["x_cm"] + ranges[keep] * d[keep, 0], s["y_cm"] + ranges[keep] * d[keep, 1]], axis=1)
     return Observation(state, goal, (son["left_cm"], son["front_cm"], son["right_cm"]), tracks, pts)
 
 
@@ -208,6 +208,7 @@ def replayable_steps(log: EpisodeLog) -> int:
 def replay(log: EpisodeLog, config: dict[str, Any], stop_at_first: bool) -> list[Divergence]:
     """Feed the recorded inputs of every step to a navigator built from ``config``."""
     navigator = navigator_for(config, log.robot_radius)
+    navigator.reset(int(log.meta.get("seed", "0")))  # as the episode did: a policy's randomness comes from it
     goal = log.goal
     active: ActivePlan | None = None
     out = []

@@ -30,6 +30,7 @@ from omegaconf import DictConfig, OmegaConf
 from fuzzynav import episode_identity
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.policy import DEFAULT_POLICY, split_navigator_section
 from fuzzynav.scenario import Scenario
 from runners import process_tree, schema, stop, sweep_resume
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
@@ -50,11 +51,15 @@ CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # absolute: works 
 
 
 def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
-    """``<scenario>__<strategy>__h<h_wait>__<controller>__<perception>__s<seed>.mcap``"""
+    """``<scenario>__<strategy>__h<h_wait>__<controller>__<perception>__s<seed>.mcap`` for the paper's ``fuzzy``
+    policy (the names logs had before policies could be chosen), ``<scenario>__<policy>__<strategy>__…`` for
+    any other (``head_on__dwa__none__h2__table1__laser__s0.mcap``)."""
     planner = cfg.get("planner") or {}
     controller = (cfg.get("controller") or {}).get("name", "controller")
     perception = (cfg.get("perception") or {}).get("mode", "laser")
-    return (f"{scenario}__{planner.get('strategy', 'auto')}__h{planner.get('h_wait', 2)}__{controller}"
+    policy, _ = split_navigator_section(cfg.get("navigator"))
+    policy_part = "" if policy == DEFAULT_POLICY else f"{policy}__"
+    return (f"{scenario}__{policy_part}{planner.get('strategy', 'auto')}__h{planner.get('h_wait', 2)}__{controller}"
             f"__{perception}__s{seed}.mcap")
 
 
@@ -92,13 +97,13 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
     stop file) finishes the log as ``interrupted`` and re-raises; a log that cannot be written raises
     :class:`runners.mcap_log.LogWriteError` (not an episode outcome: nothing is left at ``log_path``)."""
     episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
-    summary = {"scenario": scenario.name, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
-               "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode, "seed": seed,
-               "log": str(log_path) if log_path else ""}
+    summary = {"scenario": scenario.name, "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy,
+               "h_wait": ep_cfg.planner.h_wait, "controller": evaluator.spec.name,
+               "perception": ep_cfg.perception.mode, "seed": seed, "log": str(log_path) if log_path else ""}
     log = None  # created before the episode: a log that cannot be written is an error, not an episode outcome
     if log_path is not None:
         meta = run_metadata(config_yaml, seed, scenario.name, {
-            "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
+            "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
             "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
             "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
         log = EpisodeLogWriter(log_path, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
@@ -212,8 +217,9 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
         sys.exit(2)
     if HydraConfig.get().mode != RunMode.MULTIRUN:
         for r in results:
-            print(f"{r['scenario']} strategy={r['strategy']} h_wait={r['h_wait']} seed={r['seed']}: {r['outcome']} "
-                  f"after {r['steps']} steps ({r['time_s']:.0f} s), contacts={r['contacts']}  log: {r['log']}")
+            print(f"{r['scenario']} policy={r['policy']} strategy={r['strategy']} h_wait={r['h_wait']} "
+                  f"seed={r['seed']}: {r['outcome']} after {r['steps']} steps ({r['time_s']:.0f} s), "
+                  f"contacts={r['contacts']}  log: {r['log']}")
     return results
 
 

@@ -16,7 +16,6 @@ from hydra.core.config_store import ConfigStore
 
 from fuzzynav.kinematics import RobotLimits
 from fuzzynav.laser import LaserConfig
-from fuzzynav.navigator import NavigatorConfig
 from fuzzynav.perception import PerceptionConfig
 from fuzzynav.planner import PlannerConfig
 from fuzzynav.sonar import SonarConfig
@@ -56,7 +55,6 @@ SonarSchema = mutable_mirror(SonarConfig)
 LaserSchema = mutable_mirror(LaserConfig)
 PlannerSchema = mutable_mirror(PlannerConfig)
 PerceptionSchema = mutable_mirror(PerceptionConfig)
-NavigatorSchema = mutable_mirror(NavigatorConfig)
 
 
 @dataclasses.dataclass
@@ -69,8 +67,9 @@ class SensorsSchema:
 
 @dataclasses.dataclass
 class RunSchema:
-    """The whole run configuration (``conf/config.yaml``). Scenario and controller are validated by
-    fuzzynav's own parsers (which name the field inside the file), so they are free-form here."""
+    """The whole run configuration (``conf/config.yaml``). Scenario, controller and navigator (whose keys
+    depend on the policy) are validated by fuzzynav's own parsers (which name the field), so they are
+    free-form here."""
 
     scenario: Any = None
     controller: Any = None
@@ -78,7 +77,7 @@ class RunSchema:
     sensors: SensorsSchema = dataclasses.field(default_factory=SensorsSchema)
     planner: PlannerSchema = dataclasses.field(default_factory=PlannerSchema)  # type: ignore[valid-type]
     perception: PerceptionSchema = dataclasses.field(default_factory=PerceptionSchema)  # type: ignore[valid-type]
-    navigator: NavigatorSchema = dataclasses.field(default_factory=NavigatorSchema)  # type: ignore[valid-type]
+    navigator: Any = None  # the policy and its parameters: checked by the policy's own config (fuzzynav.policy)
     seed: int = 0
     episodes: int = 1
     dt: float = 1.0

@@ -2,6 +2,7 @@
 
     python -m runners.sweep                       # the default experiment (conf/sweep/default.yaml)
     python -m runners.sweep sweep=quick           # any preset in conf/sweep/
+    python -m runners.sweep navigator=fuzzy_tpt,dwa,orca   # a sweep over policies: preset sweep=policies
     python -m runners.sweep sweep=quick planner.safety_margin_cm=5,15    # plus any Hydra override
 
 Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>__h<h_wait>__...__s<seed>.mcap`` with Hydra's
@@ -389,11 +390,27 @@ def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = No
     return table
 
 
+def default_preset(args: list[str]) -> str:
+    """The preset of a command line that names none: ``policies`` when it sweeps the navigator (each policy with
+    its own planner default: the default preset's sweep over planners would override them all), else
+    ``default``."""
+    for arg in args:
+        if arg.startswith("-"):
+            continue
+        try:
+            (parsed,) = OverridesParser.create().parse_overrides([arg])
+        except Exception:  # Hydra itself reports a malformed override, with its own message
+            continue
+        if parsed.get_key_element() == "navigator" and parsed.is_sweep_override():
+            return "policies"
+    return "default"
+
+
 def main() -> None:
     sweep_control.install_handlers()  # from the start: a signal before the sweep begins kills its prewarmed workers
     args = sys.argv[1:]
     if not any(a.startswith("sweep=") for a in args):
-        args = ["sweep=default", *args]
+        args = [f"sweep={default_preset(args)}", *args]
     sys.argv = [sys.argv[0], "--multirun", *args]
     from runners import run
 

@@ -17,7 +17,7 @@ def run_cli(tmp_path, *overrides):
 def test_default_run_prints_outcome_and_log_path(tmp_path):
     out = run_cli(tmp_path)
     assert out.returncode == 0, out.stderr
-    assert "head_on strategy=auto h_wait=2 seed=0: goal after" in out.stdout
+    assert "head_on policy=fuzzy strategy=auto h_wait=2 seed=0: goal after" in out.stdout
     assert f"log: {tmp_path}/head_on__auto__h2__table1__laser__s0.mcap" in out.stdout
 
 

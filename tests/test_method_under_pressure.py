@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState
-from fuzzynav.navigator import ActivePlan, Navigator, NavigatorConfig, Observation
+from fuzzynav.navigator import ActivePlan, Navigator, NavigatorConfig, Observation, build_navigator
 from fuzzynav.planner import PlannerConfig, find_new_path
 from fuzzynav.tpt import build_tpt
 from fuzzynav.tracking import Track
@@ -41,7 +41,8 @@ def test_swept_rows_after_a_marked_predicted_row_keep_the_papers_window():
 
 
 def _navigator(**planner) -> Navigator:
-    return Navigator(EVALUATOR, PlannerConfig(**planner), NavigatorConfig(), RobotLimits(), robot_radius=20.0)
+    return build_navigator("fuzzy", NavigatorConfig(), PlannerConfig(**planner), RobotLimits(), robot_radius=20.0,
+                           controller=EVALUATOR)
 
 
 def _observation(v: float, tracks: tuple[Track, ...]) -> Observation:

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from analysis.episode_log import load_episode
-from fuzzynav.navigator import Navigator
+from fuzzynav.navigator import build_navigator
 from runners import replay
 from tests.conftest import one_error_line
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
@@ -107,7 +107,7 @@ def test_an_override_the_navigator_reads_is_replayed(overrides, capsys, tmp_path
 
 
 def test_the_navigator_sources_name_every_argument_of_the_navigator():
-    params = set(inspect.signature(Navigator.__init__).parameters) - {"self"}
+    params = set(inspect.signature(build_navigator).parameters)
     assert set(replay.NAVIGATOR_SOURCES) | {"robot_radius"} == params
 
 
@@ -117,9 +117,9 @@ def _arguments(monkeypatch, config: dict[str, Any]) -> dict[str, Any]:
     seen: dict[str, Any] = {}
 
     def capture(**kwargs: Any) -> None:
-        seen.update(kwargs, evaluator=kwargs["evaluator"].spec)
+        seen.update(kwargs, controller=kwargs["controller"].spec)
 
-    monkeypatch.setattr(replay, "Navigator", capture)
+    monkeypatch.setattr(replay, "build_navigator", capture)
     replay.navigator_for(config, 20.0)
     return seen
 
@@ -138,15 +138,18 @@ def test_each_source_reaches_its_argument_and_nothing_else_does(monkeypatch, goo
     config = load_episode(good, ("/scene",)).config
     recorded = _arguments(monkeypatch, config)
     sectors = {"left": [20.0, 60.0], "front": [-20.0, 20.0], "right": [-60.0, -20.0]}  # equally wide, adjacent
-    changes = {"evaluator": ("controller.fallback.v", 12.0), "planner": ("planner.h_wait", 4),
-               "navigator": ("navigator.static_near_cm", 80.0), "limits": ("robot.max_turn_deg", 90.0),
-               "dt": ("dt", 0.5), "front_sector_deg": ("sensors.sonar", {**config["sensors"]["sonar"], **sectors})}
+    changes = {"controller": ("controller.fallback.v", 12.0), "planner": ("planner.h_wait", 4),
+               "params": ("navigator.static_near_cm", 80.0), "limits": ("robot.max_turn_deg", 90.0),
+               "dt": ("dt", 0.5), "front_sector_deg": ("sensors.sonar", {**config["sensors"]["sonar"], **sectors}),
+               "policy": ("navigator", {"policy": "direct"})}
     assert set(changes) == set(replay.NAVIGATOR_SOURCES)
     for argument, (key, value) in changes.items():
         source = replay.NAVIGATOR_SOURCES[argument]
         assert key.startswith(source) or source.startswith(key)  # inside the source, or holding it
         now = _arguments(monkeypatch, _set(config, key, value))
-        assert [name for name in recorded if now[name] != recorded[name]] == [argument], key
+        changed = [name for name in recorded if now[name] != recorded[name]]
+        # another policy has other parameters: the two arguments from the navigator section change together
+        assert changed == (["policy", "params"] if argument == "policy" else [argument]), key
     # the keys a replay refuses leave every argument as it was
     for key, value in (("seed", 5), ("scenario.max_steps", 3), ("sensors.laser.beams", 90),
                        ("sensors.sonar.range_cm", 100.0), ("perception.mode", "ground_truth"),

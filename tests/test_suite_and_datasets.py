@@ -23,7 +23,7 @@ EVALUATOR = FastEvaluator(load_controller("table1"))
 
 def composed(scenario: str, **extra) -> dict:
     base = {"sensors": yaml.safe_load((CONF / "sensors" / "default.yaml").read_text()),
-            "navigator": yaml.safe_load((CONF / "navigator" / "default.yaml").read_text()),
+            "navigator": yaml.safe_load((CONF / "navigator" / "fuzzy_tpt.yaml").read_text()),
             "planner": yaml.safe_load((CONF / "planner" / "auto.yaml").read_text()),
             "scenario": yaml.safe_load((CONF / "scenario" / f"{scenario}.yaml").read_text())}
     for key, value in extra.items():

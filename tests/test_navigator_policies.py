@@ -1,0 +1,234 @@
+"""The navigator group chooses the policy: every option composes to its policy and planner, a planner on the
+command line wins, a bad navigator section is one line naming the field, a policy that returns a command the
+robot cannot execute stops the episode with an error, and every policy runs, logs, replays and is reported
+side by side (end to end, through the real commands)."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fuzzynav.config import episode_config_from_dict
+from fuzzynav.episode import Episode, EpisodeConfig
+from fuzzynav.planner import PlannerConfig, find_new_path
+from fuzzynav.policy import Action, Observation
+from fuzzynav.tpt import build_tpt
+from fuzzynav.tracking import Track
+from tests.conftest import CONF, ROOT, load_controller, load_scenario, one_error_line
+
+OPTIONS = {"fuzzy_tpt": ("fuzzy", "auto"), "default": ("fuzzy", "auto"), "paper_literal": ("fuzzy", "auto"),
+           "fuzzy": ("fuzzy", "none"), "dwa": ("dwa", "none"), "apf": ("apf", "none"), "vfh": ("vfh", "none"),
+           "orca": ("orca", "none"), "direct": ("direct", "none")}
+
+
+def _compose(*overrides: str) -> dict:
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from runners import schema
+
+    schema.register()
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        return OmegaConf.to_container(compose("config", overrides=list(overrides)), resolve=True)
+
+
+def test_every_navigator_option_has_a_test():
+    assert {p.stem for p in (CONF / "navigator").glob("*.yaml")} == set(OPTIONS) | {"custom"}
+
+
+@pytest.mark.parametrize("option", sorted(OPTIONS))
+def test_each_navigator_option_names_its_policy_and_its_planner(option):
+    cfg = _compose(f"navigator={option}")
+    ep = episode_config_from_dict({k: cfg[k] for k in ("navigator", "planner", "robot", "dt")})
+    assert (ep.policy, ep.planner.strategy) == OPTIONS[option]
+
+
+@pytest.mark.parametrize(("overrides", "expected"), [
+    (["navigator=dwa", "planner=auto"], ("dwa", "auto")), (["planner=auto", "navigator=dwa"], ("dwa", "auto")),
+    (["navigator=fuzzy", "planner=wait"], ("fuzzy", "wait")), (["navigator=orca", "planner=auto_h4"], ("orca", "auto")),
+])
+def test_a_planner_on_the_command_line_wins_over_the_options_default(overrides, expected):
+    cfg = _compose(*overrides)
+    assert (cfg["navigator"].get("policy"), cfg["planner"]["strategy"]) == expected
+
+
+def test_the_default_is_the_papers_method_with_the_defaults_of_the_library():
+    cfg = _compose()
+    ep = episode_config_from_dict({k: cfg[k] for k in ("navigator", "planner")})
+    assert ep.policy == "fuzzy" and ep.navigator == EpisodeConfig().navigator and ep.planner == PlannerConfig()
+
+
+@pytest.mark.parametrize(("navigator", "message"), [
+    ({"policy": "nope"}, "navigator.policy: unknown policy 'nope' (known: apf, direct, dwa, fuzzy, orca, vfh;"),
+    ({"policy": "dwa", "alpha": 1}, "navigator.alpha: unknown key"),
+    ({"policy": "dwa", "alpha_heading": -1}, "navigator.alpha_heading: must be a finite number >= 0"),
+    ({"policy": "dwa", "alpha_heading": "high"}, "navigator.alpha_heading: expected a number"),
+    ({"policy": "apf", "influence_cm": math.nan}, "navigator.influence_cm:"),
+    ({"policy": "fuzzy", "static_near_cm": 1e300}, "navigator.static_near_cm:"),
+    ({"policy": "dwa", "_target_": "a.B"}, "navigator._target_: give either navigator.policy"),
+    ({"_target_": "no_such_module_xyz.Policy"}, "navigator._target_: cannot import 'no_such_module_xyz'"),
+    ({"_target_": "fuzzynav.policy.NoSuchFactory"}, "navigator._target_: 'fuzzynav.policy' has no callable"),
+    ({"_target_": "../etc/passwd"}, "navigator._target_: expected an import path"),
+    ({"_target_": "???"}, "navigator._target_: not given"),
+    ({"policy": 3}, "navigator.policy: expected a policy name"),
+    ({"policy": "DWA"}, "navigator.policy: expected a policy name"),
+    ({"policy": "dwa", 3: 1}, "navigator"),
+])
+def test_a_bad_navigator_section_is_one_line_naming_the_field(navigator, message):
+    with pytest.raises(ValueError) as err:
+        episode_config_from_dict({"navigator": navigator})
+    assert str(err.value).startswith(message), str(err.value)
+    assert "\n" not in str(err.value)
+
+
+_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10**9, 10**9), st.floats(allow_nan=True),
+                    st.text(max_size=12), st.lists(st.integers(), max_size=3))
+_KEYS = st.one_of(st.sampled_from(["policy", "_target_", "alpha_heading", "speed_cm_s", "static_near_cm",
+                                   "smoothing_l", "reciprocity", "turn_samples", "margin_cm"]), st.text(max_size=8))
+_POLICIES = st.sampled_from(["fuzzy", "dwa", "apf", "vfh", "orca", "direct"])
+
+
+@settings(max_examples=300, deadline=None)
+@given(policy=_POLICIES, extra=st.dictionaries(_KEYS, _VALUES, max_size=4))
+def test_any_navigator_section_is_read_or_refused_in_one_line(policy, extra):
+    section = {"policy": policy, **extra}
+    try:
+        ep = episode_config_from_dict({"navigator": section})
+    except ValueError as err:
+        text = str(err)
+        assert "\n" not in text and text.startswith(("navigator", "controller")), text
+        return
+    assert ep.policy in ("fuzzy", "dwa", "apf", "vfh", "orca", "direct")
+
+
+class _Returns:
+    """A policy that returns a fixed (possibly broken) action."""
+
+    name = "broken"
+
+    def __init__(self, action: object) -> None:
+        self.action = action
+
+    def reset(self, seed: int) -> None:
+        pass
+
+    def act(self, observation: Observation) -> object:
+        return self.action
+
+
+@pytest.mark.parametrize(("action", "message"), [
+    (Action("go", math.nan, 20.0), "policy broken: dtheta_deg = nan is not a finite number"),
+    (Action("go", 0.0, math.inf), "policy broken: v_cm_s = inf is not a finite number"),
+    (Action("go", 0.0, -5.0), "policy broken: v_cm_s = -5.0 is negative"),
+    (Action("wait", 0.0, 0.0), "policy broken: mode 'wait' is not a mode name"),
+    (Action("Go Left", 0.0, 10.0), "policy broken: mode 'Go Left' is not a mode name"),
+    (Action("go", 0.0, 10.0, {"x": math.nan}), "policy broken: field 'x' = 'nan' is not a finite number"),
+    (Action("go", 0.0, 10.0, {"x": [1, 2]}), "policy broken: field 'x' = '[1, 2]' is not a finite number"),
+    ((0.0, 10.0), "policy broken: act() returned tuple, not a fuzzynav.policy.Action"),
+    (Action("go", True, 10.0), "policy broken: dtheta_deg = True is not a finite number"),
+])
+def test_a_command_the_robot_cannot_execute_stops_the_episode_naming_the_policy(action, message):
+    episode = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                      policy=_Returns(action))
+    with pytest.raises(ValueError) as err:
+        episode.step()
+    assert str(err.value).startswith(message), str(err.value)
+
+
+def test_an_injected_policy_is_reset_with_the_episodes_seed():
+    seen = []
+
+    class Remembers(_Returns):
+        def reset(self, seed: int) -> None:
+            seen.append(seed)
+
+    Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=7,
+            policy=Remembers(Action("go", 0.0, 10.0)))
+    assert seen == [7]
+
+
+@pytest.mark.parametrize("policy", ["dwa", "apf", "vfh", "orca", "direct"])
+def test_each_baseline_is_deterministic_for_a_seed_in_a_whole_episode(policy):
+    cfg = episode_config_from_dict({"navigator": {"policy": policy}, "planner": {"strategy": "none"}})
+
+    def run() -> list[tuple]:
+        episode = Episode(load_scenario("mixed"), load_controller("table1"), cfg, seed=3)
+        return [(r.decision.mode, r.decision.dtheta_deg, r.decision.v_cm_s, tuple(sorted(r.decision.fields.items())))
+                for r in episode.run()]
+
+    first = run()
+    assert first == run() and all(d[0] != "fuzzy" for d in first)
+
+
+def test_the_tpt_layer_runs_on_top_of_a_baseline():
+    """``navigator=dwa planner=auto``: when the table predicts a collision a plan overrides DWA."""
+    cfg = episode_config_from_dict({"navigator": {"policy": "dwa"}, "planner": {"strategy": "auto"}})
+    episode = Episode(load_scenario("head_on"), load_controller("table1"), cfg, seed=0)
+    records = list(episode.run())
+    modes = {r.decision.mode for r in records}
+    assert "dwa" in modes and modes & {"wait", "detour"}, modes
+    assert {r.decision.policy for r in records} == {"dwa"}
+
+
+@pytest.mark.parametrize("strategy", ["auto", "wait", "detour"])
+@pytest.mark.parametrize("offset", [0.0, 5.0, 30.0])
+def test_a_robot_predicted_to_stand_still_gets_a_plan_with_a_step_or_none(strategy, offset):
+    """A policy may command v = 0 (DWA with no admissible velocity): the table then predicts a standing robot,
+    rG is where it stands, and the detour search returned an empty path that the navigator indexed (IndexError
+    on head_on with navigator=dwa planner=auto)."""
+    track = Track(1, 400.0, 300.0 + offset, -30.0, 0.0, 20.0)
+    tpt = build_tpt((200.0, 300.0), (600.0, 300.0), 0.0, (track,), 20.0, 9, 1.0, 10.0, True)
+    assert tpt.any_collision
+    plan = find_new_path(tpt, PlannerConfig(strategy=strategy), 0.0, np.zeros((0, 2)), 20.0)
+    assert plan is None or len(plan.path) > 0
+    if strategy != "wait":
+        assert plan is not None and plan.strategy in ("evade", "stop"), plan
+
+
+@pytest.fixture(scope="module")
+def policy_sweep(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("policies")
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "navigator=fuzzy_tpt,dwa,apf,vfh,orca,direct",
+                          "scenario=crossing_right", "episodes=2", f"hydra.sweep.dir={out}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-3000:]
+    return out
+
+
+def test_a_sweep_over_policies_logs_each_policy_and_reports_them_side_by_side(policy_sweep):
+    logs = sorted(policy_sweep.rglob("*.mcap"))
+    assert len(logs) == 12  # sweep=policies, not the default preset's planners: one planner per policy
+    from analysis.episode_log import load_episode
+
+    seen = set()
+    for path in logs:
+        log = load_episode(path)
+        names = {d["policy"] for d in log.decisions}
+        assert len(names) == 1 and log.meta["policy"] in names
+        seen |= names
+    assert seen == {"fuzzy", "dwa", "apf", "vfh", "orca", "direct"}
+    report = next(policy_sweep.rglob("report.md")).read_text()
+    for label in ("fuzzy · auto(h=2)", "dwa · none", "apf · none", "vfh · none", "orca · none", "direct · none"):
+        assert label in report, label
+
+
+def test_replay_verify_reproduces_every_policy(policy_sweep):
+    for path in sorted(policy_sweep.rglob("*__s0.mcap")):
+        res = subprocess.run([sys.executable, "-m", "runners.replay", str(path), "--verify"], cwd=ROOT,
+                             capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0 and "decisions reproduced" in res.stdout, (path.name, res.stdout, res.stderr)
+
+
+def test_a_bad_navigator_override_is_one_line_naming_the_field(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "runners.run", "navigator=dwa", "navigator.alpha_heading=-1",
+                          f"hydra.run.dir={tmp_path}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2
+    assert one_error_line(res.stderr) == ("error: config: navigator.alpha_heading: must be a finite number >= 0, "
+                                          "got -1.0")
