@@ -30,7 +30,7 @@ from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.laser import LaserConfig, LaserScan
 from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation, build_navigator
 from fuzzynav.obstacle_motion import ObstacleMotion
-from fuzzynav.perception import PerceptionConfig, perceive
+from fuzzynav.perception import Perceived, PerceptionConfig, perceive
 from fuzzynav.planner import PlannerConfig
 from fuzzynav.policy import Policy
 from fuzzynav.portable_random import NormalStream
@@ -111,6 +111,18 @@ class StepRecord:
     compute_time_us: float = 0.0
 
 
+@dataclass(frozen=True)
+class _Sensed:
+    """One step's sensing (:meth:`Episode.observe`), kept until the step acts on it."""
+
+    observation: Observation
+    scan: LaserScan
+    perceived: Perceived
+    positions: np.ndarray
+    velocities: np.ndarray
+    tracker: TrackerState
+
+
 class Episode:
     """One run of a scenario (see the module docstring)."""
 
@@ -144,8 +156,30 @@ class Episode:
         self._noise = NormalStream(np.random.default_rng(self.seed))
         self._tracker = TrackerState()
         self._plan: ActivePlan | None = None
+        self._sensed: _Sensed | None = None
         self.navigator.reset(self.seed)
         self._touching: set[str] = set()
+
+    def observe(self) -> tuple[Observation, LaserScan]:
+        """What the robot senses at the current step (time ``step_index · dt``): the policy's observation and the
+        laser frame. Sensing draws the frame's noise and advances the tracker, so it happens once per step: a
+        second call returns the same, and :meth:`step` acts on it (the Gymnasium environment shows it to its
+        agent before the agent chooses the action)."""
+        if self.done:
+            raise RuntimeError("episode is over; call reset()")
+        if self._sensed is None:
+            cfg, s = self.config, self.state
+            t = self.step_index * cfg.dt
+            pos, vel = self.motion.at(t)
+            discs = np.column_stack([pos, self.motion.radii]) if len(pos) else np.zeros((0, 3))
+            sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs)
+            scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
+                                  self._noise)
+            tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.motion.radii,
+                                     self._noise)
+            obs = Observation(s, self.scenario.robot.goal, sonar, seen.tracks, seen.static_points)
+            self._sensed = _Sensed(obs, scan, seen, pos, vel, tracker)
+        return self._sensed.observation, self._sensed.scan
 
     @property
     def done(self) -> bool:
@@ -157,15 +191,11 @@ class Episode:
             raise RuntimeError("episode is over; call reset()")
         cfg, dt, s = self.config, self.config.dt, self.state
         t = self.step_index * dt
-        pos, vel = self.motion.at(t)
-        discs = np.column_stack([pos, self.motion.radii]) if len(pos) else np.zeros((0, 3))
-        sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs)
-        scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
-                              self._noise)
-        self._tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.motion.radii,
-                                       self._noise)
-        goal = self.scenario.robot.goal
-        obs = Observation(s, goal, sonar, seen.tracks, seen.static_points)
+        self.observe()  # this step's sensing, unless the Gymnasium environment already asked for it
+        sensed, self._sensed = self._sensed, None
+        obs, scan, seen = sensed.observation, sensed.scan, sensed.perceived
+        pos, vel, self._tracker = sensed.positions, sensed.velocities, sensed.tracker
+        sonar, goal = obs.sonar, obs.goal
         started = time.perf_counter()
         decision, self._plan = self.navigator.decide(obs, self._plan)
         compute_us = (time.perf_counter() - started) * 1e6

@@ -1,4 +1,4 @@
-"""``RecordMcap``: a Gymnasium wrapper writing one MCAP log per episode of :mod:`fuzzynav.gym_env`.
+"""``RecordMcap``: a Gymnasium wrapper writing one MCAP log per episode of :mod:`runners.gym_env`.
 
     from runners.gym_log import RecordMcap
     env = RecordMcap(gymnasium.make("fuzzynav/Navigation-v0", scenario="crossing_right"), "logs/")
@@ -21,20 +21,14 @@ from typing import Any
 
 import gymnasium
 
-from fuzzynav.gym_env import NavigationEnv
 from fuzzynav.policy import Action
-from runners.mcap_log import EpisodeLogWriter, run_metadata
-from runners.run import config_hash, log_path, scenario_yaml
-
-
-def outcome_reason(outcome: str, max_steps: int) -> str:
-    """The ``reason`` ``runners.run.run_episode`` logs with an outcome (part of the logged messages)."""
-    return {"goal": "within goal tolerance", "collision": "contact with an obstacle",
-            "timeout": f"max_steps {max_steps} reached"}.get(outcome, "")
+from runners.gym_env import NavigationEnv
+from runners.mcap_log import EpisodeLogWriter
+from runners.run import episode_metadata, log_path, outcome_reason
 
 
 class RecordMcap(gymnasium.Wrapper):
-    """Writes each episode of the wrapped :class:`fuzzynav.gym_env.NavigationEnv` to ``out_dir`` (created if
+    """Writes each episode of the wrapped :class:`runners.gym_env.NavigationEnv` to ``out_dir`` (created if
     needed) as ``runners.run`` names it (``<scenario>__…__s<seed>.mcap``); ``paths`` lists the logs written."""
 
     def __init__(self, env: gymnasium.Env, out_dir: str | Path) -> None:
@@ -57,11 +51,7 @@ class RecordMcap(gymnasium.Wrapper):
         episode, cfg, run = nav.episode, nav.episode_config, nav.run
         seed_ = episode.seed
         scenario = episode.scenario
-        config_yaml = run.config_yaml(seed_)
-        meta = run_metadata(config_yaml, seed_, scenario.name, {
-            "policy": cfg.policy, "strategy": cfg.planner.strategy, "h_wait": cfg.planner.h_wait,
-            "controller": nav.evaluator.spec.name, "perception": cfg.perception.mode,
-            "scenario_yaml": scenario_yaml(scenario), "config_hash": config_hash(config_yaml, seed_)})
+        meta = episode_metadata(scenario, nav.evaluator, cfg, seed_, run.config_yaml(seed_))
         path = log_path(self.out_dir, scenario.name, run.plain, seed_)
         self._log = EpisodeLogWriter(path, episode, meta, cfg.planner.strategy, cfg.perception.mode)
         self.paths.append(path)
@@ -71,7 +61,7 @@ class RecordMcap(gymnasium.Wrapper):
         return self._logged(lambda: self.env.step(action))
 
     def step_policy_action(self, action: Action, policy_name: str) -> tuple[Any, float, bool, bool, dict]:
-        """:meth:`fuzzynav.gym_env.NavigationEnv.step_policy_action`, logged."""
+        """:meth:`runners.gym_env.NavigationEnv.step_policy_action`, logged."""
         inner = self.env.get_wrapper_attr("step_policy_action")
         return self._logged(lambda: inner(action, policy_name))
 

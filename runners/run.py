@@ -43,8 +43,8 @@ from runners.run_inputs import ConfigFileError, episode_config, load_evaluator, 
 # the stop requests (signals, a sweep's stop file) live in runners.stop
 from runners.stop import Interrupted
 
-__all__ = ["ConfigFileError", "Interrupted", "episode_config", "load_evaluator", "load_scenario", "log_name",
-           "run_episode", "run_job"]
+__all__ = ["ConfigFileError", "Interrupted", "episode_config", "episode_metadata", "load_evaluator", "load_scenario",
+           "log_name", "outcome_reason", "run_episode", "run_job"]
 
 schema.register()
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # absolute: works from any working directory
@@ -90,6 +90,22 @@ def scenario_yaml(scenario: Scenario) -> str:
     return yaml.safe_dump(clean(scenario), sort_keys=False)
 
 
+def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
+                     config_yaml: str, digest: str = "") -> dict[str, str]:
+    """The ``fuzzynav.run`` metadata of an episode's log (also written by the Gymnasium environment's
+    ``runners.gym_log.RecordMcap``, so that both logs are the same)."""
+    return run_metadata(config_yaml, seed, scenario.name, {
+        "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
+        "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
+        "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
+
+
+def outcome_reason(outcome: str, max_steps: int) -> str:
+    """The reason logged with a finished episode's outcome (``/episode``, ``/log``); '' for other outcomes."""
+    return {"goal": "within goal tolerance", "collision": "contact with an obstacle",
+            "timeout": f"max_steps {max_steps} reached"}.get(outcome, "")
+
+
 def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
                 log_path: Path | None, config_yaml: str, digest: str = "") -> dict[str, Any]:
     """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
@@ -102,10 +118,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
                "perception": ep_cfg.perception.mode, "seed": seed, "log": str(log_path) if log_path else ""}
     log = None  # created before the episode: a log that cannot be written is an error, not an episode outcome
     if log_path is not None:
-        meta = run_metadata(config_yaml, seed, scenario.name, {
-            "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
-            "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
-            "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
+        meta = episode_metadata(scenario, evaluator, ep_cfg, seed, config_yaml, digest)
         log = EpisodeLogWriter(log_path, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
     outcome, reason = "error", ""
     try:
@@ -114,8 +127,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
                 log.step(record)
             stop.check()
         outcome = episode.outcome or "error"
-        reason = {"goal": "within goal tolerance", "collision": "contact with an obstacle",
-                  "timeout": f"max_steps {scenario.max_steps} reached"}.get(outcome, "")
+        reason = outcome_reason(outcome, scenario.max_steps)
     except KeyboardInterrupt as err:
         outcome, reason = "interrupted", stop.reason_of(err)
         raise

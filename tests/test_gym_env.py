@@ -1,4 +1,4 @@
-"""The Gymnasium environment (fuzzynav.gym_env) and its logging wrapper (runners.gym_log).
+"""The Gymnasium environment (runners.gym_env) and its logging wrapper (runners.gym_log).
 
 The central check: an episode driven through the environment by the configured policy and logged by
 ``RecordMcap`` has the same message content (``runners.dataset.content_digests``) and the same run metadata as
@@ -19,10 +19,10 @@ import pytest
 
 gymnasium = pytest.importorskip("gymnasium")
 
-from fuzzynav.gym_env import ENV_ID, NavigationEnv  # noqa: E402  (importing it registers fuzzynav/Navigation-v0)
 from fuzzynav.navigator import PLAN_MODES  # noqa: E402
 from fuzzynav.policy import Action, make_policy  # noqa: E402
 from runners.dataset import content_digests  # noqa: E402
+from runners.gym_env import ENV_ID, NavigationEnv  # noqa: E402  (importing it registers fuzzynav/Navigation-v0)
 from runners.gym_log import RecordMcap  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,13 +85,13 @@ def test_check_env_through_make_and_module_prefix() -> None:
         obs, reward, _, _, info = made.step(made.action_space.sample())
         assert made.observation_space.contains(obs) and math.isfinite(reward) and info["step"] == 1
         assert made.render().startswith("step 1:")
-    # gymnasium's "module:" prefix imports fuzzynav.gym_env itself (already imported here: the id resolves)
-    prefixed = gymnasium.make("fuzzynav.gym_env:fuzzynav/Navigation-v0", scenario="head_on")
+    # gymnasium's "module:" prefix imports runners.gym_env itself (already imported here: the id resolves)
+    prefixed = gymnasium.make("runners.gym_env:fuzzynav/Navigation-v0", scenario="head_on")
     assert isinstance(prefixed.unwrapped, NavigationEnv)
 
 
 def test_module_prefix_registers_in_a_fresh_process() -> None:
-    code = ("import gymnasium; e = gymnasium.make('fuzzynav.gym_env:fuzzynav/Navigation-v0', scenario='head_on'); "
+    code = ("import gymnasium; e = gymnasium.make('runners.gym_env:fuzzynav/Navigation-v0', scenario='head_on'); "
             "o, _ = e.reset(seed=1); print(sorted(o))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
@@ -237,8 +237,8 @@ def test_record_mcap_finishes_an_unfinished_episode(tmp_path: Path) -> None:
 
 # -- vector environments ------------------------------------------------------------------------------------------
 def _make(scenario: str):
-    # the "module:" prefix: an AsyncVectorEnv's worker process imports fuzzynav.gym_env itself
-    return lambda: gymnasium.make(f"fuzzynav.gym_env:{ENV_ID}", scenario=scenario)
+    # the "module:" prefix: an AsyncVectorEnv's worker process imports runners.gym_env itself
+    return lambda: gymnasium.make(f"runners.gym_env:{ENV_ID}", scenario=scenario)
 
 
 @pytest.mark.parametrize("vector", ["sync", "async"])

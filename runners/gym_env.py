@@ -3,13 +3,13 @@
 Install the optional extra (``pip install -e '.[gym]'``) and import this module once, which registers the id::
 
     import gymnasium
-    import fuzzynav.gym_env  # noqa: F401  (registers fuzzynav/Navigation-v0)
+    import runners.gym_env  # noqa: F401  (registers fuzzynav/Navigation-v0)
 
     env = gymnasium.make("fuzzynav/Navigation-v0", scenario="crossing_right", overrides=["planner=auto"])
     obs, info = env.reset(seed=3)
     obs, reward, terminated, truncated, info = env.step([0.0, 30.0])   # steer 0 deg, 30 cm/s
 
-or, without the import, ``gymnasium.make("fuzzynav.gym_env:fuzzynav/Navigation-v0", ...)``.
+or, without the import, ``gymnasium.make("runners.gym_env:fuzzynav/Navigation-v0", ...)``.
 
 The agent's action takes the place of the navigation policy (:mod:`fuzzynav.policy`): it is the command of a
 small policy object (mode and name ``agent``) that the episode's navigator calls, so the paper's wait/detour
@@ -41,13 +41,11 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from fuzzynav import laser as laser_mod
 from fuzzynav import limits, portable_math
 from fuzzynav.checks import check_number
 from fuzzynav.episode import Episode, EpisodeConfig, StepRecord
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.laser import LaserScan
-from fuzzynav.perception import perceive
 from fuzzynav.policy import Action, Observation, Policy, PolicyContext, make_policy
 from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
 
@@ -68,27 +66,22 @@ class AgentPolicy:
 
     ``name`` is ``agent`` for the agent's actions (:meth:`NavigationEnv.step`), or the name of the fuzzynav
     policy whose action it passes on (:meth:`NavigationEnv.step_policy_action`), so the decision record names
-    the policy exactly as under ``runners.run``. It also checks that the observation the episode decides on is
-    the one the environment showed (see :func:`_sense`)."""
+    the policy exactly as under ``runners.run``. The observation it is called with is the one the environment
+    showed the agent: the episode senses once per step (:meth:`fuzzynav.episode.Episode.observe`)."""
 
     def __init__(self) -> None:
         self.name = AGENT
         self.pending: Action | None = None
-        self.expected: Observation | None = None
 
     def reset(self, seed: int) -> None:
         """Nothing to forget: the command comes from outside each step."""
         self.pending = None
-        self.expected = None
 
     def act(self, observation: Observation) -> Action:
         """The command set for this step (the navigator calls this once per step)."""
         if self.pending is None:
             raise RuntimeError("AgentPolicy.act: no command was set for this step (drive the episode through "
                                "NavigationEnv.step or step_policy_action)")
-        if self.expected is not None and not _same_observation(self.expected, observation):
-            raise RuntimeError("NavigationEnv: the episode sensed another observation than the one the agent was "
-                               "shown (fuzzynav.gym_env._sense no longer mirrors Episode.step): a bug, please report")
         action, self.pending = self.pending, None
         return action
 
@@ -250,14 +243,11 @@ class NavigationEnv(gymnasium.Env):
         if ep.done:
             raise gymnasium.error.ResetNeeded(f"the episode is over ({ep.outcome}): call reset()")
         before = portable_math.dist((ep.state.x, ep.state.y), ep.scenario.robot.goal)
-        self._agent.name, self._agent.pending, self._agent.expected = name, action, self.observation
+        self._agent.name, self._agent.pending = name, action
         try:
             record = ep.step()
         finally:
             self._agent.pending = None
-        if self._scan is not None and not np.array_equal(record.scan.ranges, self._scan.ranges):
-            raise RuntimeError("NavigationEnv: the episode's laser scan differs from the one the agent was shown "
-                               "(fuzzynav.gym_env._sense no longer mirrors Episode.step): a bug, please report")
         self.last_record = record
         reward = (before - record.distance_to_goal) / 100.0 + STEP_PENALTY
         if record.new_contacts:
@@ -271,8 +261,8 @@ class NavigationEnv(gymnasium.Env):
         return self._obs(), float(reward), terminated, truncated, self._info(record)
 
     def _sense(self) -> None:
-        """The observation of the coming step, as :meth:`Episode.step` will sense it (see :func:`_sense`)."""
-        self.observation, self._scan = _sense(self.episode)
+        """The coming step's sensing (:meth:`Episode.observe`: the episode then acts on exactly this)."""
+        self.observation, self._scan = self.episode.observe()
 
     def _obs(self) -> dict[str, np.ndarray]:
         obs, scan = self.observation, self._scan
@@ -296,29 +286,6 @@ class NavigationEnv(gymnasium.Env):
         return {"step": ep.step_index, "outcome": ep.outcome, "mode": record.decision.mode if record else None,
                 "distance_to_goal_cm": portable_math.dist((ep.state.x, ep.state.y), ep.scenario.robot.goal),
                 "contacts": ep.contacts, "tracks_dropped": self._dropped, "seed": ep.seed}
-
-
-def _sense(ep: Episode) -> tuple[Observation, LaserScan]:
-    """What :meth:`Episode.step` will sense at the episode's current step, computed on copies of its noise stream
-    and tracker so that the episode itself is untouched and senses the very same values when it steps.
-
-    Gymnasium shows the observation before the action; :class:`Episode` senses inside ``step()``, just before it
-    asks the policy. This mirrors the sensing lines of ``Episode.step`` (costing one extra sensing per step);
-    :class:`AgentPolicy` and :meth:`NavigationEnv._advance` check that the episode then sensed the same."""
-    cfg, s = ep.config, ep.state
-    t = ep.step_index * cfg.dt
-    pos, vel = ep.motion.at(t)
-    discs = np.column_stack([pos, ep.motion.radii]) if len(pos) else np.zeros((0, 3))
-    sonar = ep.sonar.read(s.x, s.y, s.heading, ep.world.solid, discs)
-    noise = copy.deepcopy(ep._noise)
-    scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, ep.world.segments, ep.world.circles, discs, noise)
-    _, seen = perceive(cfg.perception, copy.deepcopy(ep._tracker), scan, t, pos, vel, ep.motion.radii, noise)
-    return Observation(s, ep.scenario.robot.goal, sonar, seen.tracks, seen.static_points), scan
-
-
-def _same_observation(a: Observation, b: Observation) -> bool:
-    return (a.state == b.state and a.goal == b.goal and a.sonar == b.sonar and a.tracks == b.tracks
-            and np.array_equal(a.static_points, b.static_points))
 
 
 # -- configuration: composed and checked by runners' code, as runners.run does ------------------------------------
@@ -464,7 +431,7 @@ def _compose(overrides: list[str]) -> Any:
 def register() -> None:
     """Register :data:`ENV_ID` with Gymnasium (once; importing this module does it)."""
     if ENV_ID not in gymnasium.registry:
-        gymnasium.register(id=ENV_ID, entry_point="fuzzynav.gym_env:NavigationEnv")
+        gymnasium.register(id=ENV_ID, entry_point="runners.gym_env:NavigationEnv")
 
 
 register()
