@@ -89,8 +89,11 @@ class Navigator:
     passed in and out)."""
 
     def __init__(self, policy: Policy, planner: PlannerConfig, limits: RobotLimits, robot_radius: float,
-                 dt: float = 1.0) -> None:
+                 dt: float = 1.0, name: str | None = None) -> None:
+        """``name``: the policy as the configuration names it (a registered name, or the import path of a
+        ``_target_``), recorded with every decision; None records the policy object's own ``name``."""
         self.policy = policy
+        self.name = name
         self.planner = planner
         self.limits = limits
         self.robot_radius = robot_radius
@@ -106,9 +109,10 @@ class Navigator:
         left, front, right = obs.sonar
         angle = included_angle_deg(s, obs.goal)
         inputs = (left, front, right, angle)
-        action = checked_action(self.policy.act(obs), self.policy.name)
+        name = self.name if self.name is not None else self.policy.name
+        action = checked_action(self.policy.act(obs), name)
         static_v = action.v_cm_s
-        name, fields = self.policy.name, action.fields
+        fields = action.fields
         tpt = None
         if self.planner.strategy != "none" and obs.tracks:
             if self.planner.predict_speed == "command":
@@ -193,4 +197,4 @@ def build_navigator(policy: str, params: Any, planner: PlannerConfig, limits: Ro
     ``navigator`` section, or the checked config), under the wait/detour layer ``planner``, for a robot of
     ``robot_radius`` cm with ``limits``; ``controller`` is the fuzzy controller for policies that use one."""
     context = PolicyContext(limits, robot_radius, dt, front_sector_deg, controller)
-    return Navigator(make_policy(policy, params, context), planner, limits, robot_radius, dt)
+    return Navigator(make_policy(policy, params, context), planner, limits, robot_radius, dt, name=policy)

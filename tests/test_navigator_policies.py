@@ -232,3 +232,50 @@ def test_a_bad_navigator_override_is_one_line_naming_the_field(tmp_path):
     assert res.returncode == 2
     assert one_error_line(res.stderr) == ("error: config: navigator.alpha_heading: must be a finite number >= 0, "
                                           "got -1.0")
+
+
+USER_POLICY = ROOT / "tests" / "user_policy"  # my_policies.Straight: a policy defined outside the package
+
+
+def _with_user_policy() -> dict[str, str]:
+    import os
+
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(USER_POLICY), os.environ.get("PYTHONPATH", "")])}
+
+
+def test_a_policy_from_outside_the_repository_runs_logs_and_replays(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "runners.run", "navigator=custom",
+                          "navigator._target_=my_policies.Straight", "+navigator.speed_cm_s=30",
+                          "scenario=static_clutter", f"hydra.run.dir={tmp_path}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300, env=_with_user_policy())
+    assert res.returncode == 0, res.stderr[-2000:]
+    (path,) = tmp_path.glob("*.mcap")
+    assert path.name.startswith("static_clutter__my_policies.Straight__none__")
+    from analysis.episode_log import load_episode
+
+    log = load_episode(path)
+    assert log.meta["policy"] == "my_policies.Straight"
+    assert {d["policy"] for d in log.decisions} == {"my_policies.Straight"}
+    assert {round(d["v_cm_s"], 6) for d in log.decisions} == {30.0}
+    res = subprocess.run([sys.executable, "-m", "runners.replay", str(path), "--verify"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300, env=_with_user_policy())
+    assert res.returncode == 0 and "decisions reproduced" in res.stdout, res.stdout + res.stderr
+
+
+def test_a_policy_from_outside_the_repository_runs_in_a_sweep(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "navigator=custom",
+                          "navigator._target_=my_policies.Straight", "+navigator.speed_cm_s=20,30", "planner=none",
+                          "scenario=head_on", "episodes=2", f"hydra.sweep.dir={tmp_path}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=600, env=_with_user_policy())
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert len(list(tmp_path.rglob("*.mcap"))) == 4
+    report = next(tmp_path.rglob("report.md")).read_text()
+    assert "speed_cm_s=20" in report and "speed_cm_s=30" in report  # a user policy's parameter is a dimension
+
+
+def test_a_policy_that_cannot_be_imported_is_one_line(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "runners.run", "navigator=custom",
+                          "navigator._target_=my_policies.Straight", f"hydra.run.dir={tmp_path}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)  # not on PYTHONPATH
+    assert res.returncode == 2
+    assert one_error_line(res.stderr).startswith("error: config: navigator._target_: cannot import 'my_policies'")
