@@ -79,7 +79,8 @@ def test_a_tiny_float_perturbation_is_float_only(root, capsys):
                        "--detail")
     assert code == 1
     logged = episode_line(out, LOGGED)  # measured message by message against the kept log
-    assert ": float-only; largest |Δ| per topic: " in logged and "first difference: topic /tracks at step" in logged
+    # the laser ranges are logged at full precision: the scaled noise shows there first
+    assert ": float-only; largest |Δ| per topic: " in logged and "first difference: topic /laser at step" in logged
     assert "/tracks tracks.x_cm: max |Δ| " in out  # --detail: one line per numeric field
     unlogged = episode_line(out, UNLOGGED)  # classified from the manifest's digests and float sums
     assert ": float-only; |Δ| of each topic's float sum: /t" in unlogged and "first differing step" in unlogged

@@ -13,6 +13,7 @@ from fuzzynav import limits
 from fuzzynav.checks import check_config_fields, check_name, check_number, field_name
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import EpisodeConfig
+from fuzzynav.policies import BUILTIN
 from runners.data_files import DataFileError, check_data_text
 from runners.run_inputs import run_seeds
 
@@ -32,7 +33,10 @@ def numeric_fields(cls: type, prefix: str = "") -> list[str]:
 
 
 def test_every_numeric_config_field_has_a_documented_range():
+    # the navigator section holds the chosen policy's parameters: every built-in policy's count
     fields = set(numeric_fields(EpisodeConfig))
+    for policy in BUILTIN:
+        fields |= set(numeric_fields(policy.config_class, "navigator"))
     documented = set(limits.FIELD_RANGES) - {"seed", "episodes"}
     assert fields - documented == set(), "numeric fields without a range in fuzzynav/limits.py"
     assert documented - fields == set(), "ranges in fuzzynav/limits.py for fields that do not exist"
@@ -57,6 +61,8 @@ def test_no_field_accepts_a_non_finite_number(field, bad):
         node = node.setdefault(part, {})
     value: typing.Any = [bad, bad] if field in limits.FIELD_MAX_ITEMS else bad
     node[key] = value
+    if section == "navigator":  # the policy whose parameter it is (the fuzzy policy would call it unknown)
+        node["policy"] = next(p.name for p in BUILTIN if key in {f.name for f in dataclasses.fields(p.config_class)})
     with pytest.raises(ValueError, match=rf"^{re.escape(field)}(\[0\])?: "):
         episode_config_from_dict(data)
 

@@ -27,7 +27,7 @@ def test_user_scenario_through_searchpath(tmp_path):
     out = cli("runners.run", f"hydra.searchpath=[file://{user}]", "scenario=my_corridor",
               f"hydra.run.dir={tmp_path / 'run'}")
     assert out.returncode == 0, out.stderr
-    assert "my_corridor strategy=auto" in out.stdout
+    assert "my_corridor policy=fuzzy strategy=auto" in out.stdout
     assert episode_summary(find_logs([tmp_path / "run"])[0])["scenario"] == "my_corridor"
 
 
