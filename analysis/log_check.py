@@ -51,8 +51,9 @@ from analysis.json_checks import (
     string,
 )
 from fuzzynav import limits
-from fuzzynav.episode_identity import config_hash
-from fuzzynav.policy import DEFAULT_POLICY  # the hash runners.run records: one definition
+from fuzzynav import policy as policy_names
+from fuzzynav.episode_identity import config_hash  # the hash runners.run records: one definition
+from fuzzynav.policy import DEFAULT_POLICY
 
 __all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash"]
 
@@ -66,8 +67,7 @@ STRATEGIES = ("auto", "wait", "detour", "none")
 PERCEPTIONS = ("laser", "ground_truth")
 OUTCOMES = ("goal", "collision", "timeout", "error", "interrupted")
 FINISHED = ("goal", "collision", "timeout")  # outcomes whose log must hold every step
-MODE = re.compile(r"[a-z][a-z0-9_]{0,31}")  # a plan's (wait, detour, evade, stop) or the policy's own mode
-POLICY = re.compile(r"[A-Za-z_][A-Za-z0-9_.]{0,199}")  # a registered name or the import path of a _target_
+MODE = policy_names.NAME  # a plan's (wait, detour, evade, stop) or the policy's own mode: one definition
 PLAN_STRATEGIES = ("wait", "detour", "evade", "stop")
 TIME_TOLERANCE_NS = 1000  # log times are round(step * dt * 1e9): 1 µs of slack for the float product
 YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -180,7 +180,7 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
     for key, allowed in (("strategy", STRATEGIES), ("perception", PERCEPTIONS)):
         if meta[key] not in allowed:
             raise CheckError(key, f"{meta[key][:40]!r} is not one of {', '.join(allowed)}")
-    if "policy" in meta and not POLICY.fullmatch(meta["policy"]):  # logs before policies existed have none
+    if "policy" in meta and not policy_names.is_policy_id(meta["policy"]):  # logs before policies have none
         raise CheckError("policy", f"{meta['policy'][:80]!r} is not a policy name or import path")
     config = _parse_config(meta.get("config", ""))
     navigator = config.get("navigator")

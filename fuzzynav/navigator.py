@@ -24,7 +24,6 @@ Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -41,6 +40,7 @@ from fuzzynav.planner import (
     path_collides,
     plan_heading_change,
 )
+from fuzzynav.policy import NAME as MODE_NAME
 from fuzzynav.policy import Action, Observation, Policy, PolicyContext, make_policy
 from fuzzynav.portable_math import dist
 from fuzzynav.tpt import TrajectoryPredictionTable, build_tpt
@@ -161,9 +161,6 @@ class Navigator:
                                  margin=self.planner.plan_check_margin_cm)
 
 
-_MODE = re.compile(r"[a-z][a-z0-9_]{0,31}")
-
-
 def checked_action(action: Any, policy: str) -> Action:
     """``action`` if it is a command the robot can execute and the log can hold: an :class:`Action` with a mode
     name (lowercase, digits, ``_``; not a plan's mode), a finite steering increment (degrees) and a finite
@@ -172,7 +169,7 @@ def checked_action(action: Any, policy: str) -> Action:
     moving the robot by a wrong amount."""
     if not isinstance(action, Action):
         raise ValueError(f"policy {policy}: act() returned {type(action).__name__}, not a fuzzynav.policy.Action")
-    if not isinstance(action.mode, str) or not _MODE.fullmatch(action.mode) or action.mode in PLAN_MODES:
+    if not isinstance(action.mode, str) or not MODE_NAME.fullmatch(action.mode) or action.mode in PLAN_MODES:
         raise ValueError(f"policy {policy}: mode {str(action.mode)[:40]!r} is not a mode name (lowercase letters, "
                          f"digits, _; not one of the plan modes {', '.join(PLAN_MODES)})")
     for name, value in (("dtheta_deg", action.dtheta_deg), ("v_cm_s", action.v_cm_s)):

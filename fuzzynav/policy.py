@@ -48,7 +48,15 @@ from fuzzynav.tracking import Track
 
 #: the policy of a run when its ``navigator`` section names none: the paper's fuzzy controller
 DEFAULT_POLICY = "fuzzy"
-_IMPORT_PATH = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
+NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
+"""A registered policy's name, and a mode name (:class:`Action`; the log's ``/planner/decision.mode``)."""
+IMPORT_PATH = re.compile(r"(?=.{3,200}$)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
+"""The import path of a ``_target_`` policy factory: dotted identifiers, at most 200 characters."""
+
+
+def is_policy_id(text: object) -> bool:
+    """Whether ``text`` names a policy as a configuration and a log do: a registered name or an import path."""
+    return isinstance(text, str) and bool(NAME.fullmatch(text) or IMPORT_PATH.fullmatch(text))
 
 
 @dataclass(frozen=True)
@@ -133,7 +141,7 @@ def policy_factory(name: str) -> PolicyFactory:
     _builtin_policies()
     if name in POLICIES:
         return POLICIES[name]
-    if not _IMPORT_PATH.fullmatch(name):
+    if not IMPORT_PATH.fullmatch(name):
         raise ValueError(f"navigator.policy: unknown policy {name[:60]!r} (known: {', '.join(sorted(POLICIES))}; "
                          "a policy of your own: navigator._target_=package.module.Factory)")
     module_name, _, attr = name.rpartition(".")
@@ -164,13 +172,14 @@ def split_navigator_section(data: Mapping[str, Any] | None) -> tuple[str, dict[s
         if target == "???":  # Hydra's mark of a mandatory value (conf/navigator/custom.yaml)
             raise ValueError("navigator._target_: not given (navigator=custom needs "
                              "navigator._target_=package.module.Factory)")
-        if not isinstance(target, str) or not _IMPORT_PATH.fullmatch(target):
-            raise ValueError(f"navigator._target_: expected an import path such as my_package.MyPolicy, got "
+        if not isinstance(target, str) or not IMPORT_PATH.fullmatch(target):
+            raise ValueError(f"navigator._target_: expected an import path such as my_package.MyPolicy (at most 200 "
+                             f"characters), got "
                              f"{str(target)[:60]!r}")
         return target, params
     if name is None:
         return DEFAULT_POLICY, params
-    if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_]{0,31}", name):
+    if not isinstance(name, str) or not NAME.fullmatch(name):
         raise ValueError(f"navigator.policy: expected a policy name such as dwa, got {str(name)[:60]!r}")
     return name, params
 
