@@ -140,6 +140,8 @@ def is_launcher() -> bool:
 
 
 _PENDING: list[int] = []  # signals received while a job runs, acted on between two steps
+_TIME_LIMIT: list[bool] = []  # Submitit's warning that this Slurm job nears its time limit (SIGUSR2), see install
+TIME_LIMIT_REASON = "the Slurm job reached its time limit (hydra.launcher.timeout_min)"
 _WATCHED: list[Path] = []  # the sweep directory whose stop file this job looks for (none outside a sweep)
 _next_look = 0.0  # time.monotonic() of the next look at the stop file
 
@@ -152,6 +154,11 @@ def _on_signal(signum: int, frame: Any) -> None:
     _PENDING.append(signum)
 
 
+def _on_time_limit(signum: int, frame: Any) -> None:
+    """Submitit's time-limit warning (SIGUSR2): noted, and raised between two steps by :func:`check`."""
+    _TIME_LIMIT.append(True)
+
+
 def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
     """Route SIGINT and SIGTERM to the step-boundary stop and watch the stop file of ``sweep_dir`` (None: not in
     a sweep) for the duration of a job. Returns the function that undoes it; ``idle`` (e.g. ``signal.SIG_IGN``)
@@ -159,12 +166,21 @@ def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
     handlers: there the signals act as before, and only the stop file is watched."""
     global _next_look
     _PENDING.clear()
+    _TIME_LIMIT.clear()
     _WATCHED[:] = [sweep_dir] if sweep_dir is not None else []
     _next_look = 0.0  # look at once: a job that starts after the sweep was asked to stop does nothing
     previous: dict[int, Any] = {}
-    for signum in (signal.SIGINT, signal.SIGTERM):
+    handlers = {signal.SIGINT: _on_signal, signal.SIGTERM: _on_signal}
+    if os.environ.get("SUBMITIT_EXECUTOR") == "slurm":
+        # Submitit asks Slurm for SIGUSR2 signal_delay_s before the time limit and, on it, raises its own
+        # exception inside whatever runs (the episode: logged as an error, and the sweep went on as if complete).
+        # Instead the episode in flight ends as interrupted at the next step, the job's later seeds are not run,
+        # and the sweep reports them with the resume command. Only this job stops: the others have their own
+        # time limits.
+        handlers[signal.SIGUSR2] = _on_time_limit
+    for signum, handler in handlers.items():
         try:
-            previous[signum] = signal.signal(signum, _on_signal)
+            previous[signum] = signal.signal(signum, handler)
         except ValueError:  # not the main thread
             break
 
@@ -180,6 +196,8 @@ def check() -> None:
     """Raise :class:`Interrupted` if a stop was requested: a signal, or (looked at every ``STOP_POLL_S``) the
     sweep's stop file. Called after every step and before every episode."""
     global _next_look
+    if _TIME_LIMIT:
+        raise Interrupted(signal.SIGUSR2, TIME_LIMIT_REASON)
     if _PENDING:
         if _WATCHED:  # a signal to one job of a sweep stops the sweep (a terminal's Ctrl-C reaches them all)
             request_sweep_stop(_WATCHED[0], _PENDING[0], describe(_PENDING[0]))

@@ -45,6 +45,8 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
     analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
+    if signum is None and not run.errors:
+        _note_interrupted(run, analysis)
     if analysis.episodes.empty and analysis.excluded.empty and not lost:
         # nothing to summarise: an empty summary and report with exit 0 would look like a result
         run.errors.append(f"no logs found in {sweep_dir}: the sweep ran no episode")
@@ -61,6 +63,26 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
         run.errors.append(sweep_control.io_line(err))
         written = False
     _report_incomplete(config, run, analysis, kept, lost, written)
+
+
+def _note_interrupted(run: sweep_control.SweepRun, analysis: Analysis) -> None:
+    """A job that stopped on its own before it finished (a Slurm job at its time limit: the episode in flight is
+    logged as interrupted, its later seeds are not run) leaves the sweep incomplete, though no one stopped the
+    sweep: one error line naming the first such log and why."""
+    from analysis.logs import LogFile
+
+    logs = sorted(str(log) for frame in (analysis.episodes, analysis.excluded) if not frame.empty
+                  for log, outcome in zip(frame["log"], frame["outcome"], strict=True)
+                  if outcome == "interrupted" and _written_since(Path(log), run.started))
+    if logs:
+        reason = "interrupted"
+        try:  # the reason the job logged (the /episode message), e.g. its time limit
+            for _topic, _t, msg in LogFile(logs[0], ["/episode"]).messages(["/episode"]):
+                reason = str(msg.get("reason") or reason)[:200]
+        except Exception:  # the log was analysed a moment ago; whatever happened since, the count stands
+            pass
+        run.fail(f"{len(logs)} episode(s) stopped before they finished ({reason}), e.g. {logs[0]}; their jobs did "
+                 "not run their later seeds")
 
 
 def _written_since(path: Path, started: float) -> bool:

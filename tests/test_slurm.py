@@ -10,7 +10,9 @@ checks that no process of the cluster is left.
   the same sweep on ``all_cores`` (compute times excluded);
 - ``scancel`` of one array task mid-run (SIGTERM, as Slurm sends it, and SIGKILL, as a dead node or the
   out-of-memory killer ends a job) ends the sweep with one line, the summary and the resume command; ``resume=true``
-  completes it with every episode exactly once.
+  completes it with every episode exactly once;
+- a job over its time limit (``timeout_min``) is reported with the episode it interrupted, the seeds it did not
+  run and the resume command.
 
 Needs root and Debian's ``slurm-wlm`` and ``munge`` (``.ci/run`` installs them). Without them the tests skip with
 the reason, except in CI (``CI=true``), where that is a failure: CI must show that they ran.
@@ -34,8 +36,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.logs import episode_summary, is_complete, read_metadata
+from analysis.logs import LogFile, episode_summary, is_complete, read_metadata
 from fuzzynav.episode_identity import episode_key_of
+from runners import stop
 from runners.dataset import content_digests
 from runners.log_diff import diff_logs
 from tests.conftest import ROOT
@@ -397,6 +400,32 @@ def test_scancel_of_one_array_task_then_resume_runs_every_episode_once(slurm: Cl
     what = "scancel" if signal_name == "TERM" else "SIGKILL to the job's process"
     ended = next(line for line in out.splitlines() if line.startswith(("stopped by", "incomplete:")))
     print(f"{what}: {' | '.join([*lines, ended])}; resume: {len(before)} episode(s) kept, {4 - len(before)} run")
+
+
+def test_a_job_over_its_time_limit_is_reported_with_the_resume_command(slurm: Cluster, tmp_path: Path) -> None:
+    """``timeout_min=1`` with Submitit's warning 40 s before it (SIGUSR2): the episode in flight ends as interrupted
+    with the reason, the job's second seed is not run, and the sweep says so in one line, prints the summary of
+    what completed and the resume command, and exits 1. (Submitit used to raise its own exception inside the
+    episode: the log said ``error`` and the sweep exited 0 as if complete.)"""
+    sweep_dir = tmp_path / "s"
+    args = ["sweep=quick", SEARCH, "scenario=endless_corridor", "scenario.max_steps=100000", "planner=auto",
+            "episodes=2", "hydra.launcher.timeout_min=1", "hydra.launcher.signal_delay_s=40"]
+    tic = time.monotonic()
+    res = run_sweep(slurm, args, sweep_dir)
+    took = time.monotonic() - tic
+    lines = problem_lines(res.stderr)
+    assert res.returncode == 1 and "Traceback" not in res.stderr and len(lines) == 1, res.stderr[-3000:]
+    assert re.fullmatch(r"error: 1 episode\(s\) stopped before they finished \(the Slurm job reached its time limit "
+                        r"\(hydra\.launcher\.timeout_min\)\), e\.g\. \S+__s0\.mcap; their jobs did not run their "
+                        r"later seeds", lines[0]), lines
+    assert "incomplete: 0 episode(s) finished, 1 interrupted, 0 lost, 1 not run (of 2)" in res.stdout, res.stdout
+    hint = [line for line in res.stdout.splitlines() if line.startswith("to complete the sweep: ")]
+    assert len(hint) == 1 and "resume=true" in hint[0] and "hydra/launcher=slurm" in hint[0], res.stdout[-3000:]
+    (log,) = logs(sweep_dir)
+    ((_topic, _t, ended),) = LogFile(log, ["/episode"]).messages(["/episode"])
+    assert ended["outcome"] == "interrupted" and ended["reason"] == stop.TIME_LIMIT_REASON, ended
+    assert not (sweep_dir / "report" / "report.html").exists()  # the report is for the complete sweep
+    print(f"time limit: {lines[0]} ({took:.0f} s)")
 
 
 # -- without a cluster: the launcher's watcher where sacct does not work ----------------------------------------
