@@ -174,8 +174,7 @@ def split_navigator_section(data: Mapping[str, Any] | None) -> tuple[str, dict[s
                              "navigator._target_=package.module.Factory)")
         if not isinstance(target, str) or not IMPORT_PATH.fullmatch(target):
             raise ValueError(f"navigator._target_: expected an import path such as my_package.MyPolicy (at most 200 "
-                             f"characters), got "
-                             f"{str(target)[:60]!r}")
+                             f"characters), got {str(target)[:60]!r}")
         return target, params
     if name is None:
         return DEFAULT_POLICY, params
