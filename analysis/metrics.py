@@ -25,7 +25,7 @@ from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import SKIPPED_KINDS, LogError, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from fuzzynav.geometry import swept_distance, wrap_180
-from fuzzynav.portable_math import dist, norm2
+from fuzzynav.portable_math import bearing_deg, dist, norm2
 
 PARAMETERS = EPISODE_PARAMETERS
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
@@ -34,9 +34,39 @@ RUN_PARAMETERS = "run_parameters"  # transport column: the log's parameters as J
 
 @dataclass(frozen=True)
 class MetricOptions:
-    """``turn_threshold_deg``: smallest heading change (degrees per step) that counts towards a turn."""
+    """Thresholds of the metrics (README metric table).
+
+    ``turn_threshold_deg``: smallest heading change (degrees per step) that counts towards a turn;
+    ``near_miss_cm``: a step whose clearance to an obstacle is in [0, this) cm is a near miss;
+    ``stall_speed_cm_s``: a step moving slower than this (cm/s) away from the goal is stalled;
+    ``personal_space_cm``: the personal-space radius beyond a moving obstacle's surface (cm; 45 cm is the edge
+    of Hall's intimate zone, the personal-space radius Francis et al. 2023 cite for pedestrians)."""
 
     turn_threshold_deg: float = 5.0
+    near_miss_cm: float = 20.0
+    stall_speed_cm_s: float = 1.0
+    personal_space_cm: float = 45.0
+
+
+#: unit of every per-episode column (``""``: a count, a flag, a ratio or a label); the Parquet tables carry it
+COLUMN_UNITS: dict[str, str] = {
+    "log": "", "outcome": "", "steps": "steps", "path_length_cm": "cm", "turn_count": "turns",
+    "heading_change_deg_total": "deg", "collisions_static": "contacts", "collisions_dynamic": "contacts",
+    "collision_check_agrees": "", "collisions_logged_static": "contacts", "collisions_logged_dynamic": "contacts",
+    "min_clearance_static_cm": "cm", "min_clearance_dynamic_cm": "cm", "time_to_goal_s": "s", "success": "",
+    "path_efficiency": "", "wait_steps": "steps", "detour_count": "plans", "plans_made": "plans",
+    "detour_extra_length_cm": "cm", "tpt_collisions_predicted": "tables", "tpt_ade_cm": "cm", "tpt_fde_cm": "cm",
+    "compute_time_us_median": "us", "compute_time_us_p99": "us", "h_wait": "steps",
+    # the standard navigation metrics (issue #18)
+    "spl": "", "path_irregularity_deg_per_m": "deg/m", "accel_mean_cm_s2": "cm/s^2", "accel_max_cm_s2": "cm/s^2",
+    "jerk_mean_cm_s3": "cm/s^3", "jerk_max_cm_s3": "cm/s^3", "min_ttc_s": "s", "near_miss_steps": "steps",
+    "stalled_time_s": "s", "collisions_wall": "contacts", "collisions_static_obstacle": "contacts",
+    "personal_space_intrusion_s": "s",
+}
+#: the standard metrics' columns, in table order (definitions and sources: README metric table)
+STANDARD_METRICS = ("spl", "path_irregularity_deg_per_m", "accel_mean_cm_s2", "accel_max_cm_s2", "jerk_mean_cm_s3",
+                    "jerk_max_cm_s3", "min_ttc_s", "near_miss_steps", "stalled_time_s", "collisions_wall",
+                    "collisions_static_obstacle", "personal_space_intrusion_s")
 
 
 def turn_count(heading_changes_deg: np.ndarray, threshold_deg: float = 5.0) -> int:
@@ -60,14 +90,28 @@ def _static_gaps(solid: shapely.Geometry, pos: np.ndarray, steps: int) -> np.nda
     return shapely.distance(solid, paths)
 
 
+def _wall_gaps(bounds: tuple[float, float, float, float] | None, pos: np.ndarray, steps: int) -> np.ndarray:
+    """Per step, the distance (cm) from the robot centre's straight move ``pos[k]`` -> ``pos[k + 1]`` to the
+    walls (negative outside them). Inside the rectangle the distance to its boundary is concave along a segment,
+    so the smallest is at an end of the move: no geometry library needed."""
+    if steps == 0 or bounds is None:
+        return np.full(steps, math.inf)
+    xmin, ymin, xmax, ymax = bounds
+    ends = np.stack([pos[:steps], pos[1:steps + 1]])  # (2, steps, 2)
+    inside = np.minimum.reduce([ends[..., 0] - xmin, xmax - ends[..., 0], ends[..., 1] - ymin, ymax - ends[..., 1]])
+    return inside.min(axis=0)
+
+
 def _dynamic_gaps(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, steps: int
-                  ) -> tuple[float, list[set[str]]]:
-    """Smallest surface gap (cm) to any moving obstacle over the episode, and per step the ids of the
-    obstacles touched while both moved straight over the step (all (step, obstacle) pairs at once)."""
+                  ) -> tuple[float, list[set[str]], np.ndarray]:
+    """Smallest surface gap (cm) to any moving obstacle over the episode, per step the ids of the obstacles
+    touched while both moved straight over the step (all (step, obstacle) pairs at once), and per step the
+    smallest such gap (cm; inf on a step without moving obstacles)."""
     pairs = [(k, o) for k in range(min(steps, len(truth))) for o in truth[k]["obstacles"]]
     touching: list[set[str]] = [set() for _ in range(steps)]
+    per_step = np.full(steps, math.inf)
     if not pairs:
-        return math.inf, touching
+        return math.inf, touching, per_step
     k = np.array([p[0] for p in pairs])
     o0 = np.array([(o["x_cm"], o["y_cm"]) for _, o in pairs])
     o1 = np.array([(o["next_x_cm"], o["next_y_cm"]) for _, o in pairs])
@@ -75,7 +119,54 @@ def _dynamic_gaps(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, s
     gaps = swept_distance(pos[k], pos[k + 1], o0, o1) - radius - radii
     for i in np.nonzero(gaps < -1e-9)[0]:
         touching[k[i]].add(pairs[i][1]["id"])
-    return float(gaps.min()), touching
+    np.minimum.at(per_step, k, gaps)
+    return float(gaps.min()), touching, per_step
+
+
+def min_time_to_collision(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, dt: float) -> float:
+    """Smallest constant-velocity time to collision (s) with a moving obstacle over the episode.
+
+    At each step k, the robot at ``pos[k]`` keeps the velocity of its move over the step,
+    (``pos[k + 1]`` − ``pos[k]``) / dt, and each obstacle its logged true velocity (``vx_cm_s``, ``vy_cm_s``);
+    the TTC is the first time t >= 0 at which the centres are ``radius`` + the obstacle's radius apart:
+    0 when they already overlap, inf when they never meet (moving apart or passing). NaN when the episode has
+    no moving obstacle at all (nothing to measure), inf when it has some but never on a collision course."""
+    steps = min(len(pos) - 1, len(truth))
+    pairs = [(k, o) for k in range(steps) for o in truth[k]["obstacles"]]
+    if not pairs:
+        return math.nan
+    k = np.array([p[0] for p in pairs])
+    rel = np.array([(o["x_cm"], o["y_cm"]) for _, o in pairs]) - pos[k]
+    robot_v = (pos[k + 1] - pos[k]) / dt
+    w = np.array([(o["vx_cm_s"], o["vy_cm_s"]) for _, o in pairs]) - robot_v  # obstacle relative to the robot
+    reach = radius + np.array([o["radius_cm"] for _, o in pairs])
+    # |rel + w t| = reach: a t^2 + b t + c = 0; the first root when approaching (b < 0) and the lines meet
+    a = np.einsum("ij,ij->i", w, w)
+    b = 2.0 * np.einsum("ij,ij->i", rel, w)
+    c = np.einsum("ij,ij->i", rel, rel) - reach * reach
+    disc = b * b - 4.0 * a * c
+    ttc = np.full(len(pairs), math.inf)
+    meets = (a > 0) & (b < 0) & (disc >= 0)
+    ttc[meets] = (-b[meets] - np.sqrt(disc[meets])) / (2.0 * a[meets])
+    ttc[c <= 0] = 0.0  # overlapping now
+    return float(ttc.min())
+
+
+def motion_smoothness(pos: np.ndarray, dt: float) -> tuple[float, float, float, float]:
+    """(mean, max) acceleration (cm/s²) and (mean, max) jerk (cm/s³) of the robot's translation.
+
+    The velocity of each step's move is v_k = (``pos[k + 1]`` − ``pos[k]``) / dt; acceleration |v_{k+1} − v_k| / dt
+    and jerk |v_{k+2} − 2 v_{k+1} + v_k| / dt² are finite differences of the velocity vector, so a change of the
+    direction of travel counts as well as a change of speed; the rotation rate itself (turning in place) does not.
+    NaN with fewer than two moves (acceleration) or three (jerk)."""
+    v = np.diff(pos, axis=0) / dt if len(pos) > 1 else np.zeros((0, 2))
+    acc = norm2(np.diff(v, n=1, axis=0)) / dt if len(v) > 1 else np.zeros(0)
+    jerk = norm2(np.diff(v, n=2, axis=0)) / (dt * dt) if len(v) > 2 else np.zeros(0)
+
+    def mean_max(x: np.ndarray) -> tuple[float, float]:
+        return (math.fsum(x.tolist()) / len(x), float(x.max())) if len(x) else (math.nan, math.nan)
+
+    return (*mean_max(acc), *mean_max(jerk))
 
 
 def _contacts(touching: list[set[str]]) -> int:
@@ -106,7 +197,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     steps = len(log.states)
     gap_static = _static_gaps(log.static_geometry(), pos, steps) - r
     touching_static = [{"static"} if g < -1e-9 else set() for g in gap_static]
-    gap_dynamic, touching_dynamic = _dynamic_gaps(log.truth, pos, r, steps)
+    gap_dynamic, touching_dynamic, gap_dynamic_steps = _dynamic_gaps(log.truth, pos, r, steps)
     flags_static = [{"static"} if st["contact_static"] else set() for st in log.states]
     flags_dynamic = [set(st["contact_dynamic"]) for st in log.states]
     row["collisions_static"] = _contacts(touching_static)
@@ -129,6 +220,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     straight = dist(log.goal, pos[0]) if log.goal is not None and len(pos) else math.nan
     row["path_efficiency"] = straight / row["path_length_cm"] if row["success"] and row["path_length_cm"] > 0 \
         else math.nan
+    row.update(_standard_metrics(log, opt, row, gap_dynamic_steps))
 
     # planner
     modes = [d["mode"] for d in log.decisions]
@@ -145,6 +237,47 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row["compute_time_us_median"] = float(np.median(times)) if len(times) else math.nan
     row["compute_time_us_p99"] = float(np.percentile(times, 99)) if len(times) else math.nan
     return row
+
+
+def _standard_metrics(log: EpisodeLog, opt: MetricOptions, row: dict[str, Any], gap_dynamic_steps: np.ndarray
+                      ) -> dict[str, Any]:
+    """The standard navigation metrics (README metric table, with sources), from the log and the columns of
+    ``row`` computed before (path length, success, heading change). Distances cm, times s, angles degrees."""
+    pos, r, dt, steps = log.positions, log.robot_radius, log.dt, len(log.states)
+    out: dict[str, Any] = {}
+    path = row["path_length_cm"]
+    # SPL (Anderson et al. 2018): the shortest path is bounded below by the straight line to the goal's
+    # tolerance circle (obstacles ignored), so this SPL is an upper bound of the true one
+    if log.goal is not None and log.goal_tolerance is not None and len(pos):
+        shortest = max(0.0, dist(log.goal, pos[0]) - log.goal_tolerance)
+        longest = max(path, shortest)
+        # a start already within the tolerance (ℓ = 0): every successful path is as short as it can be
+        out["spl"] = float(row["success"]) * (shortest / longest if shortest > 0 else 1.0)
+    else:
+        out["spl"] = math.nan
+    # path irregularity (Guzzi et al. 2013, SocNavBench): rotation beyond the one turn to face the goal, per metre
+    if path > 0 and log.goal is not None:
+        needed = abs(float(wrap_180(bearing_deg(pos[0][0], pos[0][1], *log.goal) - log.headings[0])))
+        out["path_irregularity_deg_per_m"] = max(0.0, row["heading_change_deg_total"] - needed) / (path / 100.0)
+    else:
+        out["path_irregularity_deg_per_m"] = math.nan
+    (out["accel_mean_cm_s2"], out["accel_max_cm_s2"], out["jerk_mean_cm_s3"],
+     out["jerk_max_cm_s3"]) = motion_smoothness(pos, dt)
+    out["min_ttc_s"] = min_time_to_collision(log.truth, pos, r, dt)
+    # clearance to obstacles, walls excluded (in a corridor every step would be a near miss), swept over each step
+    gap_obstacles = _static_gaps(shapely.union_all(log.static_polygons), pos, steps) - r if log.static_polygons \
+        else np.full(steps, math.inf)
+    clearance = np.minimum(gap_obstacles, gap_dynamic_steps)
+    out["near_miss_steps"] = int(np.count_nonzero((clearance >= 0) & (clearance < opt.near_miss_cm)))
+    speed = norm2(np.diff(pos, axis=0)) / dt if steps else np.zeros(0)
+    away = norm2(pos[:steps] - np.array(log.goal)) > log.goal_tolerance + 1e-6 \
+        if log.goal is not None and log.goal_tolerance is not None else np.ones(steps, dtype=bool)
+    out["stalled_time_s"] = int(np.count_nonzero((speed < opt.stall_speed_cm_s) & away)) * dt
+    gap_walls = _wall_gaps(log.bounds, pos, steps) - r
+    out["collisions_wall"] = _contacts([{"wall"} if g < -1e-9 else set() for g in gap_walls])
+    out["collisions_static_obstacle"] = _contacts([{"static"} if g < -1e-9 else set() for g in gap_obstacles])
+    out["personal_space_intrusion_s"] = int(np.count_nonzero(gap_dynamic_steps < opt.personal_space_cm)) * dt
+    return out
 
 
 def _detour_extra(pos: np.ndarray, modes: list[str]) -> float:

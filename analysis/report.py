@@ -1,12 +1,13 @@
 """Reports from logs: ``python -m analysis.report <sweep dir or .mcap files...> [--out DIR]``.
 
-Writes ``report.md`` and ``report.html`` with PNG plots beside them, ``episodes.csv`` (one row per
-episode, every metric, its group's labels), ``groups.csv`` (mean and 95 % bootstrap interval of every metric
-per group) and ``paired.csv`` (paired differences between variants on the same scenario and seed). A group is
-every combination of the run parameters whose values differ among the logs (:mod:`analysis.run_parameters`):
-two settings of any parameter are never pooled. Logs that are not used (a copy of another log of the same
-episode, not a regular file, damaged, failing a check, truncated, outcome ``error``/``interrupted``) are listed
-with their kind and reason and left out of the statistics. Everything is computed from the logs.
+Writes ``report.md`` and ``report.html`` with PNG plots beside them, ``episodes.csv`` (one row per episode, every
+metric, its group's labels), ``groups.csv`` (mean and 95 % bootstrap interval of every metric per group), both
+also as Parquet with units (:mod:`analysis.tables`), and ``paired.csv`` (paired differences between variants on
+the same scenario and seed). A group is every combination of the run parameters whose values differ among the logs
+(:mod:`analysis.run_parameters`): two settings of any parameter are never pooled. Logs that are not used (a copy
+of another log of the same episode, not a regular file, damaged, failing a check, truncated, outcome
+``error``/``interrupted``) are listed with their kind and reason and left out of the statistics. Everything is
+computed from the logs.
 """
 
 from __future__ import annotations
@@ -28,9 +29,10 @@ import pandas as pd
 
 from analysis import plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
-from analysis.metrics import Analysis, MetricOptions, analyse_logs, left_out_counts
+from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
+from analysis.tables import write_tables
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
            "collisions_static", "collisions_dynamic", "min_clearance_static_cm", "min_clearance_dynamic_cm",
@@ -69,7 +71,7 @@ def group_table(df: pd.DataFrame, grouping: Grouping) -> tuple[pd.DataFrame, pd.
         keys = {c: g[c].iloc[0] for c in constant}
         long_rows.append({**keys, "metric": "success", "n": n, "mean": p, "ci_low": lo, "ci_high": hi,
                           "interval": "wilson"})
-        for metric in METRICS:
+        for metric in [*METRICS, *STANDARD_METRICS]:  # groups.csv: every metric
             mean, mlo, mhi = bootstrap_mean(g[metric])
             long_rows.append({**keys, "metric": metric, "n": int(g[metric].notna().sum()), "mean": mean,
                               "ci_low": mlo, "ci_high": mhi, "interval": "bootstrap"})
@@ -306,8 +308,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
 
 
 def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame) -> None:
-    df.to_csv(out / "episodes.csv", index=False)
-    long.to_csv(out / "groups.csv", index=False)
+    write_tables(out, df, long)  # episodes and groups: CSV and Parquet with units (analysis.tables)
     paired.to_csv(out / "paired.csv", index=False)
     (out / "report.md").write_text(report.markdown())
     (out / "report.html").write_text(report.html())

@@ -20,6 +20,11 @@ the metrics table (compute-time columns excluded). ``keep_logs`` lists the seeds
 values (perception, predictions), or only floating-point values, with the largest absolute difference per
 topic and field: measured message by message against a committed log, else classified from the manifest's
 behaviour record (in manifests built before it existed, only a changed outcome or step count is classified).
+
+Metrics are hashed per column (``metrics_columns``: column -> 16-hex digest of its values, episodes in file-name
+order): a column added since the build is reported as a new metric and passes (behaviour did not change), a
+column whose values changed or that is no longer computed fails, named. Manifests built before that have one
+``metrics_sha256`` of the whole table; verify compares it and says to rebuild to hash per column.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 import yaml
 
 from analysis.cli_args import MAX_JOBS, OneLineParser
@@ -45,7 +51,7 @@ from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
 from fuzzynav import limits
 from runners.data_files import MANIFEST, DataFileError, check_data_file
-from runners.dataset_manifest import EPISODE_FIELDS, DatasetError, check_manifest
+from runners.dataset_manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.log_diff import EpisodeDiff, diff_logs, diff_records
 from runners.log_fields import TIMING_FIELDS, BehaviourRecord
 from runners.verify_report import detail_lines, episode_line, summary_lines
@@ -258,14 +264,56 @@ def content_digests(path: Path) -> dict[str, Any]:
             "step_digests": [steps[t].hexdigest()[:8] for t in sorted(steps)], **behaviour.result()}
 
 
-def metrics_digest(paths: Iterable[Path]) -> str:
-    """SHA-256 of the metrics table of these logs (compute times and file locations excluded)."""
+def dataset_metrics(paths: Iterable[Path]) -> pd.DataFrame:
+    """The metrics table of a dataset's logs, one row per episode in the order of the log file names, compute
+    times excluded (they are timings, not behaviour); ``log`` holds the file name, not its location."""
     df, bad = metrics_table(list(paths))
     if not bad.empty:
         raise DatasetError("metrics: logs could not be analysed: " + "; ".join(bad["reason"]))
-    drop = [c for c in df.columns if c.startswith("compute_time") or c == "log"]
-    df = df.drop(columns=drop).sort_values(["scenario", "strategy", "h_wait", "controller", "perception", "seed"])
+    df = df.drop(columns=[c for c in df.columns if c.startswith("compute_time")])
+    df["log"] = [Path(p).name for p in df["log"]]
+    return df.sort_values("log", kind="stable").reset_index(drop=True)
+
+
+def metrics_digest(table: pd.DataFrame) -> str:
+    """SHA-256 of the whole metrics table as manifests before per-column hashing recorded it (``metrics_sha256``):
+    kept to verify those manifests."""
+    df = table.drop(columns=["log"]).sort_values(["scenario", "strategy", "h_wait", "controller", "perception",
+                                                  "seed"])
     return hashlib.sha256(df.round(9).to_csv(index=False).encode()).hexdigest()
+
+
+def metrics_column_digests(table: pd.DataFrame) -> dict[str, str]:
+    """Per metrics column (``log`` excluded), 16 hex digits of the SHA-256 of its values (floats rounded to 9
+    decimals, as text) in the table's episode order: a column can be added without changing the others'."""
+    rounded = table.drop(columns=["log"]).round(9)
+    return {column: hashlib.sha256(rounded[column].to_csv(index=False, header=False).encode()).hexdigest()[:16]
+            for column in rounded.columns}
+
+
+def compare_metrics(manifest: dict[str, Any], table: pd.DataFrame, name: str) -> tuple[list[str], list[str]]:
+    """(problems, notes) of the regenerated metrics table against the manifest: a changed or removed column is a
+    problem naming it, a new column a note naming it (behaviour did not change: the episodes matched)."""
+    rebuild = f"python -m runners.dataset build {name}"
+    recorded = manifest.get("metrics_columns")
+    if recorded is None:
+        old = manifest.get("metrics_sha256")
+        if old is None:
+            return [], [f"the manifest records no metrics digests (to record them: {rebuild})"]
+        if metrics_digest(table) == old:
+            return [], ["the metrics table matches the manifest's metrics_sha256; metrics are now hashed per column "
+                        f"(a new metric then needs no rebuild): run {rebuild}"]
+        return [f"metrics table differs from the manifest's metrics_sha256, one digest of the whole table (built "
+                f"before metrics were hashed per column), so no column can be named; every episode matched, so "
+                f"behaviour is unchanged: if a metric was added, record a digest per column with {rebuild}"], []
+    now = metrics_column_digests(table)
+    problems = [f"metrics column {c}: values differ from the manifest ({recorded[c]} -> {now[c]})"
+                for c in recorded if c in now and now[c] != recorded[c]]
+    problems += [f"metrics column {c}: in the manifest but no longer computed" for c in recorded if c not in now]
+    new = [c for c in now if c not in recorded]
+    notes = [f"new metrics, not in the manifest: {', '.join(new)} (behaviour unchanged; to record them: "
+             f"{rebuild})"] if new else []
+    return problems, notes
 
 
 # -- recording --------------------------------------------------------------------------------------------
@@ -323,7 +371,8 @@ def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:
     log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
         results = record_all(manifest, Path(tmp), n_jobs, desc=f"build {name}")
-        manifest["metrics_sha256"] = metrics_digest(sorted(Path(tmp).glob("*.mcap")))
+        manifest.pop("metrics_sha256", None)  # the whole-table digest of older manifests: now one per column
+        manifest["metrics_columns"] = metrics_column_digests(dataset_metrics(sorted(Path(tmp).glob("*.mcap"))))
         if log_dir.exists():
             shutil.rmtree(log_dir)
         kept = [j["file"] for j in jobs(manifest) if j["seed"] in keep]
@@ -333,6 +382,7 @@ def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:
                 shutil.copy(Path(tmp) / file, log_dir / file)
     manifest["episodes"] = {r["file"]: {**{k: r[k] for k in EPISODE_FIELDS},
                                         "step_digests": " ".join(r["step_digests"])} for r in results}
+    manifest = {k: manifest[k] for k in FIELDS if k in manifest}  # the fields in their documented order
     manifest_path(name, root).write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
     return manifest
 
@@ -370,6 +420,7 @@ class Verification:
     diffs: dict[str, EpisodeDiff] = field(default_factory=dict)
     compared: int = 0
     seeds: tuple[int, int] | None = None  # the seeds actually checked (``--seeds`` clipped to the dataset's)
+    notes: list[str] = field(default_factory=list)  # said whether or not it passed: new metrics, an old manifest
 
 
 def _select_seeds(manifest: dict[str, Any], seeds: tuple[int, int], path: Path) -> tuple[int, int]:
@@ -428,9 +479,8 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
         for file in sorted(set(results) - set(manifest["episodes"])):
             out.problems.append((file, f"{file}: produced but not in the manifest"))
         if not out.problems and seeds is None:
-            digest = metrics_digest(sorted(Path(tmp).glob("*.mcap")))
-            if digest != manifest.get("metrics_sha256"):
-                out.problems.append(("", f"metrics table differs: {manifest.get('metrics_sha256')} -> {digest}"))
+            problems, out.notes = compare_metrics(manifest, dataset_metrics(sorted(Path(tmp).glob("*.mcap"))), name)
+            out.problems.extend(("", text) for text in problems)
     return out
 
 
@@ -519,6 +569,8 @@ def main(argv: list[str] | None = None) -> int:
     except (DatasetError, LogError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    for note in result.notes:
+        print(f"{args.name}: {note}")
     if result.problems:
         _print_verification(args.name, result, args.detail)
         return 1

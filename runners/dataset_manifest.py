@@ -18,8 +18,9 @@ from analysis.log_check import OUTCOMES
 from fuzzynav import limits
 
 VERSION = 1  # of the manifest's layout, which build writes and verify reads
-#: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_sha256`` and ``episodes``
-FIELDS = ("name", "description", "version", "sweep", "keep_logs", "metrics_sha256", "episodes")
+#: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_columns`` (one digest per
+#: metrics column) and ``episodes``; ``metrics_sha256`` (the whole table) is read from manifests built before
+FIELDS = ("name", "description", "version", "sweep", "keep_logs", "metrics_sha256", "metrics_columns", "episodes")
 #: the fields of ``sweep``: scenarios x variants x seeds, plus Hydra overrides for every episode
 SWEEP_FIELDS = ("scenarios", "variants", "seeds", "overrides")
 
@@ -74,6 +75,14 @@ def check_manifest(data: Any, path: Path, name: str) -> None:
     digest = data.get("metrics_sha256")
     if digest is not None and not (isinstance(digest, str) and re.fullmatch("[0-9a-f]{64}", digest)):
         raise DatasetError(f"{path}: metrics_sha256: expected 64 lowercase hex digits, got {digest!r:.70}")
+    columns = data.get("metrics_columns")
+    if columns is not None:
+        if not isinstance(columns, dict):
+            raise DatasetError(f"{path}: metrics_columns: expected a mapping of metrics column to digest")
+        for column, value in columns.items():
+            if not (isinstance(column, str) and isinstance(value, str) and re.fullmatch("[0-9a-f]{16}", value)):
+                raise DatasetError(f"{path}: metrics_columns: {column!s:.60}: expected 16 lowercase hex digits, "
+                                   f"got {value!r:.40}")
     _check_sweep_fields(data.get("sweep"), path)
     _check_keep_logs(data.get("keep_logs"), data["sweep"]["seeds"], path)
     _check_episodes(data.get("episodes"), path)

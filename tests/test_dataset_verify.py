@@ -213,6 +213,10 @@ def test_a_bad_manifest_sweep_is_one_line_before_anything_runs(tmp_path, capsys,
     ({"episodes": {"a.mcap": 5}}, None, "manifest.yaml: episodes.a.mcap: expected a mapping, got 5"),
     ({"episodes": {"a.mcap": {"outcome": "goal"}}}, None, "manifest.yaml: episodes.a.mcap.steps: missing"),
     ({"episodes": [1, 2]}, None, "manifest.yaml: episodes: expected a mapping of log file names, got list"),
+    ({"metrics_columns": ["spl"]}, None, "manifest.yaml: metrics_columns: expected a mapping of metrics column to "
+                                         "digest"),
+    ({"metrics_columns": {"spl": "abc"}}, None, "manifest.yaml: metrics_columns: spl: expected 16 lowercase hex "
+                                                "digits, got 'abc'"),
     ({}, "name: x\nversion: !!python/object/apply:os.system [id]\n",
      "manifest.yaml:2: version: YAML tag 'tag:yaml.org,2002:python/object/apply:os.system' is not allowed"),
     ({}, "name: x\nversion: !!str 1\n", "manifest.yaml:2: version: YAML tag 'tag:yaml.org,2002:str' is not allowed"),
@@ -477,3 +481,83 @@ def test_a_wrong_manifest_steps_or_outcome_is_a_difference(root, tmp_path, capsy
     assert code == 1, (out, err)
     line = episode_line(out, UNLOGGED)
     assert "the manifest entry differs from the regenerated episode" in line and said in line, out
+
+
+# -- metrics hashed per column --------------------------------------------------------------------------------
+def test_build_hashes_each_metrics_column(root):
+    manifest = dataset.load_manifest("tiny", root)
+    assert "metrics_sha256" not in manifest
+    columns = manifest["metrics_columns"]
+    assert {"path_length_cm", "success", "spl", "min_ttc_s", "seed"} <= set(columns)
+    assert not any(c.startswith("compute_time") for c in columns) and "log" not in columns
+    assert all(re.fullmatch(r"[0-9a-f]{16}", d) for d in columns.values())
+    assert list(manifest)[-2:] == ["metrics_columns", "episodes"]  # the documented order of the fields
+
+
+def _edit_metrics(monkeypatch, edit: Callable[[Any], Any]) -> None:
+    """Make the metrics table that verify computes go through ``edit`` (as a new version of analysis would)."""
+    real = dataset.metrics_table
+
+    def edited(paths, *args, **kwargs):
+        table, bad = real(paths, *args, **kwargs)
+        return edit(table.copy()), bad
+
+    monkeypatch.setattr(dataset, "metrics_table", edited)
+
+
+def test_a_new_metric_column_passes_and_is_named(root, capsys, monkeypatch):
+    def add(table):
+        table["new_metric_cm"] = 1.5
+        table["another_s"] = 2.0
+        return table
+
+    _edit_metrics(monkeypatch, add)
+    code, out, err = run(capsys, "verify", "tiny", "--root", str(root))
+    assert code == 0, (out, err)
+    assert "tiny: all episodes and the metrics table of the dataset match" in out
+    assert ("tiny: new metrics, not in the manifest: new_metric_cm, another_s (behaviour unchanged; to record "
+            "them: python -m runners.dataset build tiny)") in out
+
+
+def test_a_changed_metric_column_fails_naming_it(root, capsys, monkeypatch):
+    def change(table):
+        table.loc[0, "path_length_cm"] += 0.5
+        return table
+
+    _edit_metrics(monkeypatch, change)
+    code, out, err = run(capsys, "verify", "tiny", "--root", str(root))
+    assert code == 1, (out, err)
+    problems = [ln.strip() for ln in out.splitlines() if "metrics column" in ln]
+    assert len(problems) == 1 and problems[0].startswith("metrics column path_length_cm: values differ from the "
+                                                         "manifest ("), out
+
+
+def test_a_removed_metric_column_fails_naming_it(root, capsys, monkeypatch):
+    _edit_metrics(monkeypatch, lambda table: table.drop(columns=["turn_count"]))
+    code, out, err = run(capsys, "verify", "tiny", "--root", str(root))
+    assert code == 1, (out, err)
+    assert "metrics column turn_count: in the manifest but no longer computed" in out
+
+
+@pytest.mark.parametrize("same", [True, False])
+def test_an_old_manifest_with_one_metrics_digest_says_to_rebuild(root, tmp_path, capsys, monkeypatch, same):
+    """Manifests built before per-column hashing have ``metrics_sha256`` of the whole table: still read, and verify
+    says what to run."""
+    shutil.copytree(root / "tiny", tmp_path / "tiny")
+    path = tmp_path / "tiny" / "manifest.yaml"
+    manifest = yaml.safe_load(path.read_text())
+    del manifest["metrics_columns"]
+    manifest["metrics_sha256"] = "0" * 64
+    path.write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
+    if same:  # the regenerated table's whole-table digest is the recorded one
+        monkeypatch.setattr(dataset, "metrics_digest", lambda table: "0" * 64)
+    code, out, err = run(capsys, "verify", "tiny", "--root", str(tmp_path))
+    if same:
+        assert code == 0, (out, err)
+        assert ("tiny: the metrics table matches the manifest's metrics_sha256; metrics are now hashed per column "
+                "(a new metric then needs no rebuild): run python -m runners.dataset build tiny") in out
+    else:
+        assert code == 1, (out, err)
+        assert "metrics table differs from the manifest's metrics_sha256" in out
+        assert "if a metric was added, record a digest per column with python -m runners.dataset build tiny" in out
+

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.episode_log import load_episode
-from analysis.metrics import episode_metrics, metrics_table, turn_count
+from analysis.metrics import MetricOptions, episode_metrics, metrics_table, turn_count
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from tests.handmade import write_log
 
@@ -125,3 +125,106 @@ def test_bootstrap_is_seeded_and_brackets_the_mean():
     assert a == b and a[1] < a[0] < a[2]
     assert bootstrap_mean([3.0, 3.0, 3.0]) == (3.0, 3.0, 3.0)
     assert excludes_zero(0.1, 2.0) and not excludes_zero(-1.0, 2.0)
+
+
+# -- the standard navigation metrics (issue #18), each on a hand-made log with values worked out by hand ----------
+def with_true_velocities(src, dst, dt: float = 1.0):
+    """Copy a hand-made log, setting each obstacle's logged velocity to its move over the step / dt (cm/s)."""
+    from tests.handmade import rewrite_log
+
+    def edit(topic, msg):
+        if topic == "/obstacles/truth":
+            for o in msg["obstacles"]:
+                o["vx_cm_s"], o["vy_cm_s"] = (o["next_x_cm"] - o["x_cm"]) / dt, (o["next_y_cm"] - o["y_cm"]) / dt
+
+    rewrite_log(src, dst, edit)
+    return dst
+
+
+def test_spl_acceleration_jerk_and_stalled_time(tmp_path):
+    # along +x to a goal at 100 cm (tolerance 20 cm), standing still for one step half-way; dt = 1 s
+    poses = [(0, 0, 0), (25, 0, 0), (50, 0, 0), (50, 0, 0), (75, 0, 0), (100, 0, 0)]
+    path = write_log(tmp_path / "line.mcap", poses, goal=(100.0, 0.0), speeds=[25.0, 25.0, 0.0, 25.0, 25.0])
+    m = episode_metrics(load_episode(path))
+    assert m["success"] and m["path_length_cm"] == pytest.approx(100.0)
+    assert m["spl"] == pytest.approx(80.0 / 100.0)  # shortest = 100 − 20 (tolerance); path 100
+    # move velocities 25, 25, 0, 25, 25 cm/s: |Δv| = 0, 25, 25, 0; |Δ²v| = 25, 50, 25
+    assert m["accel_mean_cm_s2"] == pytest.approx(12.5) and m["accel_max_cm_s2"] == pytest.approx(25.0)
+    assert m["jerk_mean_cm_s3"] == pytest.approx(100.0 / 3) and m["jerk_max_cm_s3"] == pytest.approx(50.0)
+    assert m["stalled_time_s"] == pytest.approx(1.0)  # step 2: speed 0 at 50 cm from the goal
+    assert m["path_irregularity_deg_per_m"] == 0.0  # facing the goal all the way
+    assert math.isnan(m["min_ttc_s"])  # no moving obstacle: nothing to measure
+    assert m["near_miss_steps"] == 0 and m["personal_space_intrusion_s"] == 0
+    slow = episode_metrics(load_episode(path), MetricOptions(stall_speed_cm_s=30.0))
+    assert slow["stalled_time_s"] == pytest.approx(5.0)  # every step is slower than 30 cm/s and away from the goal
+
+
+def test_spl_is_zero_on_failure_and_acceleration_counts_turns(tmp_path):
+    log = load_episode(write_log(tmp_path / "square.mcap", square_poses(), goal=(0.0, 0.0), outcome="timeout"))
+    m = episode_metrics(log)
+    assert m["spl"] == 0.0
+    # moves of 50 cm/s along x, then y, ...: a corner turns the velocity by 90° at constant speed, |Δv| = 50√2
+    assert m["accel_max_cm_s2"] == pytest.approx(50 * math.sqrt(2))
+    assert m["stalled_time_s"] == 0.0  # the last step turns in place at the goal: at the goal, not stalled
+
+
+def test_path_irregularity_discounts_the_turn_to_face_the_goal(tmp_path):
+    # facing +y, the goal along +x: the 90° turn in place is needed, the rest is straight -> 0
+    turn = [(0, 0, 90), (0, 0, 0), (50, 0, 0), (100, 0, 0)]
+    m = episode_metrics(load_episode(write_log(tmp_path / "turn.mcap", turn, goal=(100.0, 0.0))))
+    assert m["heading_change_deg_total"] == pytest.approx(90.0) and m["path_irregularity_deg_per_m"] == 0.0
+    # facing the goal, weaving by 30° and back over 1 m: 60° of unneeded rotation per metre
+    weave = [(0, 0, 0), (50, 0, 30), (100, 0, 0)]
+    m = episode_metrics(load_episode(write_log(tmp_path / "weave.mcap", weave, goal=(100.0, 0.0))))
+    assert m["path_irregularity_deg_per_m"] == pytest.approx(60.0)
+
+
+def test_min_time_to_collision_head_on(tmp_path):
+    # robot +x at 40 cm/s, obstacle from x = 300 at −60 cm/s, radii 20 + 20: closing at 100 cm/s
+    poses = [(0, 0, 0), (40, 0, 0), (80, 0, 0)]
+    obstacles = [[("o", 300, 0, 240, 0, 20)], [("o", 240, 0, 180, 0, 20)]]
+    raw = write_log(tmp_path / "raw.mcap", poses, obstacles=obstacles, goal=(80.0, 0.0))
+    m = episode_metrics(load_episode(with_true_velocities(raw, tmp_path / "ttc.mcap")))
+    assert m["min_ttc_s"] == pytest.approx((200 - 40) / 100)  # step 1: 200 cm apart, 40 cm of radii: 1.6 s
+    # the same obstacle moving away at +60 cm/s: never on a collision course -> inf
+    away = [[("o", 300, 0, 360, 0, 20)], [("o", 360, 0, 420, 0, 20)]]
+    raw = write_log(tmp_path / "raw2.mcap", poses, obstacles=away, goal=(80.0, 0.0))
+    assert episode_metrics(load_episode(with_true_velocities(raw, tmp_path / "away.mcap")))["min_ttc_s"] == math.inf
+
+
+def test_min_time_to_collision_is_zero_in_contact(tmp_path):
+    poses = [(0, 0, 0), (40, 0, 0), (80, 0, 0)]
+    obstacles = [[("o", 100, 0, 60, 0, 20)], [("o", 60, 0, 20, 0, 20)]]  # overlapping at step 1 (20 cm apart)
+    raw = write_log(tmp_path / "raw.mcap", poses, obstacles=obstacles, outcome="collision")
+    assert episode_metrics(load_episode(with_true_velocities(raw, tmp_path / "hit.mcap")))["min_ttc_s"] == 0.0
+
+
+def test_near_misses_and_personal_space(tmp_path):
+    # along y = 0 past a box whose lower edge is at y = 35 (x 90..110): steps 1 and 2 pass 35 − 20 = 15 cm from it;
+    # a standing pedestrian (radius 20) at (0, −80): step 0 passes 80 − 40 = 40 cm from its surface
+    box = [(90, 35), (110, 35), (110, 60), (90, 60)]
+    poses = [(0, 0, 0), (50, 0, 0), (100, 0, 0), (150, 0, 0)]
+    obstacles = [[("p", 0, -80, 0, -80, 20)]] * 3
+    path = write_log(tmp_path / "pass.mcap", poses, statics=[box], obstacles=obstacles, goal=(150.0, 0.0))
+    m = episode_metrics(load_episode(path))
+    assert m["near_miss_steps"] == 2  # 15 cm < 20 cm on steps 1 and 2; step 0: 40 cm and √(40² + 35²) − 20
+    assert m["personal_space_intrusion_s"] == pytest.approx(1.0)  # 40 cm < 45 cm on step 0 only
+    assert m["min_ttc_s"] == math.inf  # passes 80 cm from the centre: the 40 cm of radii are never reached
+    wide = episode_metrics(load_episode(path), MetricOptions(near_miss_cm=50.0, personal_space_cm=60.0))
+    assert wide["near_miss_steps"] == 3  # step 0: min(33.2, 40) < 50
+    assert wide["personal_space_intrusion_s"] == pytest.approx(2.0)  # step 1: √(50² + 80²) − 40 = 54.3 < 60
+
+
+def test_collisions_are_split_into_walls_and_static_obstacles(tmp_path):
+    # the wall at x = 800: the move to x = 790 and the move back touch it (radius 20): one contact
+    poses = [(700, 0, 0), (750, 0, 0), (790, 0, 0), (750, 0, 0), (700, 0, 0)]
+    path = write_log(tmp_path / "wall.mcap", poses, contacts_static=[False, True, True, False], outcome="timeout")
+    m = episode_metrics(load_episode(path))
+    assert (m["collisions_wall"], m["collisions_static_obstacle"], m["collisions_static"]) == (1, 0, 1)
+    box = [(200, 30), (300, 30), (300, 100), (200, 100)]
+    poses = [(100, 0, 0), (150, 0, 0), (200, 15, 0), (230, 0, 0), (260, 0, 0), (290, 15, 0), (320, 0, 0),
+             (400, 0, 0)]
+    m = episode_metrics(load_episode(write_log(tmp_path / "box.mcap", poses, statics=[box], goal=(400.0, 0.0))))
+    assert (m["collisions_wall"], m["collisions_static_obstacle"], m["collisions_static"]) == (0, 2, 2)
+    # near misses: step 3 (30 − 20 = 10 cm) and step 6 (√(20² + 30²) − 20 = 16.1 cm); step 0: 38.3 cm; the rest touch
+    assert m["near_miss_steps"] == 2

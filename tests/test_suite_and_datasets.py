@@ -107,7 +107,7 @@ def test_dataset_list_and_manifests():
     assert names["suite_v1"]["episodes"] == 14 * 4 * 10 and names["suite_v1"]["built"]
     for name in ("paper_fig5", "suite_v1"):
         m = dataset.load_manifest(name)
-        assert len(m["episodes"]) == len(dataset.jobs(m)) and len(m["metrics_sha256"]) == 64
+        assert len(m["episodes"]) == len(dataset.jobs(m)) and "success" in m["metrics_columns"]
 
 
 def run_dataset(*args):

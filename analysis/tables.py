@@ -1,0 +1,75 @@
+"""The report's tables as CSV and as Parquet (pyarrow), side by side.
+
+``episodes.parquet`` and ``groups.parquet`` hold what ``episodes.csv`` and ``groups.csv`` hold, with column types
+kept (CSV turns a boolean into text and NaN into an empty field) and, in the file's key-value metadata:
+
+- ``fuzzynav.schema_version``: :data:`SCHEMA_VERSION`, raised when a column is renamed, removed or changes meaning
+  (adding a column does not raise it);
+- ``fuzzynav.table``: ``episodes`` or ``groups``;
+- ``fuzzynav.units``: JSON object column -> unit (:data:`analysis.metrics.COLUMN_UNITS`; ``""`` for labels, counts
+  and ratios). In ``groups`` the ``mean``, ``ci_low`` and ``ci_high`` columns are in the unit of the row's metric:
+  ``fuzzynav.metric_units`` maps each metric to its unit.
+
+Each column's unit is also in its Arrow field metadata (``unit``), so tools that show field metadata see it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from analysis.metrics import COLUMN_UNITS
+
+SCHEMA_VERSION = "1"
+#: units of the groups table's own columns (``mean``/``ci_low``/``ci_high``: the unit of the row's metric)
+GROUP_UNITS = {"metric": "", "n": "episodes", "mean": "unit of metric", "ci_low": "unit of metric",
+               "ci_high": "unit of metric", "interval": ""}
+
+
+def _units(df: pd.DataFrame, extra: dict[str, str]) -> dict[str, str]:
+    """Unit of each column of ``df`` (``""`` for a label or a column without a unit)."""
+    known = {**COLUMN_UNITS, **extra}
+    return {str(c): known.get(str(c), "") for c in df.columns}
+
+
+def _arrow_ready(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with each object column Arrow cannot type (a group label that is a number in one row and text in
+    another) as text, missing values kept missing: the CSV writes such a column as text too."""
+    out = df
+    for column in [c for c in df.columns if pd.api.types.is_object_dtype(df[c])]:
+        try:
+            pa.array(df[column], from_pandas=True)
+        except (pa.ArrowInvalid, pa.ArrowTypeError):
+            out = out.copy() if out is df else out
+            out[column] = [None if v is None or (isinstance(v, float) and v != v) else str(v) for v in df[column]]
+    return out
+
+
+def write_parquet(df: pd.DataFrame, path: Path, table: str, extra_metadata: dict[str, str] | None = None) -> None:
+    """Write ``df`` to ``path`` as Parquet with the schema version, the table name and each column's unit in the
+    file metadata (see the module docstring)."""
+    units = _units(df, GROUP_UNITS if table == "groups" else {})
+    arrow = pa.Table.from_pandas(_arrow_ready(df), preserve_index=False)
+    fields = [f.with_metadata({"unit": units.get(f.name, "")}) for f in arrow.schema]
+    metadata = {**(arrow.schema.metadata or {}), b"fuzzynav.schema_version": SCHEMA_VERSION.encode(),
+                b"fuzzynav.table": table.encode(), b"fuzzynav.units": json.dumps(units).encode()}
+    metadata.update({k.encode(): v.encode() for k, v in (extra_metadata or {}).items()})
+    pq.write_table(arrow.cast(pa.schema(fields, metadata=metadata)), path)
+
+
+def write_tables(out: Path, episodes: pd.DataFrame, groups: pd.DataFrame) -> None:
+    """``episodes``/``groups`` as ``.csv`` and ``.parquet`` in ``out``."""
+    episodes.to_csv(out / "episodes.csv", index=False)
+    groups.to_csv(out / "groups.csv", index=False)
+    write_parquet(episodes, out / "episodes.parquet", "episodes")
+    metric_units = {m: COLUMN_UNITS.get(m, "") for m in groups["metric"].unique()} if "metric" in groups else {}
+    write_parquet(groups, out / "groups.parquet", "groups", {"fuzzynav.metric_units": json.dumps(metric_units)})
+
+
+def read_units(path: Path) -> dict[str, str]:
+    """Column -> unit of a Parquet table written by :func:`write_parquet`."""
+    return json.loads(pq.read_schema(path).metadata[b"fuzzynav.units"])
