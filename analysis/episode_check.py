@@ -3,8 +3,8 @@ one message per step and topic, numbered from 0; log times at step * dt (ns); th
 the robot starts at the scenario's start pose and each step's ``distance_to_goal_cm`` is the distance from the
 position after the move to the goal (when the log carries its scenario); the robot's and the moving obstacles'
 positions continue from one step to the next (each step's ``next_*`` is the following step's position); scans and
-their moving beams agree; TPTs have the episode's step length and plans their table; the decisions' strategy and
-h_wait are the metadata's; a finished episode has every step and the time ``/episode`` reports. Raises
+their moving beams agree; TPTs have the episode's step length and plans their table; the decisions' strategy,
+policy and h_wait are the metadata's; a finished episode has every step and the time ``/episode`` reports. Raises
 :class:`CheckError`."""
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import yaml
 
 from analysis.json_checks import CheckError, array, number, obj
 from analysis.log_check import FINISHED, MAX_CONFIG_BYTES, POSITIVE_CM, TIME_TOLERANCE_NS, YAML_LOADER
+from fuzzynav.policy import DEFAULT_POLICY
 
 if TYPE_CHECKING:
     from analysis.episode_log import EpisodeLog
@@ -203,7 +204,8 @@ def _check_tpts(log: EpisodeLog) -> None:
 
 
 def _check_decisions(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:
-    """Each decision's strategy and plan h_wait are the metadata's; a plan is made from a TPT of its step."""
+    """Each decision's strategy, policy and plan h_wait are the metadata's; a plan is made from a TPT of its
+    step."""
     strategy, h_wait = log.meta["strategy"], int(log.meta["h_wait"])
     tables = "/tpt" in times
     for k, d in enumerate(log.decisions):
@@ -212,6 +214,10 @@ def _check_decisions(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:
         if d["strategy"] != strategy:
             raise CheckError(f"/planner/decision step {k} strategy", f"{d['strategy']!r}, the metadata says "
                                                                      f"{strategy!r}")
+        # the policy that decided: the metadata's (a log written before policies has neither: fuzzy)
+        if d.get("policy", DEFAULT_POLICY) != log.meta.get("policy", DEFAULT_POLICY):
+            raise CheckError(f"/planner/decision step {k} policy", f"{str(d.get('policy', 'missing'))[:60]!r}, the "
+                                                                   f"metadata says {log.meta.get('policy', 'none')!r}")
         plan = d["planning"]
         if plan is not None and plan["h_wait"] != h_wait:
             raise CheckError(f"/planner/decision step {k} planning.h_wait", f"{plan['h_wait']}, the metadata says "

@@ -52,7 +52,7 @@ from analysis.json_checks import (
 )
 from fuzzynav import limits
 from fuzzynav import policy as policy_names
-from fuzzynav.episode_identity import config_hash  # the hash runners.run records: one definition
+from fuzzynav.episode_identity import POLICY_SOURCE, config_hash  # what runners.run records: one definition
 from fuzzynav.policy import DEFAULT_POLICY
 
 __all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash"]
@@ -111,19 +111,38 @@ def check_tpt(v: Any) -> None:
     raise CheckError("", "not acceptable")  # unreachable while the fast and slow rules agree
 
 
+_DECISION = obj(
+    step=STEP, mode=matching(MODE, "a mode such as fuzzy or wait"), new_plan=boolean, left_cm=READING,
+    front_cm=READING, right_cm=READING,
+    angle_deg=number(0.0, 180.0), dtheta_deg=number(), v_cm_s=READING, strategy=string,
+    planning=nullable(obj(strategy=one_of(*PLAN_STRATEGIES), tc=STEP, tS=STEP, tG=STEP, wait_time=STEP,
+                          h_wait=STEP, reason=string)),
+    compute_time_us=number(0.0, MAX_US))
+
+
+def _check_decision(v: Any) -> None:
+    """A decision: its fields (:data:`_DECISION`), and, in logs written since policies can be chosen, the policy
+    that decided (a registered name or an import path) and its own values (numbers, booleans, strings)."""
+    _DECISION(v)
+    if "policy" in v and not policy_names.is_policy_id(v["policy"]):
+        raise CheckError("policy", f"{str(v['policy'])[:60]!r} is not a policy name or import path")
+    fields = v.get("policy_fields", {})
+    if type(fields) is not dict:
+        raise CheckError("policy_fields", f"expected an object, got {kind_of(fields)}")
+    for key, value in fields.items():
+        if type(value) in (bool, str) or (type(value) in (int, float) and math.isfinite(value)):
+            continue
+        raise CheckError(f"policy_fields.{str(key)[:40]}", f"expected a finite number, a boolean or a string, got "
+                                                           f"{kind_of(value)}")
+
+
 MESSAGE_CHECKS: dict[str, Check] = {
     "/robot/state": obj(step=STEP, x_cm=CM, y_cm=CM, heading_deg=HEADING, v_cm_s=SPEED, next_x_cm=CM,
                         next_y_cm=CM, next_heading_deg=HEADING, radius_cm=POSITIVE_CM, contact_static=boolean,
                         contact_dynamic=array(string), distance_to_goal_cm=READING),
     "/obstacles/truth": obj(step=STEP, obstacles=array(obj(id=string, x_cm=CM, y_cm=CM, next_x_cm=CM, next_y_cm=CM,
                                                            radius_cm=POSITIVE_CM))),
-    "/planner/decision": obj(
-        step=STEP, mode=matching(MODE, "a mode such as fuzzy or wait"), new_plan=boolean, left_cm=READING,
-        front_cm=READING, right_cm=READING,
-        angle_deg=number(0.0, 180.0), dtheta_deg=number(), v_cm_s=READING, strategy=string,
-        planning=nullable(obj(strategy=one_of(*PLAN_STRATEGIES), tc=STEP, tS=STEP, tG=STEP, wait_time=STEP,
-                              h_wait=STEP, reason=string)),
-        compute_time_us=number(0.0, MAX_US)),
+    "/planner/decision": _check_decision,
     "/tpt": check_tpt,
     "/episode": obj(outcome=one_of(*OUTCOMES), steps=STEP, time_s=number(0.0, MAX_US), contacts=STEP,
                     reason=string),
@@ -180,10 +199,16 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
     for key, allowed in (("strategy", STRATEGIES), ("perception", PERCEPTIONS)):
         if meta[key] not in allowed:
             raise CheckError(key, f"{meta[key][:40]!r} is not one of {', '.join(allowed)}")
+    source = meta.get(POLICY_SOURCE)
+    if source is not None and not _SHA256.fullmatch(source):
+        raise CheckError(POLICY_SOURCE, f"{source[:80]!r} is not a SHA-256 digest")
     if "policy" in meta and not policy_names.is_policy_id(meta["policy"]):  # logs before policies have none
         raise CheckError("policy", f"{meta['policy'][:80]!r} is not a policy name or import path")
     config = _parse_config(meta.get("config", ""))
     navigator = config.get("navigator")
+    if "policy" not in meta and isinstance(navigator, dict) and ("policy" in navigator or "_target_" in navigator):
+        # only logs written before policies could be chosen lack it, and their config names none
+        raise CheckError("policy", "missing, but the config's navigator section names a policy")
     if "policy" in meta and isinstance(navigator, dict):
         named = navigator.get("policy", navigator.get("_target_", DEFAULT_POLICY))
         if str(named) != meta["policy"]:

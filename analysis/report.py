@@ -350,6 +350,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     first = Path(args.paths[0])
+    if args.out is not None and not args.out.strip():  # "" is no directory: it wrote ./report instead
+        parser.error("--out: an empty path; give the report's directory")
     out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
     existed = out.exists()
     problem = unwritable_dir(out)  # before the analysis, not after it

@@ -21,6 +21,7 @@ from typing import Any
 BATCHING_KEYS = ("seed", "episodes", "resume")  # top-level config keys that do not change an episode
 HASH_IGNORED_KEYS = ("resume",)  # what the logged config_hash leaves out (unchanged: logs must stay the same)
 IDENTITY_FIELDS = ("config", "seed", "fuzzynav_version")  # the metadata fields the identity is computed from
+POLICY_SOURCE = "policy_source_sha256"  # and this one where present: a _target_ policy's source digest
 
 
 def _digest(config_yaml: str, ignored: tuple[str, ...], seed: int | str, fuzzynav_version: str) -> str:
@@ -31,10 +32,13 @@ def _digest(config_yaml: str, ignored: tuple[str, ...], seed: int | str, fuzzyna
     return hashlib.sha256(f"{body}\nseed={seed}\nfuzzynav={fuzzynav_version}".encode()).hexdigest()
 
 
-def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:
+def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str, policy_source: str = "") -> str:
     """The identity of the episode of ``seed`` run with the resolved config ``config_yaml`` by this fuzzynav
-    version, whatever the seed batching (see the module docstring)."""
-    return _digest(config_yaml, BATCHING_KEYS, seed, fuzzynav_version)
+    version, whatever the seed batching (see the module docstring); ``policy_source``: the digest of a
+    ``_target_`` policy's source (:func:`fuzzynav.policy.policy_source_digest`; '' for fuzzynav's own policies,
+    which leaves the key as it was before policies could be chosen)."""
+    version = f"{fuzzynav_version}+policy:{policy_source}" if policy_source else fuzzynav_version
+    return _digest(config_yaml, BATCHING_KEYS, seed, version)
 
 
 def episode_key_of(meta: Mapping[str, Any] | None) -> str | None:
@@ -42,7 +46,7 @@ def episode_key_of(meta: Mapping[str, Any] | None) -> str | None:
     the fuzzynav version as text (a hand-written or damaged record: no identity, never merged with another)."""
     if not meta or not all(isinstance(meta.get(field), str) for field in IDENTITY_FIELDS):
         return None
-    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"])
+    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"], str(meta.get(POLICY_SOURCE, "")))
 
 
 def config_hash(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:

@@ -211,7 +211,7 @@ FIELD_RANGES: dict[str, Range] = {
     "navigator.influence_cm": Range(0, 10_000, _CM, "APF: ρ0, " + _R, lo_open=True),
     "navigator.lookahead_s": Range(0, 60, "s", "APF: where moving obstacles repel from"),
     "navigator.min_gap_cm": Range(0, 1_000, _CM, "APF: floor of the gap ρ", lo_open=True),
-    "navigator.sector_deg": Range(0, 45, "deg", "VFH: α; at least 8 sectors", lo_open=True),
+    "navigator.sector_deg": Range(0.5, 45, "deg", "VFH: α; 8 to 720 sectors (the histogram is sectors x cells)"),
     "navigator.cell_cm": Range(1, 1_000, _CM, "VFH: histogram-grid cell"),
     "navigator.window_cm": Range(0, 10_000, _CM, "VFH: active window, " + _R, lo_open=True),
     "navigator.b": Range(0, 1e6, "1/cm", "VFH: magnitude per cm", lo_open=True),

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzynav import limits
 from fuzzynav.fuzzy_policy import NavigatorConfig, included_angle_deg
 from fuzzynav.kinematics import RobotLimits
 from fuzzynav.planner import (
@@ -99,9 +100,20 @@ class Navigator:
         self.robot_radius = robot_radius
         self.dt = dt
 
+    @property
+    def policy_name(self) -> str:
+        """The policy as decisions record it (see ``name``)."""
+        return self.name if self.name is not None else self.policy.name
+
     def reset(self, seed: int) -> None:
         """Before an episode: the policy forgets the last one (and draws its randomness from ``seed``)."""
-        self.policy.reset(seed)
+        try:
+            self.policy.reset(seed)
+        except KeyboardInterrupt:
+            raise
+        except BaseException as err:  # a policy's own code (SystemExit included) fails the episode, not the run
+            raise PolicyError(f"policy {self.policy_name}: reset(seed) failed: {type(err).__name__}: "
+                              f"{' '.join(str(err).split())[:200]}") from err
 
     def decide(self, obs: Observation, active: ActivePlan | None) -> tuple[Decision, ActivePlan | None]:
         """The decision for this step, and the plan to carry into the next step."""
@@ -109,8 +121,15 @@ class Navigator:
         left, front, right = obs.sonar
         angle = included_angle_deg(s, obs.goal)
         inputs = (left, front, right, angle)
-        name = self.name if self.name is not None else self.policy.name
-        action = checked_action(self.policy.act(obs), name)
+        name = self.policy_name
+        try:
+            raw = self.policy.act(obs)
+        except KeyboardInterrupt:
+            raise
+        except BaseException as err:  # SystemExit from a policy's code must not end a whole sweep
+            raise PolicyError(f"policy {name}: act() failed: {type(err).__name__}: "
+                              f"{' '.join(str(err).split())[:200]}") from err
+        action = checked_action(raw, name)
         static_v = action.v_cm_s
         fields = action.fields
         tpt = None
@@ -161,30 +180,65 @@ class Navigator:
                                  margin=self.planner.plan_check_margin_cm)
 
 
+class PolicyError(ValueError):
+    """A policy's own code failed, or returned a command the robot cannot execute: the episode ends as ``error``
+    with this message (which names the policy)."""
+
+
+MAX_DTHETA_DEG = 1e6  # a steering increment beyond it is no command (the robot clamps to its turn limit anyway)
+
+
 def checked_action(action: Any, policy: str) -> Action:
     """``action`` if it is a command the robot can execute and the log can hold: an :class:`Action` with a mode
-    name (lowercase, digits, ``_``; not a plan's mode), a finite steering increment (degrees) and a finite
-    speed >= 0 (cm/s), and fields of numbers, booleans or strings. A policy that returns anything else (NaN
-    from a division by zero, a negative speed) stops the episode with an error naming the policy instead of
-    moving the robot by a wrong amount."""
+    name (lowercase, digits, ``_``; not a plan's mode), a finite steering increment (degrees, |Δθ| <=
+    :data:`MAX_DTHETA_DEG`) and a speed in [0, ``limits.MAX_SPEED_CM_S``] (cm/s), and fields named by strings
+    holding finite numbers, booleans or (UTF-8) strings. A policy that returns anything else (NaN from a division
+    by zero, a negative speed, 1e308) stops the episode with a :class:`PolicyError` naming the policy and the
+    field, instead of moving the robot by a wrong amount or writing a log no reader accepts."""
     if not isinstance(action, Action):
-        raise ValueError(f"policy {policy}: act() returned {type(action).__name__}, not a fuzzynav.policy.Action")
+        raise PolicyError(f"policy {policy}: act() returned {type(action).__name__}, not a fuzzynav.policy.Action")
     if not isinstance(action.mode, str) or not MODE_NAME.fullmatch(action.mode) or action.mode in PLAN_MODES:
-        raise ValueError(f"policy {policy}: mode {str(action.mode)[:40]!r} is not a mode name (lowercase letters, "
-                         f"digits, _; not one of the plan modes {', '.join(PLAN_MODES)})")
-    for name, value in (("dtheta_deg", action.dtheta_deg), ("v_cm_s", action.v_cm_s)):
-        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) \
-                or not math.isfinite(value):
-            raise ValueError(f"policy {policy}: {name} = {value!r} is not a finite number")
-    if action.v_cm_s < 0:
-        raise ValueError(f"policy {policy}: v_cm_s = {action.v_cm_s!r} is negative (0 = stand still)")
-    for key, value in dict(action.fields).items():
-        ok = isinstance(value, bool | str) or (isinstance(value, int | float | np.integer | np.floating)
-                                               and math.isfinite(value))
-        if not isinstance(key, str) or not ok:
-            raise ValueError(f"policy {policy}: field {str(key)[:40]!r} = {str(value)[:40]!r} is not a finite "
-                             "number, a boolean or a string")
+        raise PolicyError(f"policy {policy}: mode {str(action.mode)[:40]!r} is not a mode name (lowercase "
+                          f"letters, digits, _; not one of the plan modes {', '.join(PLAN_MODES)})")
+    bounds = (("dtheta_deg", action.dtheta_deg, -MAX_DTHETA_DEG, MAX_DTHETA_DEG),
+              ("v_cm_s", action.v_cm_s, 0.0, limits.MAX_SPEED_CM_S))
+    for name, value, lo, hi in bounds:
+        number = _finite(value)
+        if number is None:
+            raise PolicyError(f"policy {policy}: {name} = {str(value)[:40]} is not a finite number")
+        if not lo <= number <= hi:
+            raise PolicyError(f"policy {policy}: {name} = {number:g} is outside [{lo:g}, {hi:g}]"
+                              + (" (0 = stand still)" if name == "v_cm_s" else ""))
+    if not isinstance(action.fields, Mapping):
+        raise PolicyError(f"policy {policy}: fields is {type(action.fields).__name__}, not a mapping")
+    for key, value in action.fields.items():
+        if not isinstance(key, str) or not _utf8(key) or not key:
+            raise PolicyError(f"policy {policy}: field name {str(key)[:40]!r} is not a (UTF-8) string")
+        if isinstance(value, bool | np.bool_) or (isinstance(value, str) and _utf8(value)):
+            continue
+        if isinstance(value, bool | str) or _finite(value) is None:
+            raise PolicyError(f"policy {policy}: field {key[:40]!r} = {str(value)[:40]!r} is not a finite number, "
+                              "a boolean or a (UTF-8) string")
     return action
+
+
+def _finite(value: Any) -> float | None:
+    """``value`` as a float if it is a real number (not a boolean) with a finite float value, else None."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.integer | np.floating):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond float range
+        return None
+    return number if math.isfinite(number) else None
+
+
+def _utf8(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:  # a lone surrogate: no log can hold it
+        return False
+    return True
 
 
 def build_navigator(policy: str, params: Any, planner: PlannerConfig, limits: RobotLimits, robot_radius: float,

@@ -34,10 +34,14 @@ configuration is read rather than when the first episode starts.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import importlib
+import inspect
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Protocol, runtime_checkable
 
@@ -48,6 +52,8 @@ from fuzzynav.tracking import Track
 
 #: the policy of a run when its ``navigator`` section names none: the paper's fuzzy controller
 DEFAULT_POLICY = "fuzzy"
+#: the policy name of episodes whose commands came from outside (a Gymnasium agent): reserved, never registered
+AGENT = "agent"
 NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 """A registered policy's name, and a mode name (:class:`Action`; the log's ``/planner/decision.mode``)."""
 IMPORT_PATH = re.compile(r"(?=.{3,200}$)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
@@ -121,6 +127,8 @@ def register_policy(name: str) -> Callable[[PolicyFactory], PolicyFactory]:
     may carry ``config_class``, the frozen dataclass of its parameters (checked when a configuration is read)."""
 
     def add(factory: PolicyFactory) -> PolicyFactory:
+        if not NAME.fullmatch(name) or name == AGENT:
+            raise ValueError(f"policy name {name!r}: lowercase letters, digits and _, not {AGENT!r} (reserved)")
         if name in POLICIES and POLICIES[name] is not factory:
             raise ValueError(f"policy {name!r} is already registered ({POLICIES[name]!r})")
         POLICIES[name] = factory
@@ -159,10 +167,29 @@ def policy_factory(name: str) -> PolicyFactory:
     return factory
 
 
+def policy_source_digest(name: str) -> str:
+    """SHA-256 of the source file of a ``_target_`` policy's module ('' for fuzzynav's own, whose code the
+    fuzzynav version identifies, and for a module without a source file): part of an episode's identity, so that
+    a resumed sweep re-runs the episodes of a policy whose code changed instead of keeping their old logs."""
+    if name in POLICIES or not IMPORT_PATH.fullmatch(name):
+        return ""
+    module = importlib.import_module(name.rpartition(".")[0])  # imported already, by policy_factory
+    try:
+        source = inspect.getsourcefile(module)
+        data = Path(source).read_bytes() if source else b""
+    except (OSError, TypeError):
+        return ""
+    return hashlib.sha256(data).hexdigest() if data else ""
+
+
 def split_navigator_section(data: Mapping[str, Any] | None) -> tuple[str, dict[str, Any]]:
     """(policy name or import path, parameters) of a ``navigator`` config section: ``policy`` or ``_target_``
     (not both; neither = :data:`DEFAULT_POLICY`), the other keys are the policy's parameters."""
     params = dict(data or {})
+    for key in ("policy", "_target_"):
+        if key in params and params[key] is None:  # null on the command line: not "the default", a mistake
+            what = "a policy name" if key == "policy" else "an import path"
+            raise ValueError(f"navigator.{key}: null (give {what})")
     name = params.pop("policy", None)
     target = params.pop("_target_", None)
     if name is not None and target is not None:
@@ -191,9 +218,24 @@ def policy_params(name: str, params: Mapping[str, Any]) -> Any:
     config_class = getattr(factory, "config_class", None)
     if config_class is None:
         return MappingProxyType(dict(params))
+    if not (isinstance(config_class, type) and dataclasses.is_dataclass(config_class)):
+        raise ValueError(f"navigator: policy {name!r}: config_class must be a dataclass, got {config_class!r:.60}")
     from fuzzynav.config import from_dict  # fuzzynav.config imports the episode, which imports this module
 
-    return from_dict(config_class, params, "navigator")
+    try:
+        return from_dict(config_class, params, "navigator")
+    except ValueError:
+        raise
+    except KeyboardInterrupt:
+        raise
+    except BaseException as err:  # a user's config_class (its __post_init__) failing otherwise
+        raise ValueError(f"navigator: policy {name!r}: its config_class failed: {_one_line(err)}") from None
+
+
+def _one_line(err: BaseException, with_type: bool = True) -> str:
+    """An exception as one short line (user code may raise anything, with any message)."""
+    text = " ".join(str(err).split())[:200]
+    return f"{type(err).__name__}: {text}" if with_type else text or type(err).__name__
 
 
 def make_policy(name: str, params: Any, context: PolicyContext) -> Policy:
@@ -203,12 +245,15 @@ def make_policy(name: str, params: Any, context: PolicyContext) -> Policy:
     factory = policy_factory(name)
     try:
         policy = factory(params, context)
-    except ValueError:
+    except KeyboardInterrupt:
         raise
-    except Exception as err:  # a policy of the user's own: its failure is the config's error
-        raise ValueError(f"navigator: building policy {name!r} failed: {type(err).__name__}: "
-                         f"{str(err)[:200]}") from None
-    if not isinstance(policy, Policy):
+    except ValueError as err:
+        if name in POLICIES:  # fuzzynav's own name the field
+            raise
+        raise ValueError(f"navigator: policy {name!r}: {_one_line(err, with_type=False)}") from None
+    except BaseException as err:  # a policy of the user's own (SystemExit included): the config's error
+        raise ValueError(f"navigator: building policy {name!r} failed: {_one_line(err)}") from None
+    if isinstance(policy, type) or not isinstance(policy, Policy):
         raise ValueError(f"navigator: {name!r} built {type(policy).__name__}, which is not a policy (it needs "
                          "name, reset(seed) and act(observation))")
     return policy

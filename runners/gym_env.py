@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import math
 import re
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
@@ -46,11 +45,12 @@ from fuzzynav.checks import check_number
 from fuzzynav.episode import Episode, EpisodeConfig, StepRecord
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.laser import LaserScan
-from fuzzynav.policy import Action, Observation, Policy, PolicyContext, make_policy
+from fuzzynav.navigator import checked_action
+from fuzzynav.policy import AGENT, Action, Observation, Policy, PolicyContext, is_policy_id, make_policy
 from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
 
 ENV_ID = "fuzzynav/Navigation-v0"
-AGENT = "agent"  # mode and policy name of the decisions the agent's actions make
+
 
 # reward terms (see NavigationEnv's docstring)
 GOAL_REWARD = 10.0
@@ -191,10 +191,11 @@ class NavigationEnv(gymnasium.Env):
     # -- Gymnasium API ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         """A new episode with ``seed`` (an integer in [0, 2^53 - 1]; None: drawn from ``self.np_random``)."""
+        if seed is not None:  # checked first: Gymnasium's own reset and checker keep a refused seed otherwise
+            seed = int(check_number(seed, "seed", limits.FIELD_RANGES["seed"]))
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, 2**31))
-        seed = int(check_number(seed, "seed", limits.FIELD_RANGES["seed"]))
         self.episode = Episode(self.run.scenario_for(seed), self.evaluator, self.episode_config, seed=seed,
                                policy=self._agent)
         self.last_record = None
@@ -216,13 +217,9 @@ class NavigationEnv(gymnasium.Env):
     def step_policy_action(self, action: Action, policy_name: str) -> tuple[dict, float, bool, bool, dict]:
         """One time step with a fuzzynav policy's :class:`~fuzzynav.policy.Action` (its ``act`` on
         :attr:`observation`), its mode, fields and ``policy_name`` recorded as ``runners.run`` records them."""
-        if not isinstance(action, Action):
-            raise ValueError(f"action: expected a fuzzynav.policy.Action, got {type(action).__name__}")
-        if not (math.isfinite(action.dtheta_deg) and math.isfinite(action.v_cm_s)):
-            raise ValueError(f"action: dtheta_deg and v_cm_s must be finite, got {action.dtheta_deg!r}, "
-                             f"{action.v_cm_s!r}")
-        if not isinstance(policy_name, str) or not policy_name:
+        if not isinstance(policy_name, str) or not is_policy_id(policy_name):
             raise ValueError(f"policy_name: expected the policy's name, got {str(policy_name)[:40]!r}")
+        checked_action(action, policy_name)  # before the step: a bad action leaves the episode (and its log) as is
         return self._advance(action, policy_name)
 
     def render(self) -> str | None:
@@ -309,13 +306,16 @@ class ComposedRun:
             self._generated = (seed, load_scenario(self.plain, seed))
         return self._generated[1]
 
-    def config_yaml(self, seed: int) -> str:
-        """The resolved config as ``runners.run`` logs it for an episode of ``seed`` (``seed: <seed>``)."""
+    def config_yaml(self, seed: int, navigator: Mapping[str, Any] | None = None) -> str:
+        """The resolved config as ``runners.run`` logs it for an episode of ``seed`` (``seed: <seed>``);
+        ``navigator``: another ``navigator`` section in its place (an agent's log names the agent)."""
         from omegaconf import OmegaConf, open_dict
 
         cfg = copy.deepcopy(self.config)
         with open_dict(cfg):
             cfg.seed = seed
+            if navigator is not None:
+                cfg.navigator = dict(navigator)
         return OmegaConf.to_yaml(cfg, resolve=True)
 
 

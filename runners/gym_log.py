@@ -15,28 +15,48 @@ One log can be open at a time per process (the writer's rule): wrap one environm
 
 from __future__ import annotations
 
+import dataclasses
 import traceback
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import gymnasium
 
 from fuzzynav.policy import Action
-from runners.gym_env import NavigationEnv
+from runners.gym_env import AGENT, NavigationEnv
 from runners.mcap_log import EpisodeLogWriter
 from runners.run import episode_metadata, log_path, outcome_reason
 
 
 class RecordMcap(gymnasium.Wrapper):
     """Writes each episode of the wrapped :class:`runners.gym_env.NavigationEnv` to ``out_dir`` (created if
-    needed) as ``runners.run`` names it (``<scenario>__…__s<seed>.mcap``); ``paths`` lists the logs written."""
+    needed) as ``runners.run`` names it (``<scenario>__…__s<seed>.mcap``); ``paths`` lists the logs written.
 
-    def __init__(self, env: gymnasium.Env, out_dir: str | Path) -> None:
+    A log names the policy that drove the episode, so that no analysis pools it with another policy's episodes:
+    ``policy=None`` (default) records an agent's actions (:meth:`step`): the metadata, the logged config's
+    ``navigator`` section and the file name say ``agent``. ``policy="dwa"`` (the configuration's own policy, the
+    one :meth:`~runners.gym_env.NavigationEnv.configured_policy` builds) records that policy driving through
+    :meth:`step_policy_action`, exactly as ``runners.run`` logs it. Mixing the two in one recorder is refused."""
+
+    def __init__(self, env: gymnasium.Env, out_dir: str | Path, policy: str | None = None) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, NavigationEnv):
             raise ValueError(f"env: RecordMcap records fuzzynav/Navigation-v0, got {type(env.unwrapped).__name__}")
+        configured = env.unwrapped.episode_config.policy
+        if policy is not None and policy != configured:
+            raise ValueError(f"policy: {str(policy)[:60]!r} is not the configured policy {configured!r} (the "
+                             "navigator group); RecordMcap(policy=None) records an agent")
+        if not isinstance(out_dir, str | Path) or not str(out_dir):
+            raise ValueError(f"out_dir: expected a directory path, got {str(out_dir)[:60]!r}")
         self.out_dir = Path(out_dir).absolute()
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        if self.out_dir.exists() and not self.out_dir.is_dir():
+            raise ValueError(f"out_dir: {self.out_dir} exists and is not a directory")
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise ValueError(f"out_dir: {self.out_dir}: {err.strerror or err}") from None
+        self.policy = policy
         self.paths: list[Path] = []
         self._log: EpisodeLogWriter | None = None
 
@@ -51,17 +71,28 @@ class RecordMcap(gymnasium.Wrapper):
         episode, cfg, run = nav.episode, nav.episode_config, nav.run
         seed_ = episode.seed
         scenario = episode.scenario
-        meta = episode_metadata(scenario, nav.evaluator, cfg, seed_, run.config_yaml(seed_))
-        path = log_path(self.out_dir, scenario.name, run.plain, seed_)
+        plain = run.plain
+        if self.policy is None:  # the agent drives: its logs say so (metadata, config, file name)
+            cfg = dataclasses.replace(cfg, policy=AGENT, navigator=MappingProxyType({}))
+            plain = {**plain, "navigator": {"policy": AGENT}}
+        config_yaml = run.config_yaml(seed_) if self.policy else run.config_yaml(seed_, {"policy": AGENT})
+        meta = episode_metadata(scenario, nav.evaluator, cfg, seed_, config_yaml)
+        path = log_path(self.out_dir, scenario.name, plain, seed_)
         self._log = EpisodeLogWriter(path, episode, meta, cfg.planner.strategy, cfg.perception.mode)
         self.paths.append(path)
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        if self.policy is not None:
+            raise ValueError(f"action: this recorder logs policy {self.policy!r} (step_policy_action); "
+                             "RecordMcap(policy=None) records an agent's actions")
         return self._logged(lambda: self.env.step(action))
 
     def step_policy_action(self, action: Action, policy_name: str) -> tuple[Any, float, bool, bool, dict]:
         """:meth:`runners.gym_env.NavigationEnv.step_policy_action`, logged."""
+        if self.policy is None or policy_name != self.policy:
+            raise ValueError(f"policy_name: this recorder logs {self.policy or AGENT!r}, not "
+                             f"{str(policy_name)[:60]!r} (RecordMcap(env, out_dir, policy=...))")
         inner = self.env.get_wrapper_attr("step_policy_action")
         return self._logged(lambda: inner(action, policy_name))
 

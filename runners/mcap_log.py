@@ -513,7 +513,8 @@ def _errno_of(text: str) -> int | None:
 def _policy_fields(fields: Mapping[str, Any]) -> dict[str, Any]:
     """A policy's own values of one step for the log, in key order: numbers as floats (like every logged number),
     booleans and strings as they are (the navigator has checked them: ``fuzzynav.navigator.checked_action``)."""
-    return {key: value if isinstance(value, bool | str) else _r(float(value)) for key, value in sorted(fields.items())}
+    return {key: value if isinstance(value, str) else bool(value) if isinstance(value, bool | np.bool_)
+            else _r(float(value)) for key, value in sorted(fields.items())}
 
 
 def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:

@@ -39,13 +39,14 @@ from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState
 from fuzzynav.laser import LaserConfig, beam_directions
 from fuzzynav.navigator import ActivePlan, Decision, Navigator, Observation, build_navigator
+from fuzzynav.policy import AGENT
 from fuzzynav.tracking import Track
 from runners.run import ConfigFileError, episode_config
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 ALL_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode", "/tracks",
               "/sonar", "/laser")
-TOLERANCE = 1e-2  # degrees and cm/s: the log rounds to 1e-4
+TOLERANCE = 1e-2  # degrees and cm/s (and a policy's own numbers): the log rounds to 1e-4
 MAX_SNAPSHOTS = 100  # --steps: snapshots drawn in one PNG
 MAX_CONTROLLER_BYTES = 1 << 20  # --controller: a controller file is a few KB
 NAVIGATOR_SOURCES = {"controller": "controller", "planner": "planner", "policy": "navigator", "params": "navigator",
@@ -191,6 +192,17 @@ def _compare(k: int, recorded: dict[str, Any], d: Decision) -> Divergence | None
             return Divergence(k, name, recorded[name], round(value, 4))
     if recorded["new_plan"] != d.new_plan:
         return Divergence(k, "new_plan", recorded["new_plan"], d.new_plan)
+    fields = recorded.get("policy_fields")
+    if fields is not None:  # logs written before policies have none
+        replayed = {key: value for key, value in d.fields.items()}
+        if set(fields) != set(replayed):
+            return Divergence(k, "policy_fields", sorted(fields), sorted(replayed))
+        for key, value in sorted(fields.items()):
+            now = replayed[key]
+            same = (abs(float(now) - value) <= TOLERANCE if isinstance(value, float) and not isinstance(now, str | bool)
+                    else now == value)
+            if not same:
+                return Divergence(k, f"policy_fields.{key}", value, now)
     if d.new_plan and d.plan is not None and recorded.get("planning"):
         p = recorded["planning"]
         for name in ("strategy", "tc", "tS", "tG"):
@@ -339,6 +351,9 @@ def _decide_again(log: EpisodeLog, path: Path, args: argparse.Namespace, overrid
     recorded (or changed) config."""
     if log.goal is None:
         raise ReplayError(f"{path}: the first /scene has no goal: the navigator cannot be rebuilt")
+    if log.meta.get("policy") == AGENT:
+        raise ReplayError(f"{path}: an agent's episode (Gymnasium): its actions came from outside and cannot be "
+                          "decided again")
     config = copy.deepcopy(log.config)
     if args.controller:
         config["controller"] = _controller(args.controller)

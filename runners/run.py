@@ -30,7 +30,7 @@ from omegaconf import DictConfig, OmegaConf
 from fuzzynav import episode_identity
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.policy import DEFAULT_POLICY, split_navigator_section
+from fuzzynav.policy import DEFAULT_POLICY, policy_source_digest, split_navigator_section
 from fuzzynav.scenario import Scenario
 from runners import process_tree, schema, stop, sweep_resume
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
@@ -94,10 +94,12 @@ def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: Episo
                      config_yaml: str, digest: str = "") -> dict[str, str]:
     """The ``fuzzynav.run`` metadata of an episode's log (also written by the Gymnasium environment's
     ``runners.gym_log.RecordMcap``, so that both logs are the same)."""
+    source = policy_source_digest(ep_cfg.policy)
     return run_metadata(config_yaml, seed, scenario.name, {
         "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
         "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
-        "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed)})
+        "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed),
+        **({episode_identity.POLICY_SOURCE: source} if source else {})})
 
 
 def outcome_reason(outcome: str, max_steps: int) -> str:
@@ -181,12 +183,13 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
         out_dir = Path(runtime.output_dir)
         config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
         version = provenance()["fuzzynav_version"]
+        source = policy_source_digest(ep_cfg.policy)  # a _target_ policy's code is part of its episodes' identity
         for seed in seeds:
             stop.check()
             scenario = inputs.scenarios[seed]
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
-            key = episode_identity.episode_key(config_yaml, seed, version)  # identity whatever the seed batching
+            key = episode_identity.episode_key(config_yaml, seed, version, source)  # whatever the seed batching
             kept = sweep_resume.keep(path, key, sweep_dir) if plain.get("resume") else None
             if kept is not None:
                 kept.update(kept=True, reason="resumed: complete log kept")
@@ -232,6 +235,13 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
             print(f"{r['scenario']} policy={r['policy']} strategy={r['strategy']} h_wait={r['h_wait']} "
                   f"seed={r['seed']}: {r['outcome']} after {r['steps']} steps ({r['time_s']:.0f} s), "
                   f"contacts={r['contacts']}  log: {r['log']}")
+        failed = [r for r in results if r["outcome"] == "error"]
+        if failed:  # an episode that raised (a policy's code, a bug) is no result: say why, exit non-zero
+            r = failed[0]
+            more = f" ({len(failed)} of {len(results)} episodes)" if len(results) > 1 else ""
+            print(f"error: seed {r['seed']}: {' '.join(str(r['reason']).split())[:300]}{more}; traceback in "
+                  f"{r['log'] or 'the log'} (/log)", file=sys.stderr)
+            sys.exit(1)
     return results
 
 

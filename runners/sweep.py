@@ -401,7 +401,8 @@ def default_preset(args: list[str]) -> str:
             (parsed,) = OverridesParser.create().parse_overrides([arg])
         except Exception:  # Hydra itself reports a malformed override, with its own message
             continue
-        if parsed.get_key_element() == "navigator" and parsed.is_sweep_override():
+        if parsed.get_key_element() in ("navigator", "navigator.policy", "navigator._target_") \
+                and parsed.is_sweep_override():
             return "policies"
     return "default"
 

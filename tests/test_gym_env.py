@@ -206,7 +206,8 @@ def test_same_log_content_as_runners_run(tmp_path: Path, overrides: list[str]) -
     assert done.returncode == 0, done.stderr
     (run_log,) = run_dir.glob("*.mcap")
 
-    env = RecordMcap(gymnasium.make(ENV_ID, scenario="crossing_right", overrides=overrides), tmp_path / "env")
+    made = gymnasium.make(ENV_ID, scenario="crossing_right", overrides=overrides)
+    env = RecordMcap(made, tmp_path / "env", policy=made.unwrapped.episode_config.policy)
     policy = env.unwrapped.configured_policy()
     modes = _drive_with_policy(env, policy, seed=3)
     env.close()
@@ -230,7 +231,7 @@ def test_record_mcap_finishes_an_unfinished_episode(tmp_path: Path) -> None:
     env.reset(seed=1)  # the first episode's log ends here, as interrupted
     env.step([0.0, 20.0])
     env.close()
-    assert [p.name for p in env.paths] == [f"head_on__auto__h2__table1__laser__s{s}.mcap" for s in (0, 1)]
+    assert [p.name for p in env.paths] == [f"head_on__agent__auto__h2__table1__laser__s{s}.mcap" for s in (0, 1)]
     ends = [[m for topic, _, m in iter_messages(p) if topic == "/episode"] for p in env.paths]
     assert [(e[0]["outcome"], e[0]["steps"]) for e in ends] == [("interrupted", 3), ("interrupted", 1)]
 
@@ -346,3 +347,36 @@ def test_composes_inside_a_program_that_initialised_hydra() -> None:
         env = NavigationEnv(scenario="head_on", overrides=["planner=wait"])
         assert env.episode_config.planner.strategy == "wait"
         assert GlobalHydra.instance() is outer and outer.is_initialized()
+
+
+def test_an_agents_log_names_the_agent_and_is_never_pooled_with_a_policy(tmp_path: Path) -> None:
+    """An agent's episodes were logged with the configured policy's name (fuzzy) and the file name runners.run
+    gives: a report pooled them with the fuzzy policy's episodes."""
+    from analysis.episode_log import load_episode
+    from analysis.metrics import analyse_logs
+
+    env = RecordMcap(NavigationEnv(scenario="head_on"), tmp_path)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step([0.0, 20.0])
+    env.close()
+    (path,) = env.paths
+    log = load_episode(path)
+    assert log.meta["policy"] == "agent" and log.config["navigator"] == {"policy": "agent"}
+    assert {d["policy"] for d in log.decisions} == {"agent"}
+    analysis = analyse_logs([tmp_path])
+    assert set(analysis.excluded["policy"]) == {"agent"}  # interrupted, but labelled by what drove it
+    with pytest.raises(ValueError, match=r"^action: this recorder logs policy 'fuzzy'"):
+        RecordMcap(NavigationEnv(scenario="head_on"), tmp_path / "p", policy="fuzzy").step([0.0, 20.0])
+    with pytest.raises(ValueError, match=r"^policy: 'dwa' is not the configured policy 'fuzzy'"):
+        RecordMcap(NavigationEnv(scenario="head_on"), tmp_path / "q", policy="dwa")
+    recorder = RecordMcap(NavigationEnv(scenario="head_on"), tmp_path / "r")
+    recorder.reset(seed=0)
+    try:
+        with pytest.raises(ValueError, match=r"^policy_name: this recorder logs 'agent'"):
+            recorder.step_policy_action(Action("fuzzy", 0.0, 20.0), "fuzzy")
+    finally:
+        recorder.close()  # one log may be open per process: the next test's would be refused
+    for bad in ("", path):  # empty, or a file
+        with pytest.raises(ValueError, match=r"^out_dir: "):
+            RecordMcap(NavigationEnv(scenario="head_on"), bad)

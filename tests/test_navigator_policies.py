@@ -82,6 +82,8 @@ def test_the_default_is_the_papers_method_with_the_defaults_of_the_library():
     ({"_target_": "../etc/passwd"}, "navigator._target_: expected an import path"),
     ({"_target_": "???"}, "navigator._target_: not given"),
     ({"policy": 3}, "navigator.policy: expected a policy name"),
+    ({"policy": None}, "navigator.policy: null (give a policy name)"),
+    ({"_target_": None}, "navigator._target_: null (give an import path)"),
     ({"policy": "DWA"}, "navigator.policy: expected a policy name"),
     ({"policy": "dwa", 3: 1}, "navigator"),
 ])
@@ -130,7 +132,14 @@ class _Returns:
 @pytest.mark.parametrize(("action", "message"), [
     (Action("go", math.nan, 20.0), "policy broken: dtheta_deg = nan is not a finite number"),
     (Action("go", 0.0, math.inf), "policy broken: v_cm_s = inf is not a finite number"),
-    (Action("go", 0.0, -5.0), "policy broken: v_cm_s = -5.0 is negative"),
+    (Action("go", 0.0, -5.0), "policy broken: v_cm_s = -5 is outside [0, 1000] (0 = stand still)"),
+    (Action("go", 1e308, 20.0), "policy broken: dtheta_deg = 1e+308 is outside [-1e+06, 1e+06]"),
+    (Action("go", 0.0, 1e308), "policy broken: v_cm_s = 1e+308 is outside [0, 1000]"),
+    (Action("go", "0", 10.0), "policy broken: dtheta_deg = 0 is not a finite number"),
+    (Action("go", 0.0, 10.0, {"x": 10**400}), "policy broken: field 'x' = '1000000000000000000000000000000000000"),
+    (Action("go", 0.0, 10.0, {"x": "\ud800"}), "policy broken: field 'x' = "),
+    (Action("go", 0.0, 10.0, {5: 1.0}), "policy broken: field name '5' is not a (UTF-8) string"),
+    (Action("go", 0.0, 10.0, [1, 2]), "policy broken: fields is list, not a mapping"),
     (Action("wait", 0.0, 0.0), "policy broken: mode 'wait' is not a mode name"),
     (Action("Go Left", 0.0, 10.0), "policy broken: mode 'Go Left' is not a mode name"),
     (Action("go", 0.0, 10.0, {"x": math.nan}), "policy broken: field 'x' = 'nan' is not a finite number"),
@@ -144,6 +153,35 @@ def test_a_command_the_robot_cannot_execute_stops_the_episode_naming_the_policy(
     with pytest.raises(ValueError) as err:
         episode.step()
     assert str(err.value).startswith(message), str(err.value)
+
+
+class _Exits(_Returns):
+    """A policy whose code calls sys.exit (it ended a whole sweep with no message)."""
+
+    def act(self, observation: Observation) -> object:
+        raise SystemExit(3)
+
+
+class _ResetFails(_Returns):
+    def reset(self, seed: int) -> None:
+        raise RuntimeError("no\nthanks")
+
+
+def test_a_policy_that_exits_or_raises_fails_its_episode_not_the_process():
+    episode = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                      policy=_Exits(None))
+    with pytest.raises(ValueError, match=r"^policy broken: act\(\) failed: SystemExit: 3$"):
+        episode.step()
+    with pytest.raises(ValueError, match=r"^policy broken: reset\(seed\) failed: RuntimeError: no thanks$"):
+        Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                policy=_ResetFails(None))
+
+
+def test_numpy_values_are_valid_fields():
+    action = Action("go", np.float32(1.5), np.int64(10), {"ok": np.bool_(True), "n": np.int32(3)})
+    episode = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                      policy=_Returns(action))
+    assert episode.step().decision.fields["ok"]
 
 
 def test_an_injected_policy_is_reset_with_the_episodes_seed():
@@ -282,3 +320,29 @@ def test_a_policy_that_cannot_be_imported_is_one_line(tmp_path):
                          cwd=ROOT, capture_output=True, text=True, timeout=300)  # not on PYTHONPATH
     assert res.returncode == 2
     assert one_error_line(res.stderr).startswith("error: config: navigator._target_: cannot import 'my_policies'")
+
+
+def test_a_user_policys_source_is_part_of_its_episodes_identity(tmp_path, monkeypatch):
+    """A resumed sweep kept the logs of a user's policy whose code had changed (its result, not the new code's)."""
+    from fuzzynav.episode_identity import episode_key, episode_key_of
+    from fuzzynav.policy import policy_source_digest
+
+    module = tmp_path / "changing_policy.py"
+    module.write_text((USER_POLICY / "my_policies.py").read_text())
+    monkeypatch.syspath_prepend(str(tmp_path))
+    first = policy_source_digest("changing_policy.Straight")
+    assert len(first) == 64 and policy_source_digest("dwa") == ""
+    module.write_text(module.read_text() + "\n# changed\n")
+    assert policy_source_digest("changing_policy.Straight") not in ("", first)
+    assert episode_key("c", 1, "v") == episode_key("c", 1, "v", "")  # fuzzynav's own policies: keys as before
+    assert episode_key("c", 1, "v", first) != episode_key("c", 1, "v")
+    meta = {"config": "c", "seed": "1", "fuzzynav_version": "v", "policy_source_sha256": first}
+    assert episode_key_of(meta) == episode_key("c", "1", "v", first)
+
+
+def test_an_empty_report_directory_is_refused(tmp_path):
+    """``--out ''`` wrote ./report in the current directory."""
+    res = subprocess.run([sys.executable, "-m", "analysis.report", str(tmp_path), "--out", ""], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "--out: an empty path" in one_error_line(res.stderr)
+    assert not (ROOT / "report").exists()
