@@ -28,7 +28,7 @@ def test_registry_builds_by_name_and_refuses_unknown_names_and_double_registrati
 
 
 def test_direct_parameters_are_checked_and_named():
-    with pytest.raises(ValueError, match=r"navigator\.speed_cm_s: must be > 0"):
+    with pytest.raises(ValueError, match=r"navigator\.speed_cm_s: must be in \(0, 1,000\] cm/s"):
         make_policy("direct", {"speed_cm_s": 0}, CTX)
     with pytest.raises(ValueError, match=r"navigator\.speed: unknown key"):
         make_policy("direct", {"speed": 10}, CTX)

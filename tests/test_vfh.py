@@ -164,10 +164,11 @@ def test_registry_builds_vfh_and_names_a_bad_parameter():
     assert isinstance(policy, VfhPolicy) and isinstance(policy, Policy)
     assert policy.config.sectors == 36 and policy.config.threshold == 150.0
     for params, problem in (({"sector_deg": 7}, r"navigator\.sector_deg: must divide 360"),
-                            ({"smoothing_l": 0}, r"navigator\.smoothing_l: must be in \[1, 36\]"),
-                            ({"threshold": -1}, r"navigator\.threshold: must be a finite number > 0"),
+                            ({"smoothing_l": 0}, r"navigator\.smoothing_l: must be in \[1, 180\] sectors"),
+                            ({"smoothing_l": 37}, r"navigator\.smoothing_l: must be in \[1, 36\]"),
+                            ({"threshold": -1}, r"navigator\.threshold: must be in \(0, "),
                             ({"wide_valley_sectors": 72}, r"navigator\.wide_valley_sectors: must be in \[1, 71\]"),
-                            ({"safety_cm": -5}, r"navigator\.safety_cm: must be a finite number >= 0"),
+                            ({"safety_cm": -5}, r"navigator\.safety_cm: must be in \[0, 1,000\] cm"),
                             ({"window_cm": 5}, r"navigator\.window_cm: must exceed cell_cm"),
                             ({"alpha": 5}, r"navigator\.alpha: unknown key")):
         with pytest.raises(ValueError, match=problem):
