@@ -141,7 +141,7 @@ MESSAGE_CHECKS: dict[str, Check] = {
                         next_y_cm=CM, next_heading_deg=HEADING, radius_cm=POSITIVE_CM, contact_static=boolean,
                         contact_dynamic=array(string), distance_to_goal_cm=READING),
     "/obstacles/truth": obj(step=STEP, obstacles=array(obj(id=string, x_cm=CM, y_cm=CM, next_x_cm=CM, next_y_cm=CM,
-                                                           radius_cm=POSITIVE_CM))),
+                                                           radius_cm=POSITIVE_CM, vx_cm_s=SPEED, vy_cm_s=SPEED))),
     "/planner/decision": _check_decision,
     "/tpt": check_tpt,
     "/episode": obj(outcome=one_of(*OUTCOMES), steps=STEP, time_s=number(0.0, MAX_US), contacts=STEP,
