@@ -42,7 +42,7 @@ from fuzzynav.planner import (
     plan_heading_change,
 )
 from fuzzynav.policy import NAME as MODE_NAME
-from fuzzynav.policy import Action, Observation, Policy, PolicyContext, make_policy
+from fuzzynav.policy import Action, Observation, Policy, PolicyContext, make_policy, one_line
 from fuzzynav.portable_math import dist
 from fuzzynav.tpt import TrajectoryPredictionTable, build_tpt
 
@@ -112,8 +112,7 @@ class Navigator:
         except KeyboardInterrupt:
             raise
         except BaseException as err:  # a policy's own code (SystemExit included) fails the episode, not the run
-            raise PolicyError(f"policy {self.policy_name}: reset(seed) failed: {type(err).__name__}: "
-                              f"{' '.join(str(err).split())[:200]}") from err
+            raise PolicyError(f"policy {self.policy_name}: reset(seed) failed: {one_line(err)}") from err
 
     def decide(self, obs: Observation, active: ActivePlan | None) -> tuple[Decision, ActivePlan | None]:
         """The decision for this step, and the plan to carry into the next step."""
@@ -127,8 +126,7 @@ class Navigator:
         except KeyboardInterrupt:
             raise
         except BaseException as err:  # SystemExit from a policy's code must not end a whole sweep
-            raise PolicyError(f"policy {name}: act() failed: {type(err).__name__}: "
-                              f"{' '.join(str(err).split())[:200]}") from err
+            raise PolicyError(f"policy {name}: act() failed: {one_line(err)}") from err
         action = checked_action(raw, name)
         static_v = action.v_cm_s
         fields = action.fields

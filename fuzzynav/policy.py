@@ -229,10 +229,10 @@ def policy_params(name: str, params: Mapping[str, Any]) -> Any:
     except KeyboardInterrupt:
         raise
     except BaseException as err:  # a user's config_class (its __post_init__) failing otherwise
-        raise ValueError(f"navigator: policy {name!r}: its config_class failed: {_one_line(err)}") from None
+        raise ValueError(f"navigator: policy {name!r}: its config_class failed: {one_line(err)}") from None
 
 
-def _one_line(err: BaseException, with_type: bool = True) -> str:
+def one_line(err: BaseException, with_type: bool = True) -> str:
     """An exception as one short line (user code may raise anything, with any message)."""
     text = " ".join(str(err).split())[:200]
     return f"{type(err).__name__}: {text}" if with_type else text or type(err).__name__
@@ -250,9 +250,9 @@ def make_policy(name: str, params: Any, context: PolicyContext) -> Policy:
     except ValueError as err:
         if name in POLICIES:  # fuzzynav's own name the field
             raise
-        raise ValueError(f"navigator: policy {name!r}: {_one_line(err, with_type=False)}") from None
+        raise ValueError(f"navigator: policy {name!r}: {one_line(err, with_type=False)}") from None
     except BaseException as err:  # a policy of the user's own (SystemExit included): the config's error
-        raise ValueError(f"navigator: building policy {name!r} failed: {_one_line(err)}") from None
+        raise ValueError(f"navigator: building policy {name!r} failed: {one_line(err)}") from None
     if isinstance(policy, type) or not isinstance(policy, Policy):
         raise ValueError(f"navigator: {name!r} built {type(policy).__name__}, which is not a policy (it needs "
                          "name, reset(seed) and act(observation))")

@@ -194,7 +194,7 @@ def _compare(k: int, recorded: dict[str, Any], d: Decision) -> Divergence | None
         return Divergence(k, "new_plan", recorded["new_plan"], d.new_plan)
     fields = recorded.get("policy_fields")
     if fields is not None:  # logs written before policies have none
-        replayed = {key: value for key, value in d.fields.items()}
+        replayed = dict(d.fields)
         if set(fields) != set(replayed):
             return Divergence(k, "policy_fields", sorted(fields), sorted(replayed))
         for key, value in sorted(fields.items()):
