@@ -98,15 +98,7 @@ class FastEvaluator:
                 falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))),
                 mf_rows=tuple(mfs.tolist()), grid_list=var.grid.tolist(),
                 support=tuple(_support(row) for row in mfs))
-        # plain-Python copies for the scalar path
-        self._scalar_inputs = [(var.name, var.universe[0], var.universe[1], var.resolution, var.is_crisp,
-                                [t.params for t in var.terms], mfs.T.tolist())
-                               for var, mfs, _ in self._inputs]
-        # one getter per rule returning its antecedent memberships as a tuple (the table has >= 2 columns:
-        # a one-clause rule is padded with the constant-1 row, so itemgetter always returns a tuple)
-        table = self._antecedents if self._antecedents.shape[1] >= 2 else \
-            np.hstack([self._antecedents, np.full_like(self._antecedents, one_row)])
-        self._scalar_rules = [operator.itemgetter(*(int(i) for i in row)) for row in table]
+        self._build_scalar_tables()
         # batch work buffers, allocated once: a fresh (grid x chunk) array per block would be a fresh mmap
         # whose page faults cost about as much as the arithmetic (not shared between threads: one evaluator
         # per thread for concurrent batches)
@@ -208,66 +200,186 @@ class FastEvaluator:
         return result
 
     # -- scalar path: the same computation with Python floats where arrays would be tiny ------------------
+    # One decision is ~100 float operations on memberships and a few hundred on the output grids, so the
+    # cost is the number of Python and numpy calls, not the arithmetic. The tables below, built once per
+    # definition, cut those calls: per input grid segment the terms that can be non-zero there (the others
+    # are exactly 0.0) and the rules that can fire (a bit mask), so only those rules are evaluated; both
+    # outputs' grids go through one numpy call chain. Every result keeps the bits of the plain computation:
+    # memberships are the same interpolation, activations and cuts are exact min/max, and the grid integrals
+    # are the same products added strictly left to right from the same first grid point.
+    def _build_scalar_tables(self) -> None:
+        n_rules = len(self.spec.rules)
+        all_rules = (1 << n_rules) - 1
+        variables = self.spec.variables
+        # rules (bit mask) whose antecedent accepts term k of an input, or does not name the input at all
+        self._scalar_inputs: list[tuple] = []
+        for var, mfs, off in self._inputs:
+            accepts = []
+            for k in range(len(var.terms)):
+                mask = 0
+                for r, rule in enumerate(self.spec.rules):
+                    named = [t for v, t in rule.antecedent if v == var.name]
+                    if not named or variables[var.name].term_index(named[0]) == k:
+                        mask |= 1 << r
+                accepts.append(mask)
+            if var.is_crisp:
+                terms = tuple((off + k, a, b, accepts[k]) for k, (a, b) in enumerate(t.params for t in var.terms))
+                self._scalar_inputs.append((var.name, var.universe[0], var.universe[1], var.resolution, True,
+                                            terms, None))
+                continue
+            segments = []  # per grid segment i: ((mu index, mf[i], mf[i+1]) of the terms non-zero there, mask)
+            for i in range(mfs.shape[1] - 1):
+                live = tuple((off + k, float(mfs[k, i]), float(mfs[k, i + 1])) for k in range(len(var.terms))
+                             if mfs[k, i] != 0.0 or mfs[k, i + 1] != 0.0)
+                mask = 0
+                for k in range(len(var.terms)):
+                    if mfs[k, i] != 0.0 or mfs[k, i + 1] != 0.0:
+                        mask |= accepts[k]
+                segments.append((live, mask))
+            self._scalar_inputs.append((var.name, var.universe[0], var.universe[1], var.resolution, False,
+                                        tuple(segments), None))
+        self._all_rules = all_rules
+        self._mu_zero = [0.0] * self._n_terms_in + [1.0]  # the last entry pads one-clause rules (see _antecedents)
+        # the antecedent getter and the consequent terms (indices into the concatenated output terms) per rule
+        table = self._antecedents if self._antecedents.shape[1] >= 2 else \
+            np.hstack([self._antecedents, np.full_like(self._antecedents, self._n_terms_in)])
+        self._outs = [self._outputs[role] for role in ("dtheta", "v")]
+        term_offset, start = [], 0
+        for out in self._outs:
+            term_offset.append(start)
+            start += out.mfs.shape[0]
+        self._n_terms_out = start
+        rule_terms = []
+        for rule in self.spec.rules:
+            terms = []
+            for vname, tname in rule.consequent:
+                block = ("dtheta", "v").index(variables[vname].role)
+                terms.append(term_offset[block] + variables[vname].term_index(tname))
+            rule_terms.append(tuple(terms))
+        self._scalar_rules = [(operator.itemgetter(*(int(i) for i in row)), rule_terms[r])
+                              for r, row in enumerate(table)]
+        # both outputs' sampled terms side by side on one concatenated grid (dtheta first, zeros outside each
+        # term's own output), and per output its area and moment weights on that grid (zeros elsewhere): y for
+        # both outputs is one min and one max, the four integrals one product and one left-to-right sum
+        sizes = [len(out.grid) for out in self._outs]
+        stacked = np.zeros((self._n_terms_out, sum(sizes)))
+        weights = np.zeros((2 * len(self._outs), sum(sizes)))
+        column = 0
+        for b, out in enumerate(self._outs):
+            stacked[term_offset[b]:term_offset[b] + out.mfs.shape[0], column:column + sizes[b]] = out.mfs
+            weights[2 * b:2 * b + 2, column:column + sizes[b]] = out.weights
+            column += sizes[b]
+        self._stacked_mfs, self._stacked_weights = stacked, weights
+        self._term_offset = term_offset
+        self._block_start = [0, sizes[0]]
+        # the running sums read at each output's last grid point. dtheta's are exactly its own sums; v's start
+        # from dtheta's block, whose products with v's zero weights are all +0.0, and +0.0 + p == p for v's
+        # first product (v's grid is >= 0, so no product is -0.0): exactly v's own sums as well
+        self._sum_rows = np.arange(4, dtype=np.intp)
+        self._dtheta_last = sizes[0] - 1
+        # per output, what the crossing points need as plain Python values: per term (rising samples,
+        # negated falling samples, index of the last maximum, sampled row), the grid, its step, the fallback
+        self._cross_tables = [(tuple((out.rising[t], out.falling_neg[t], int(out.falling_start[t]), out.mf_rows[t])
+                                     for t in range(out.mfs.shape[0])), out.grid_list, out.step, out.fallback)
+                              for out in self._outs]
+        # grid window: y is zero outside the fired terms' supports, and so are the products there; the running
+        # sums are read at dtheta's last point and at v's last fired point, so the window runs from the first
+        # fired dtheta sample (dtheta's sums before it are -0.0 or +0.0 and adding them to the first product
+        # changes nothing) to v's last fired sample (later products are +0.0: v's grid is >= 0)
+        # (one sample wider each side: a crossing's segment can end on a zero sample just outside the support)
+        self._term_window = [(max(lo - 1, 0) + self._block_start[b], min(hi + 1, len(out.grid)) + self._block_start[b])
+                             for b, out in enumerate(self._outs) for lo, hi in out.support]
+
     def _evaluate_scalar(self, inputs: Mapping[str, float]) -> tuple[float, float]:
-        mu: list[float] = []
-        for name, lo, hi, step, crisp, params, mf_rows in self._scalar_inputs:
+        mu = self._mu_zero.copy()
+        alive = self._all_rules
+        for name, lo, hi, step, crisp, table, _ in self._scalar_inputs:
             x = min(max(float(inputs[name]), lo), hi)
             if crisp:
-                mu.extend(1.0 if (a <= x < b or (b >= hi and a <= x <= b)) else 0.0 for a, b in params)
+                inside = 0
+                for k, a, b, accepts in table:
+                    if a <= x < b or (b >= hi and a <= x <= b):
+                        mu[k] = 1.0
+                        inside |= accepts
+                alive &= inside
                 continue
             pos = (x - lo) / step
-            i = min(max(math.floor(pos), 0), len(mf_rows) - 2)
+            i = min(max(math.floor(pos), 0), len(table) - 1)
             f = pos - i
-            lo_row, hi_row = mf_rows[i], mf_rows[i + 1]
-            mu.extend(a * (1.0 - f) + b * f for a, b in zip(lo_row, hi_row, strict=True))
-        mu.append(1.0)
-        act = [min(antecedents(mu)) for antecedents in self._scalar_rules]
-        return (self._defuzz_scalar(self._outputs["dtheta"], act), self._defuzz_scalar(self._outputs["v"], act))
+            g = 1.0 - f
+            live, accepts = table[i]
+            for k, a, b in live:
+                mu[k] = a * g + b * f
+            alive &= accepts
+        cuts = [0.0] * self._n_terms_out
+        rules = self._scalar_rules
+        while alive:  # the rules that can fire (any other has a zero antecedent: activation 0, no effect)
+            low = alive & -alive
+            alive ^= low
+            antecedents, terms = rules[low.bit_length() - 1]
+            act = min(antecedents(mu))
+            for t in terms:
+                if act > cuts[t]:
+                    cuts[t] = act
+        n_dtheta = self._term_offset[1]
+        fired = [t for t, c in enumerate(cuts) if c > 0.0]
+        if not fired:
+            return self._cross_tables[0][3], self._cross_tables[1][3]
+        window = self._term_window
+        start = min([window[t][0] for t in fired if t < n_dtheta], default=self._block_start[1] - 1)
+        end = max([window[t][1] for t in fired if t >= n_dtheta], default=self._block_start[1])
+        y = np.minimum(np.array(cuts)[:, None], self._stacked_mfs[:, start:end]).max(axis=0)  # grid start..end
+        # products and their left-to-right sums (np.add.accumulate: never SIMD- or BLAS-ordered): the same
+        # operations as sequential_sum(out.weights * y) on each output alone (see _build_scalar_tables)
+        cols = [self._dtheta_last - start, self._dtheta_last - start, end - 1 - start, end - 1 - start]
+        sums = np.add.accumulate(self._stacked_weights[:, start:end] * y, axis=1)[self._sum_rows, cols].tolist()
+        return (_centroid(self._cross_tables[0], cuts[:n_dtheta], y, -start, sums[0], sums[1]),
+                _centroid(self._cross_tables[1], cuts[n_dtheta:], y, self._block_start[1] - start, sums[2], sums[3]))
 
-    @staticmethod
-    def _defuzz_scalar(out: _Output, act: list[float]) -> float:
-        cuts = [max([act[r] for r in rules]) if rules else 0.0 for rules in out.term_rules]
-        y = np.minimum(np.array(cuts)[:, None], out.mfs).max(axis=0)
-        area, moment = sequential_sum(out.weights * y).tolist()  # not weights @ y: BLAS's order depends on the CPU
-        grid, h = out.grid_list, out.step
-        points = []  # (x, segment, term) where a term crosses its cut level, as scikit-fuzzy adds them
-        for t, level in enumerate(cuts):
-            if level <= 0.0:
-                continue
-            rise = out.rising[t]
-            j = bisect.bisect_left(rise, level)
-            if 1 <= j < len(rise):
-                points.append((grid[j - 1] + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1, t))
-            fall = out.falling_neg[t]
-            cnt = bisect.bisect_right(fall, -level)
-            if 1 <= cnt < len(fall):
-                k = cnt - 1
-                start = int(out.falling_start[t])
-                points.append((grid[start + k] + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k, t))
-        if not points:
-            return moment / area if area > 0 else out.fallback
-        # insert the crossing points into the grid polyline, left to right: each one adds the (signed)
-        # triangle it forms with its neighbours on the polyline so far, whose centroid is the mean of its corners
-        points.sort()
-        seg_open = -1
-        xa = ya = xb = yb = 0.0
-        for x, seg, t in points:
-            if seg != seg_open:
-                seg_open = seg
-                xa, ya, xb, yb = grid[seg], float(y[seg]), grid[seg + 1], float(y[seg + 1])
-            # the membership there: term t sits exactly at its cut; only a term with a higher cut can exceed it
-            level = yx = cuts[t]
-            f = (x - grid[seg]) / h
-            for row, c in zip(out.mf_rows, cuts, strict=True):
-                if c > level:
-                    value = min(c, row[seg] * (1.0 - f) + row[seg + 1] * f)
-                    if value > yx:
-                        yx = value
-            triangle = 0.5 * (yx * (xb - xa) - ya * (xb - x) - yb * (x - xa))
-            area += triangle
-            moment += triangle * (xa + x + xb) / 3.0
-            xa, ya = x, yx
-        return moment / area if area > 0 else out.fallback
+
+def _centroid(table: tuple, cuts: list[float], y: np.ndarray, at: int, area: float, moment: float) -> float:
+    """Centroid of one output from its grid integrals (area, first moment) plus the points where each term
+    crosses its cut level, which scikit-fuzzy inserts into the polyline (``y[at + i]`` is the output
+    membership at grid point i). In the output's unit."""
+    terms, grid, h, fallback = table
+    points = []  # (x, segment, term) where a term crosses its cut level, as scikit-fuzzy adds them
+    higher = []  # (cut, sampled row) of the fired terms, to find the membership at a point
+    for t, level in enumerate(cuts):
+        if level <= 0.0:
+            continue
+        rise, fall, start, row = terms[t]
+        higher.append((level, row))
+        j = bisect.bisect_left(rise, level)
+        if 1 <= j < len(rise):
+            points.append((grid[j - 1] + (level - rise[j - 1]) * h / (rise[j] - rise[j - 1]), j - 1, t))
+        cnt = bisect.bisect_right(fall, -level)
+        if 1 <= cnt < len(fall):
+            k = cnt - 1
+            points.append((grid[start + k] + (level + fall[k]) * h / (fall[k] - fall[k + 1]), start + k, t))
+    if not points:
+        return moment / area if area > 0 else fallback
+    # insert the crossing points into the grid polyline, left to right: each one adds the (signed)
+    # triangle it forms with its neighbours on the polyline so far, whose centroid is the mean of its corners
+    points.sort()
+    seg_open = -1
+    xa = ya = xb = yb = 0.0
+    for x, seg, t in points:
+        if seg != seg_open:
+            seg_open = seg
+            xa, ya, xb, yb = grid[seg], y.item(at + seg), grid[seg + 1], y.item(at + seg + 1)
+        # the membership there: term t sits exactly at its cut; only a term with a higher cut can exceed it
+        level = yx = cuts[t]
+        f = (x - grid[seg]) / h
+        for c, row in higher:
+            if c > level:
+                value = min(c, row[seg] * (1.0 - f) + row[seg + 1] * f)
+                if value > yx:
+                    yx = value
+        triangle = 0.5 * (yx * (xb - xa) - ya * (xb - x) - yb * (x - xa))
+        area += triangle
+        moment += triangle * (xa + x + xb) / 3.0
+        xa, ya = x, yx
+    return moment / area if area > 0 else fallback
 
 
 def _support(mf: np.ndarray) -> tuple[int, int]:
