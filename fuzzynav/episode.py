@@ -23,13 +23,13 @@ import numpy as np
 from fuzzynav import laser as laser_mod
 from fuzzynav import portable_math
 from fuzzynav.checks import check_config_fields
+from fuzzynav.crowd import Crowd
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec
 from fuzzynav.geometry import swept_distance, wrap_360
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.laser import LaserConfig, LaserScan
 from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation, build_navigator
-from fuzzynav.obstacle_motion import ObstacleMotion
 from fuzzynav.perception import Perceived, PerceptionConfig, perceive
 from fuzzynav.planner import PlannerConfig
 from fuzzynav.policy import Policy
@@ -134,8 +134,8 @@ class Episode:
         self.config = config or EpisodeConfig()
         self.seed = seed
         self.world = World(scenario.bounds, scenario.static_obstacles)
-        self.motion = ObstacleMotion(scenario.dynamic_obstacles)
-        self.obstacle_ids = self.motion.ids
+        self.crowd = Crowd(scenario.dynamic_obstacles, self.world, scenario.robot.radius)
+        self.obstacle_ids = self.crowd.ids
         evaluator = controller if isinstance(controller, FastEvaluator) else FastEvaluator(controller)
         r = scenario.robot.radius
         self.sonar = Sonar(self.config.sonar, r)
@@ -157,6 +157,7 @@ class Episode:
         self._tracker = TrackerState()
         self._plan: ActivePlan | None = None
         self._sensed: _Sensed | None = None
+        self.crowd.reset(self.seed)
         self.navigator.reset(self.seed)
         self._touching: set[str] = set()
 
@@ -170,12 +171,12 @@ class Episode:
         if self._sensed is None:
             cfg, s = self.config, self.state
             t = self.step_index * cfg.dt
-            pos, vel = self.motion.at(t)
-            discs = np.column_stack([pos, self.motion.radii]) if len(pos) else np.zeros((0, 3))
+            pos, vel = self.crowd.positions, self.crowd.velocities
+            discs = np.column_stack([pos, self.crowd.radii]) if len(pos) else np.zeros((0, 3))
             sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs)
             scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
                                   self._noise)
-            tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.motion.radii,
+            tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.crowd.radii,
                                      self._noise)
             obs = Observation(s, self.scenario.robot.goal, sonar, seen.tracks, seen.static_points)
             self._sensed = _Sensed(obs, scan, seen, pos, vel, tracker)
@@ -200,14 +201,14 @@ class Episode:
         decision, self._plan = self.navigator.decide(obs, self._plan)
         compute_us = (time.perf_counter() - started) * 1e6
         nxt = step_unicycle(s, decision.dtheta_deg, decision.v_cm_s, dt, cfg.robot)
-        # (k + 1)·dt, not t + dt: with dt = 0.7 the two differ in the last bit, and the obstacles' positions after
-        # this step would not be the positions the next step starts from
-        next_pos, _ = self.motion.at((self.step_index + 1) * dt)
+        # the obstacles move over the same step, seeing the robot where it was when it sensed (they react to
+        # what they see, not to the command it has just chosen)
+        next_pos, _ = self.crowd.step(s, dt)
         p0, p1 = np.array([s.x, s.y]), np.array([nxt.x, nxt.y])
         r = self.scenario.robot.radius
         static_hit = self.world.static_contact(p0, p1, r)
         dynamic_hit = tuple(self.obstacle_ids[k] for k in _swept_contacts(p0, p1, pos, next_pos, r,
-                                                                            self.motion.radii))
+                                                                            self.crowd.radii))
         touching = set(dynamic_hit) | ({"static"} if static_hit else set())
         new_contacts = len(touching - self._touching)
         self._touching = touching

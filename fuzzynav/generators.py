@@ -26,10 +26,13 @@ CLEAR_CM = 60.0  # free space kept around start and goal, beyond the robot radiu
 
 #: upper limits of the count parameters (fuzzynav.limits): the generator's work grows with them
 _COUNT_LIMITS = {"n_static": (limits.MAX_STATIC_OBSTACLES, "obstacles"),
-                 "n_dynamic": (limits.MAX_DYNAMIC_OBSTACLES, "obstacles"), "max_steps": (limits.MAX_STEPS, "steps")}
+                 "n_dynamic": (limits.MAX_DYNAMIC_OBSTACLES, "obstacles"), "max_steps": (limits.MAX_STEPS, "steps"),
+                 "n": (limits.MAX_DYNAMIC_OBSTACLES, "pedestrians"),
+                 "n_groups": (limits.MAX_DYNAMIC_OBSTACLES, "groups"),
+                 "group_size": (limits.MAX_DYNAMIC_OBSTACLES, "pedestrians")}
 
 
-def _param(params: Mapping[str, Any], key: str, default: Any, kind: type) -> Any:
+def param(params: Mapping[str, Any], key: str, default: Any, kind: type) -> Any:
     """Parameter ``key``: a ``[min, max]`` pair (``kind`` tuple), a count (int) or a length (float); finite,
     non-negative, |x| <= 1e9, counts at most their limit."""
     value = params.get(key, default)
@@ -88,14 +91,14 @@ def random_mixed(params: Mapping[str, Any], seed: int, name: str = "random_mixed
         check_key(key, "params", ScenarioError)
         if key not in known:
             raise ScenarioError(f"params.{key_text(key)}: unknown parameter (known: {', '.join(sorted(known))})")
-    w = _param(params, "width", 1200, float)
-    h = _param(params, "height", 800, float)
-    n_static = _param(params, "n_static", 5, int)
-    size_lo, size_hi = _param(params, "static_size", (20, 60), tuple)
-    n_dynamic = _param(params, "n_dynamic", 3, int)
-    v_lo, v_hi = _param(params, "speed", (10, 30), tuple)
-    r_lo, r_hi = _param(params, "dynamic_radius", (15, 25), tuple)
-    max_steps = _param(params, "max_steps", 250, int)
+    w = param(params, "width", 1200, float)
+    h = param(params, "height", 800, float)
+    n_static = param(params, "n_static", 5, int)
+    size_lo, size_hi = param(params, "static_size", (20, 60), tuple)
+    n_dynamic = param(params, "n_dynamic", 3, int)
+    v_lo, v_hi = param(params, "speed", (10, 30), tuple)
+    r_lo, r_hi = param(params, "dynamic_radius", (15, 25), tuple)
+    max_steps = param(params, "max_steps", 250, int)
     if w < 400 or h < 300:
         raise ScenarioError(f"params.width/height: at least 400 x 300 cm, got {w} x {h}")
     if v_lo <= 0 or r_lo <= 0 or size_lo <= 0:
@@ -168,6 +171,9 @@ GENERATORS: dict[str, Callable[[Mapping[str, Any], int, str], dict[str, Any]]] =
 
 def generate(data: Mapping[str, Any], seed: int):
     """Expand a scenario entry ``{generator: NAME, params: {...}, name: ...}`` into a validated Scenario."""
+    from fuzzynav.crowd_scenarios import CROWD_GENERATORS  # they use this module's helpers
+
+    GENERATORS.update(CROWD_GENERATORS)
     kind = data.get("generator")
     if not isinstance(kind, str) or kind not in GENERATORS:
         raise ScenarioError(f"generator: unknown generator {show(kind)} (known: {', '.join(GENERATORS)})")

@@ -63,3 +63,28 @@ def wrap_180(angle_deg: Angle) -> Angle:
 def angle_difference_deg(a_deg: Angle, b_deg: Angle) -> Angle:
     """The turn (degrees, [-180, 180)) that brings angle ``b_deg`` to angle ``a_deg``."""
     return wrap_180(a_deg - b_deg)
+
+
+
+def away_from_static(points: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each point (n, 2) and each wall or polygon edge (M, 4: x0, y0, x1, y1) and static circle (C, 3: x,
+    y, radius): the signed distance (cm) from the nearest point of that edge or circle rim (negative inside a
+    circle), shape (n, M + C), and the unit vector pointing away from it, shape (n, M + C, 2). A point exactly
+    on an edge, or at a circle's centre, gets a fixed direction (the edge's left normal; +x)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 1, 2)
+    a, b = segments[None, :, 0:2], segments[None, :, 2:4]
+    s = closest_approach_fraction(a - pts, b - a)
+    off = pts - (a + s[..., None] * (b - a))
+    gap_seg = norm2(off)
+    edge = b - a
+    edge_len = norm2(edge)
+    normal = np.stack([-edge[..., 1], edge[..., 0]], axis=-1) / np.where(edge_len > 0.0, edge_len, 1.0)[..., None]
+    away_seg = np.where((gap_seg > 0.0)[..., None], off / np.where(gap_seg > 0.0, gap_seg, 1.0)[..., None],
+                        np.broadcast_to(normal, off.shape))
+    centres, radii = circles[None, :, 0:2], circles[None, :, 2]
+    from_centre = pts - centres
+    d = norm2(from_centre)
+    away_circ = np.where((d > 0.0)[..., None], from_centre / np.where(d > 0.0, d, 1.0)[..., None],
+                         np.array([1.0, 0.0]))
+    gaps = np.concatenate([gap_seg, d - radii], axis=1)
+    return gaps, np.concatenate([away_seg, away_circ], axis=1)

@@ -78,7 +78,10 @@ class StaticObstacle:
 class DynamicObstacle:
     """A moving disc. Either constant velocity (``start`` cm, ``velocity`` cm/s) or a waypoint path
     (``waypoints`` cm, ``speed`` cm/s, ``loop``: return to the first waypoint and repeat; otherwise the
-    obstacle stops at the last waypoint). Moving obstacles are scripted: they pass through everything."""
+    obstacle stops at the last waypoint). ``model`` names how it moves (:mod:`fuzzynav.obstacle_model`; None:
+    ``scripted``, the path exactly, passing through everything); a reactive model starts on the path and takes
+    it as the pedestrian's intent (preferred velocity, or the waypoints to walk through). ``model_params``: the
+    model's checked parameters (its ``config_class``)."""
 
     id: str
     radius: float
@@ -87,6 +90,8 @@ class DynamicObstacle:
     waypoints: tuple[Vec2, ...] | None = None
     speed: float | None = None
     loop: bool = False
+    model: str | None = None
+    model_params: Any = None
 
 
 @dataclass(frozen=True)
@@ -192,7 +197,8 @@ def _static(data: Any, path: str) -> StaticObstacle:
 
 def _dynamic(data: Any, path: str) -> DynamicObstacle:
     data = _mapping(data, path)
-    _keys(data, {"id", "radius", "start", "velocity", "waypoints", "speed", "loop"}, {"id", "radius"}, path)
+    _keys(data, {"id", "radius", "start", "velocity", "waypoints", "speed", "loop", "model", "model_params"},
+          {"id", "radius"}, path)
     # an id is a name like the scenario's (it names the obstacle in logs and tables): a string, so that `id: 123`
     # and `id: 0x7B` are not the same obstacle by accident
     oid = check_name(data["id"], f"{path}.id", ScenarioError)
@@ -208,7 +214,7 @@ def _dynamic(data: Any, path: str) -> DynamicObstacle:
         if data.get("speed") is not None or data.get("loop"):
             raise ScenarioError(f"{path}: speed and loop go with waypoints, not with start + velocity")
         return DynamicObstacle(id=str(oid), radius=radius, start=_vec2(data["start"], f"{path}.start"),
-                               velocity=_vec2(data["velocity"], f"{path}.velocity"))
+                               velocity=_vec2(data["velocity"], f"{path}.velocity"), **_model(data, path))
     waypoints = _points(data["waypoints"], f"{path}.waypoints", 1, limits.MAX_WAYPOINTS)
     if data.get("speed") is None:
         raise ScenarioError(f"{path}.speed: missing")
@@ -216,7 +222,37 @@ def _dynamic(data: Any, path: str) -> DynamicObstacle:
     loop = data.get("loop", False)
     if not isinstance(loop, bool):
         raise ScenarioError(f"{path}.loop: expected true or false, got {show(loop)}")
-    return DynamicObstacle(id=str(oid), radius=radius, waypoints=waypoints, speed=speed, loop=loop)
+    return DynamicObstacle(id=str(oid), radius=radius, waypoints=waypoints, speed=speed, loop=loop,
+                           **_model(data, path))
+
+
+def _check_model(dyn: DynamicObstacle, path: str) -> None:
+    """A constructed obstacle's model: a known name with its own checked parameters (what :func:`_model` makes)."""
+    from fuzzynav.obstacle_model import model_factory
+
+    try:
+        config_class = model_factory(dyn.model, f"{path}.model").config_class
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
+    if not isinstance(dyn.model_params, config_class):
+        raise ScenarioError(f"{path}.model_params: expected the model's {config_class.__name__}, got "
+                            f"{show(dyn.model_params)}")
+
+
+def _model(data: Mapping[str, Any], path: str) -> dict[str, Any]:
+    """``model`` and ``model_params`` of an obstacle entry, checked (:mod:`fuzzynav.obstacle_model`); none when
+    the entry names no model (so a scripted scenario's logged YAML is what it was before models existed)."""
+    from fuzzynav.obstacle_model import model_config  # the models import this module
+
+    name, params = data.get("model"), data.get("model_params")
+    if name is None:
+        if params is not None:
+            raise ScenarioError(f"{path}.model_params: given without a model (add model: <name>)")
+        return {}
+    try:
+        return {"model": name, "model_params": model_config(name, params, f"{path}.model_params")}
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
 
 
 def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
@@ -320,6 +356,9 @@ def validate_geometry(s: Scenario) -> None:
         raise ScenarioError(f"robot.start: the robot (radius {r} cm) does not fit inside the bounds there")
     if goal.distance(area.exterior) < r:  # the robot would have to cross the wall to stand at its goal
         raise ScenarioError(f"robot.goal: the robot (radius {r} cm) does not fit inside the bounds there")
+    for i, dyn in enumerate(s.dynamic_obstacles):
+        if dyn.model is not None or dyn.model_params is not None:
+            _check_model(dyn, f"dynamic_obstacles[{i}]")
     if s.tolerance <= 0:
         raise ScenarioError(f"goal_tolerance: must be > 0, got {s.goal_tolerance}")
     if start.distance(goal) <= s.tolerance:

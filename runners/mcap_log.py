@@ -31,7 +31,8 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from mcap.reader import make_reader
 
 from fuzzynav.episode import Episode, StepRecord
-from fuzzynav.portable_math import dist, sin_cos_deg
+from fuzzynav.obstacle_model import DEFAULT_MODEL
+from fuzzynav.portable_math import atan2_deg, dist, sin_cos_deg
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 
@@ -216,7 +217,7 @@ class EpisodeLogWriter:
         self.finished = False
         self._last_time = 0.0
         self._plan_lines: list[dict] = []
-        self._radii = [float(r) for r in episode.motion.radii]  # moving obstacles' radii (cm)
+        self._radii = [float(r) for r in episode.crowd.radii]  # moving obstacles' radii (cm)
         self.path = Path(destination) if isinstance(destination, str | Path) else None
         self._identity = (metadata.get("config"), metadata.get("seed"))
         self._partial = partial_path(self.path) if self.path is not None else None
@@ -383,9 +384,16 @@ class EpisodeLogWriter:
         arrow = {"pose": _pose(s.x, s.y, s.heading, 0.2), "shaft_length": _m(r), "shaft_diameter": 0.03,
                  "head_length": _m(r * 0.6), "head_diameter": 0.08, "color": _BLUE}
         entities = [_entity(stamp, "robot", cylinders=[_disc(s.x, s.y, r, 0.2, _BLUE)], arrows=[arrow])]
-        for oid, (x, y), rad in zip(self.episode.obstacle_ids, rec.obstacle_positions.tolist(), self._radii,
-                                    strict=True):
-            entities.append(_entity(stamp, f"obstacle/{oid}", cylinders=[_disc(x, y, rad, 0.3, _RED)]))
+        for oid, (x, y), (vx, vy), rad, model in zip(self.episode.obstacle_ids, rec.obstacle_positions.tolist(),
+                                                     rec.obstacle_velocities.tolist(), self._radii,
+                                                     self.episode.crowd.models_of, strict=True):
+            # a pedestrian of a reactive model shows where it is heading; scripted obstacles are drawn as they
+            # always were (their logs stay byte for byte what they were before obstacle models)
+            heading = [] if model == DEFAULT_MODEL or (vx == 0.0 and vy == 0.0) else [
+                {"pose": _pose(x, y, atan2_deg(vy, vx), 0.3), "shaft_length": _m(rad), "shaft_diameter": 0.03,
+                 "head_length": _m(rad * 0.6), "head_diameter": 0.08, "color": _RED}]
+            entities.append(_entity(stamp, f"obstacle/{oid}", cylinders=[_disc(x, y, rad, 0.3, _RED)],
+                                    arrows=heading))
         tpt_lines, hits = [], []
         if d.tpt is not None:
             tpt = d.tpt
