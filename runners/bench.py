@@ -3,9 +3,11 @@
     python -m runners.bench            # full run (a few minutes)
     python -m runners.bench --quick    # reduced sizes (under a minute; CI runs it, no thresholds)
 
-1. Fuzzy decision: the fast numpy evaluator vs scikit-fuzzy's ControlSystemSimulation.compute() on the
-   same definition and the same seeded inputs — time per single decision for both, their ratio, batch
-   throughput and the largest disagreement.
+1. Fuzzy decision: our evaluator, the peer engines ferrifuzz and pyfuzzylite (when installed:
+   ``pip install -e '.[bench]'``; runners/bench_peers.py builds them from the same definition) and
+   scikit-fuzzy's ControlSystemSimulation.compute() on the same seeded inputs — time per single decision,
+   batch time per decision, each one's largest disagreement with scikit-fuzzy, and issue #19's target 2
+   (ours / ferrifuzz, single and batch per core).
 2. Simulation on ``mixed`` with laser perception: steps/s without and with MCAP logging, and the time per
    step by stage (sensors, tracking, TPT, planner, controller, logging, rest).
 3. Sweep overhead: real ``runners.sweep`` runs of short episodes on all cores (two jobs per core, and 20
@@ -23,6 +25,7 @@ Writes ``bench.json`` (path with ``--out``).
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import json
 import os
 import platform
@@ -58,27 +61,72 @@ def _median_time(fn, reps: int) -> float:
     return statistics.median(times)
 
 
+def _peer_row(peer: str, spec: ControllerSpec, rows: list[dict[str, float]], inputs: dict[str, np.ndarray],
+              big: dict[str, np.ndarray], ref_out: np.ndarray, reps: int) -> dict:
+    """One peer engine on the same inputs: time per single decision (its own per-decision call, on inputs
+    prepared outside the timing), batch time per decision, and its largest disagreement with scikit-fuzzy."""
+    from runners.bench_peers import PEERS, PeerMissing, peer_version
+
+    cls = PEERS[peer]
+    try:
+        ev = cls(spec)
+    except PeerMissing:
+        return {"engine": peer, "installed": False}
+    prepared = [ev.snap(r) for r in rows]
+    single_s = _median_time(lambda: [ev.compute(r) for r in prepared], reps) / len(rows)
+    batch_s = _median_time(lambda: ev.evaluate(big), reps) / len(next(iter(big.values())))
+    batch_out = np.array(ev.evaluate(inputs))
+    single_out = np.array([ev.compute(r) for r in prepared]).T
+    worst = np.maximum(np.abs(batch_out - ref_out).max(axis=1),
+                       np.abs(single_out - ref_out[:, : len(rows)]).max(axis=1))
+    return {"engine": peer, "installed": True, "version": peer_version(cls.package), "single_us": single_s * 1e6,
+            "batch_us_per_decision": batch_s * 1e6,
+            "batch_cores": (os.cpu_count() or 1) if peer == "ferrifuzz" else 1,  # compute_batch uses all cores
+            "max_disagreement_dtheta_deg": float(worst[0]), "max_disagreement_v_cm_s": float(worst[1])}
+
+
 def bench_fuzzy(name: str, n_single: int, n_ref: int, batch: int, reps: int) -> dict:
-    """Single-decision time of both evaluators, batch throughput, and the largest disagreement."""
+    """Single-decision time of our evaluator, scikit-fuzzy and the peer engines on the same seeded inputs,
+    batch time per decision, and each one's largest disagreement with scikit-fuzzy."""
     with open(CONF / "controller" / f"{name}.yaml") as f:
         spec = ControllerSpec.from_dict(yaml.safe_load(f))
     fast, ref = FastEvaluator(spec), SkfuzzyEvaluator(spec)
     inputs = _inputs(spec, n_single, seed=1)
     rows = [{k: float(v[i]) for k, v in inputs.items()} for i in range(n_single)]
-    fast_s = _median_time(lambda: [fast.evaluate(r) for r in rows], reps) / n_single
+    big = _inputs(spec, batch, seed=2)
+    ref_out = np.array(ref.evaluate(inputs))  # (2, n)
+    # ours and the peers alternated, so that a slow spell of the machine hits them alike
+    fast_s, peer_rows = [], {}
+    for _ in range(2):
+        fast_s.append(_median_time(lambda: [fast.evaluate(r) for r in rows], reps) / n_single)
+        for peer in ("ferrifuzz", "pyfuzzylite"):
+            row = _peer_row(peer, spec, rows if peer == "ferrifuzz" else rows[:n_ref], inputs, big, ref_out,
+                            max(1, reps // 2))
+            if peer in peer_rows and row.get("installed"):
+                for key in ("single_us", "batch_us_per_decision"):  # the better of the two rounds, as ours
+                    row[key] = min(row[key], peer_rows[peer][key])
+            peer_rows[peer] = row
+    fast_single = min(fast_s)
     ref_rows = rows[:n_ref]
     ref_s = _median_time(lambda: [ref.evaluate(r) for r in ref_rows], max(1, reps // 2)) / n_ref
-    big = _inputs(spec, batch, seed=2)
     batch_s = _median_time(lambda: fast.evaluate(big), reps)
-    ref_out = np.array(ref.evaluate(inputs))  # (2, n)
     batch_out = np.array(fast.evaluate(inputs))
     single_out = np.array([fast.evaluate(r) for r in rows]).T
     # the largest difference from scikit-fuzzy over both paths (single decisions and the batch)
     worst = np.maximum(np.abs(batch_out - ref_out), np.abs(single_out - ref_out)).max(axis=1)
-    return {"controller": name, "fast_us_per_decision": fast_s * 1e6, "skfuzzy_us_per_decision": ref_s * 1e6,
-            "ratio": ref_s / fast_s, "batch_size": batch, "batch_decisions_per_s": batch / batch_s,
-            "max_disagreement_dtheta_deg": float(worst[0]), "max_disagreement_v_cm_s": float(worst[1]),
-            "inputs_compared": n_single}
+    result = {"controller": name, "fast_us_per_decision": fast_single * 1e6, "skfuzzy_us_per_decision": ref_s * 1e6,
+              "ratio": ref_s / fast_single, "batch_size": batch, "batch_decisions_per_s": batch / batch_s,
+              "batch_us_per_decision": batch_s / batch * 1e6,
+              "max_disagreement_dtheta_deg": float(worst[0]), "max_disagreement_v_cm_s": float(worst[1]),
+              "inputs_compared": n_single, "peers": list(peer_rows.values()),
+              "skfuzzy_version": importlib.metadata.version("scikit-fuzzy")}
+    ferri = peer_rows["ferrifuzz"]
+    if ferri.get("installed"):
+        # target 2 of issue #19: ours / ferrifuzz (<= 1 meets it); batch per core: its all-core time x cores
+        result["single_over_ferrifuzz"] = fast_single * 1e6 / ferri["single_us"]
+        result["batch_per_core_over_ferrifuzz"] = (batch_s / batch * 1e6) / (ferri["batch_us_per_decision"]
+                                                                           * ferri["batch_cores"])
+    return result
 
 
 class _Timers:
@@ -346,6 +394,34 @@ def out_problem(out: Path) -> str | None:
     return None
 
 
+def print_fuzzy(rows: list[dict]) -> None:
+    """The peer table: per controller, ours, the peers and scikit-fuzzy on the same inputs; then target 2."""
+    print("fuzzy decision (median of repetitions, after warm-up; same seeded inputs for every engine)")
+    print(f"{'controller':<10} {'engine':<18} {'single µs':>10} {'batch µs/dec':>13} {'cores':>5} "
+          f"{'max |Δθ| deg':>13} {'max |Δv| cm/s':>14}")
+    for r in rows:
+        print(f"{r['controller']:<10} {'fuzzynav':<18} {r['fast_us_per_decision']:10.1f} "
+              f"{r['batch_us_per_decision']:13.2f} {1:5d} {r['max_disagreement_dtheta_deg']:13.2e} "
+              f"{r['max_disagreement_v_cm_s']:14.2e}")
+        for p in r["peers"]:
+            label = f"{p['engine']} {p.get('version', '')}".strip()
+            if not p["installed"]:
+                print(f"{'':<10} {label:<18} {'not installed':>10}")
+                continue
+            print(f"{'':<10} {label:<18} {p['single_us']:10.1f} {p['batch_us_per_decision']:13.2f} "
+                  f"{p['batch_cores']:5d} {p['max_disagreement_dtheta_deg']:13.2e} "
+                  f"{p['max_disagreement_v_cm_s']:14.2e}")
+        label = f"scikit-fuzzy {r['skfuzzy_version']}"
+        print(f"{'':<10} {label:<18} {r['skfuzzy_us_per_decision']:10.0f} {'–':>13} {1:5d} {'(reference)':>13}")
+    for r in rows:
+        if "single_over_ferrifuzz" in r:
+            print(f"target 2 ({r['controller']}): single decision ours / ferrifuzz = {r['single_over_ferrifuzz']:.2f} "
+                  f"(<= 1 meets it); batch per core ours / ferrifuzz = {r['batch_per_core_over_ferrifuzz']:.2f}; "
+                  f"scikit-fuzzy / ours = {r['ratio']:.0f}")
+        else:
+            print(f"target 2 ({r['controller']}): ferrifuzz not installed (pip install -e '.[bench]')")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="reduced sizes (under a minute)")
@@ -359,19 +435,13 @@ def main(argv: list[str] | None = None) -> int:
     n_single, n_ref, reps = (200, 20, 3) if args.quick else (1000, 200, 7)
     results = {"machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),
                            "system": platform.platform()},
-               "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 10_000, reps)
+               "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 2_000 if args.quick else 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 7)
     results["sweep"] = bench_sweep(100, rounds=1) if args.quick else bench_sweep(1000)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
-    print("fuzzy decision (median of repetitions, after warm-up)")
-    print(f"{'controller':<10} {'fast µs':>9} {'skfuzzy µs':>11} {'ratio':>7} {'batch/s':>10} "
-          f"{'max |Δθ|':>10} {'max |Δv|':>10}")
-    for r in results["fuzzy"]:
-        print(f"{r['controller']:<10} {r['fast_us_per_decision']:9.1f} {r['skfuzzy_us_per_decision']:11.0f} "
-              f"{r['ratio']:7.0f} {r['batch_decisions_per_s']:10.0f} {r['max_disagreement_dtheta_deg']:10.2e} "
-              f"{r['max_disagreement_v_cm_s']:10.2e}")
+    print_fuzzy(results["fuzzy"])
     sim = results["simulation"]
     print(f"\nsimulation ({sim['scenario']}, laser perception, {sim['steps']} steps, median of "
           f"{sim['repetitions']}): "
