@@ -24,6 +24,7 @@ import shapely
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import SKIPPED_KINDS, LogError, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
+from analysis.tpt_errors import MODEL_COLUMNS, model_columns, tpt_errors
 from fuzzynav.geometry import swept_distance, wrap_180
 from fuzzynav.portable_math import bearing_deg, dist, norm2
 
@@ -62,6 +63,8 @@ COLUMN_UNITS: dict[str, str] = {
     "jerk_mean_cm_s3": "cm/s^3", "jerk_max_cm_s3": "cm/s^3", "min_ttc_s": "s", "near_miss_steps": "steps",
     "stalled_time_s": "s", "collisions_wall": "contacts", "collisions_static_obstacle": "contacts",
     "personal_space_intrusion_s": "s",
+    # TPT prediction error per obstacle model (issue #17)
+    **{f"tpt_{kind}_cm_{model}": "cm" for model in MODEL_COLUMNS for kind in ("ade", "fde")},
 }
 #: the standard metrics' columns, in table order (definitions and sources: README metric table)
 STANDARD_METRICS = ("spl", "path_irregularity_deg_per_m", "accel_mean_cm_s2", "accel_max_cm_s2", "jerk_mean_cm_s3",
@@ -231,8 +234,9 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row["plans_made"] = len(plans)
     row["detour_extra_length_cm"] = _detour_extra(pos, modes)
     row["tpt_collisions_predicted"] = sum(1 for t in log.tpts.values() if any(any(r_) for r_ in t["collide"][1:]))
-    ade, fde = _tpt_errors(log)
+    ade, fde, by_model = tpt_errors(log)
     row["tpt_ade_cm"], row["tpt_fde_cm"] = ade, fde
+    row.update(model_columns(by_model))
     times = np.array([d["compute_time_us"] for d in log.decisions]) if log.decisions else np.zeros(0)
     row["compute_time_us_median"] = float(np.median(times)) if len(times) else math.nan
     row["compute_time_us_p99"] = float(np.percentile(times, 99)) if len(times) else math.nan
@@ -294,37 +298,6 @@ def _detour_extra(pos: np.ndarray, modes: list[str]) -> float:
         extra += math.fsum(norm2(np.diff(run, axis=0)).tolist()) - dist(run[-1], run[0])
         k = j
     return extra
-
-
-def _tpt_errors(log: EpisodeLog) -> tuple[float, float]:
-    """Average and final displacement error (cm) of the table's obstacle predictions against the logged
-    truth: each predicted obstacle is matched to the nearest true obstacle at the table's time (within
-    its radius + 50 cm); rows past the end of the episode are not scored."""
-    if not log.tpts or not log.truth:
-        return math.nan, math.nan
-    truth_at = {m["step"]: {o["id"]: (o["x_cm"], o["y_cm"]) for o in m["obstacles"]} for m in log.truth}
-    errors, finals = [], []
-    for step, t in log.tpts.items():
-        now = truth_at.get(step)
-        if not now:
-            continue
-        ids = list(now)
-        true_now = np.array([now[i] for i in ids])
-        predicted = np.array(t["obstacles_cm"], dtype=float).reshape(len(t["obstacles_cm"]), -1, 2)  # (rows, K, 2)
-        for j, radius in enumerate(t["obstacle_radii_cm"]):
-            pred = predicted[:, j]  # (n_traj + 1, 2)
-            d0 = norm2(true_now - pred[0])
-            match = int(np.argmin(d0))
-            if d0[match] > radius + 50.0:
-                continue
-            oid = ids[match]
-            rows = [k for k in range(1, len(pred)) if oid in truth_at.get(step + k, {})]
-            if rows:
-                actual = np.array([truth_at[step + k][oid] for k in rows])
-                errs = norm2(pred[rows] - actual)
-                errors.extend(errs.tolist())
-                finals.append(float(errs[-1]))
-    return (math.fsum(errors) / len(errors), math.fsum(finals) / len(finals)) if errors else (math.nan, math.nan)
 
 
 def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:
