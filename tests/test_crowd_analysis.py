@@ -1,0 +1,66 @@
+"""Crowds in the analysis: the TPT's prediction error per obstacle model (from real logs) and the density table."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.density import count_key, density_table
+from analysis.metrics import metrics_table
+from fuzzynav.config import episode_config_from_dict
+from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.scenario import scenario_from_dict
+from runners.run import run_episode
+
+
+def _mixed_scenario():
+    return scenario_from_dict({
+        "name": "mixed_models", "bounds": [0, 0, 1200, 800],
+        "robot": {"start": [100, 400], "heading": 0, "goal": [1100, 400], "radius": 20},
+        "dynamic_obstacles": [
+            {"id": "scripted_one", "radius": 20, "start": [600, 150], "velocity": [0, 20]},
+            {"id": "pedestrian", "radius": 20, "waypoints": [[750, 700], [750, 100]], "speed": 25,
+             "model": "social_force"}],
+        "max_steps": 120})
+
+
+@pytest.fixture(scope="module")
+def mixed_log(tmp_path_factory, table1):
+    path = tmp_path_factory.mktemp("crowd") / "mixed.mcap"
+    cfg = episode_config_from_dict({"perception": {"mode": "ground_truth"}, "planner": {"strategy": "auto"},
+                                    "terminate_on_collision": False})
+    run_episode(_mixed_scenario(), FastEvaluator(table1), cfg, 0, path, "")
+    return path
+
+
+def test_tpt_errors_are_split_by_the_obstacles_models(mixed_log):
+    row = metrics_table([str(mixed_log)])[0].iloc[0]
+    # ground truth and a constant-velocity scripted obstacle: the TPT's prediction is exact
+    assert row["tpt_ade_cm_scripted"] == pytest.approx(0.0, abs=1e-6)
+    # the pedestrian slows down, turns and avoids: the constant-velocity prediction is off
+    assert row["tpt_ade_cm_social_force"] > 1.0
+    assert row["tpt_fde_cm_social_force"] >= row["tpt_ade_cm_social_force"] * 0.5
+    assert math.isnan(row["tpt_ade_cm_orca"]) and math.isnan(row["tpt_ade_cm_random_walk"])
+    # the overall error lies between the models' (a mean of both sets of errors)
+    assert row["tpt_ade_cm_scripted"] <= row["tpt_ade_cm"] <= row["tpt_ade_cm_social_force"]
+
+
+def test_density_table_lines_up_groups_without_pooling():
+    rows = []
+    for n, successes in ((5, [1, 1, 1, 1]), (20, [1, 0, 0, 0])):
+        for seed, ok in enumerate(successes):
+            for variant in ("auto(h=2)", "none"):
+                rows.append({"scenario": "crowd_crossing", "scenario.params.n": n, "variant": variant,
+                             "success": bool(ok) if variant != "none" else False,
+                             "min_clearance_dynamic_cm": 10.0 * n + seed})
+    df = pd.DataFrame(rows)
+    assert count_key(df) == "scenario.params.n"
+    table = density_table(df)
+    assert len(table) == 4 and set(table["episodes"]) == {4}
+    auto20 = table[(table["variant"] == "auto(h=2)") & (table["pedestrians"] == 20)].iloc[0]
+    assert auto20["success"] == 0.25 and auto20["success_lo"] < 0.25 < auto20["success_hi"]
+    assert auto20["min_clearance_dynamic_cm"] == pytest.approx(np.mean([200, 201, 202, 203]))
+    assert count_key(df[df["scenario.params.n"] == 5]) is None
