@@ -67,12 +67,13 @@ class SocialForceConfig:
     arrive_cm: float = 30.0  # a waypoint is reached within this distance
 
     def __post_init__(self) -> None:
-        in_range(self.relaxation_s, "relaxation_s", 0, 60, "s", lo_open=True)
+        # the lower bounds keep every force finite: a range of 1e-300 cm would make V⁰/σ infinite
+        in_range(self.relaxation_s, "relaxation_s", 0.01, 60, "s")
         in_range(self.agent_strength_cm2_s2, "agent_strength_cm2_s2", 0, 1e9, "cm²/s²")
-        in_range(self.agent_range_cm, "agent_range_cm", 0, 10_000, "cm", lo_open=True)
+        in_range(self.agent_range_cm, "agent_range_cm", 1, 10_000, "cm")
         in_range(self.step_time_s, "step_time_s", 0, 60, "s")
         in_range(self.wall_strength_cm2_s2, "wall_strength_cm2_s2", 0, 1e9, "cm²/s²")
-        in_range(self.wall_range_cm, "wall_range_cm", 0, 10_000, "cm", lo_open=True)
+        in_range(self.wall_range_cm, "wall_range_cm", 1, 10_000, "cm")
         in_range(self.fov_deg, "fov_deg", 0, 180, "deg")
         in_range(self.fov_weight, "fov_weight", 0, 1)
         in_range(self.max_speed_factor, "max_speed_factor", 1, 10)

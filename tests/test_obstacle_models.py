@@ -100,7 +100,7 @@ def test_a_model_registered_outside_fuzzynav_moves_its_obstacles():
     ({"model": 3}, "dynamic_obstacles[0].model: unknown obstacle model 3"),
     ({"model_params": {"sees_robot": False}}, "dynamic_obstacles[0].model_params: given without a model"),
     ({"model": "social_force", "model_params": {"relaxation_s": 0}},
-     "dynamic_obstacles[0].model_params.relaxation_s: must be in (0, 60] s, got 0.0"),
+     "dynamic_obstacles[0].model_params.relaxation_s: must be in [0.01, 60] s, got 0.0"),
     ({"model": "social_force", "model_params": {"relaxation_s": float("nan")}},
      "dynamic_obstacles[0].model_params.relaxation_s: must be finite"),
     ({"model": "social_force", "model_params": {"sees_robot": "yes"}},
