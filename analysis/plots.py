@@ -1,7 +1,8 @@
-"""Report figures (matplotlib, PNG): metric vs h_wait, box plots per variant, trajectories per scenario group.
+"""Report figures (matplotlib, PNG): the effect of h_wait, distributions per group, trajectories per scenario group.
 
-Every figure draws one series per group (variant label from :mod:`analysis.run_parameters`), so each value of
-a differing run parameter is its own line, box or path."""
+Every figure draws one series per group (variant label from :mod:`analysis.run_parameters`), so each value of a
+differing run parameter is its own point, box or panel, in the group's colour from :mod:`analysis.palette` (the
+same in every figure of a report). PNGs are small (90 dpi): a report of many scenarios stays light."""
 
 from __future__ import annotations
 
@@ -15,43 +16,31 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.patches import Circle
 from matplotlib.patches import Polygon as PolygonPatch
+from matplotlib.ticker import MaxNLocator
 
-from analysis.episode_log import load_episode
+from analysis.palette import CONTACT, OBSTACLE, Style, group_styles
 from analysis.run_parameters import SEP
+from analysis.stats import bootstrap_mean, wilson
+from analysis.trace import Trace, World
 
-STRATEGY_COLORS = {"auto": "tab:blue", "wait": "tab:orange", "detour": "tab:green", "none": "tab:red"}
-STRATEGY_LINES = {"auto": "-", "wait": "--", "detour": "-.", "none": ":"}
+DPI = 90
+MAX_SEEDS_PER_PANEL = 20
+"""Trajectories drawn per group and scenario (the lowest seeds); the panel's title says when there are more."""
 
 
-def _strategy_color(strategy: str, h_wait) -> tuple:
-    """Strategy colours; auto in darker blues as h_wait grows."""
-    if strategy == "auto" and h_wait is not None and not pd.isna(h_wait):
-        return plt.cm.Blues(min(0.35 + 0.15 * float(h_wait), 1.0))
-    return matplotlib.colors.to_rgba(STRATEGY_COLORS.get(strategy, "tab:gray"))
+def palette(df: pd.DataFrame) -> dict[str, Style]:
+    """The :class:`analysis.palette.Style` of every group (variant) of ``df``, in the groups' natural order."""
+    first = df.drop_duplicates("variant")
+    return group_styles(first["variant"], dict(zip(first["variant"], first["strategy"].astype(str), strict=True)))
 
 
 def styles(df: pd.DataFrame) -> dict[str, dict]:
-    """Colour and line style of every variant, the same in every figure. Without other differing parameters
-    the colour is the strategy's (auto: blues by h_wait); with them, the colour is the setting's (one colour
-    per ``setting``, lighter for smaller h_wait) and the line style the strategy's, so that each value of a
-    parameter is its own series."""
-    settings = list(pd.unique(df["setting"]))
-    cmap = plt.get_cmap("tab10")
-    h_values = sorted(df["h_wait"].dropna().unique())
-    out = {}
-    for _, row in df.drop_duplicates("variant").iterrows():
-        strategy, h_wait = str(row["strategy"]), row["h_wait"]
-        if len(settings) <= 1:
-            color = _strategy_color(strategy, h_wait)
-        else:
-            color = matplotlib.colors.to_rgba(cmap(settings.index(row["setting"]) % cmap.N))
-            if strategy == "auto" and len(h_values) > 1 and not pd.isna(h_wait):
-                light = 0.5 * (1 - h_values.index(h_wait) / (len(h_values) - 1))  # the largest h: full colour
-                color = (*(c + (1 - c) * light for c in color[:3]), 1.0)
-        out[row["variant"]] = {"color": color, "linestyle": STRATEGY_LINES.get(strategy, "-")}
-    return out
+    """``Axes.plot`` keywords (colour, line style) of every group: a distinct colour-blind-safe colour per group,
+    the line style of its strategy (auto solid, wait dashed, detour dash-dot, none dotted)."""
+    return {variant: style.line() for variant, style in palette(df).items()}
 
 
 def _file_part(label: str) -> str:
@@ -61,137 +50,241 @@ def _file_part(label: str) -> str:
 
 def _save(fig, path: Path) -> Path:
     """Write a figure and free it (one place, so that tests can look at every figure before it is saved)."""
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
 
 
-def _legend_outside(fig) -> None:
-    """One legend for the whole figure, right of the panels (inside, a dozen series would hide the data)."""
+def _legend_entries(fig) -> dict[str, object]:
+    """Each labelled series of the figure's panels once, in drawing order."""
     entries: dict[str, object] = {}
     for ax in fig.axes:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
-            entries.setdefault(label, handle)
+            if not label.startswith("_"):
+                entries.setdefault(label, handle)
+    return entries
+
+
+def legend_width_in(labels: list[str], fontsize: float = 7) -> float:
+    """Width (inches) a one-column legend of ``labels`` needs: the handle, the gap and the longest label (a
+    character of a sans-serif font is about 0.6 of its size on average)."""
+    longest = max((len(label) for label in labels), default=0)
+    return 0.55 + longest * 0.6 * fontsize / 72
+
+
+def grid(rows: int, cols: int, panel_w: float, panel_h: float, left: float = 0.7, right: float = 0.15,
+         top: float = 0.45, bottom: float = 0.5, wspace: float = 0.45, hspace: float = 0.35, **kwargs):
+    """A figure of ``rows`` x ``cols`` panels of ``panel_w`` x ``panel_h`` inches with fixed margins (inches).
+    Fixed margins instead of matplotlib's constrained layout: that measures every tick label of every panel
+    several times and made a report's figures take most of its time."""
+    width = left + right + cols * panel_w + (cols - 1) * wspace
+    height = top + bottom + rows * panel_h + (rows - 1) * hspace
+    fig, axes = plt.subplots(rows, cols, figsize=(width, height), squeeze=False, **kwargs)
+    fig.subplots_adjust(left=left / width, right=1 - right / width, top=1 - top / height, bottom=bottom / height,
+                        wspace=wspace / panel_w, hspace=hspace / panel_h)
+    return fig, axes
+
+
+def _legend_outside(fig, fontsize: float = 7) -> None:
+    """One legend for the whole figure in its right margin (inside, a dozen series would hide the data); the
+    figure must leave :func:`legend_width_in` of room there."""
+    entries = _legend_entries(fig)
     if entries:
-        fig.legend(list(entries.values()), list(entries), loc="outside right upper", fontsize=6)
+        fig.legend(list(entries.values()), list(entries), loc="upper right", fontsize=fontsize, frameon=False,
+                   ncols=1 + len(entries) // 40, borderaxespad=0.2)
 
 
-def _per_scenario(df: pd.DataFrame, out: Path, filename: str, draw, panel_width: float = 4.2,
-                  legend: bool = False) -> Path:
-    """One panel per scenario group, ``draw(ax, rows_of_that_scenario)``, saved as ``out/filename``; with
-    ``legend``, the series of every panel in one legend on the right."""
+def _mean_interval(values: pd.Series, metric: str) -> tuple[float, float, float]:
+    """(mean, low, high): the success rate with its Wilson interval, any other metric's mean with its 95 %
+    percentile bootstrap interval (:mod:`analysis.stats`)."""
+    if metric == "success":
+        x = values.dropna().astype(bool)
+        return wilson(int(x.sum()), len(x))
+    return bootstrap_mean(values)
+
+
+def interval(ax, position: float, mean: float, lo: float, hi: float, style: Style, label: str,
+             horizontal: bool = False, size: float = 5.0) -> None:
+    """A mean as a dot and its interval as a bar from ``lo`` to ``hi`` (drawn as they are: a percentile bootstrap
+    interval need not be symmetric, and a mean a rounding error outside it is not moved into it), at ``position``
+    on the other axis; the legend entry shows the group's marker and colour."""
+    if not (math.isnan(lo) or math.isnan(hi)):
+        xs, ys = ([lo, hi], [position, position]) if horizontal else ([position, position], [lo, hi])
+        ax.plot(xs, ys, color=style.color, lw=1.4, solid_capstyle="butt", zorder=3)
+    x, y = (mean, position) if horizontal else (position, mean)
+    ax.plot([x], [y], marker=style.marker, ms=size, color=style.color, linestyle="-", lw=1.4, label=label, zorder=4)
+
+
+H_WAIT_METRICS = ("success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "wait_steps", "spl")
+"""The rows of the h_wait figure (every metric per group is in groups.csv)."""
+
+
+def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path:
+    """``h_wait_effect.png``: a row per metric, a column per scenario group. In each panel, ``auto``'s mean against
+    h_wait with its 95 % interval (Wilson for the success rate, percentile bootstrap otherwise), each point in its
+    group's colour and joined by a grey line per setting of the other differing parameters (settings shifted a
+    little sideways so that they do not hide each other); the groups that do not read h_wait as horizontal lines
+    in their colour with their interval as a band."""
+    pal = palette(df)
     scenarios = list(pd.unique(df["scenario_label"]))
-    width = panel_width * len(scenarios) + (2.0 if legend else 0.0)
-    fig, axes = plt.subplots(1, len(scenarios), figsize=(width, 3.6), squeeze=False, layout="constrained")
-    for ax, scenario in zip(axes[0], scenarios, strict=True):
-        draw(ax, df[df["scenario_label"] == scenario])
-        ax.set_title(scenario, fontsize=9)
-        ax.grid(alpha=0.3)
-    if legend:
-        _legend_outside(fig)
-    return _save(fig, out / filename)
-
-
-def metric_vs_h_wait(df: pd.DataFrame, metric: str, out: Path) -> Path:
-    """One panel per scenario group: the metric's mean (±95 % bootstrap interval) against h_wait for ``auto``,
-    one line per setting of the other differing parameters (points of different settings are shifted a little
-    sideways so that they do not hide each other), and the variants that ignore h_wait as horizontal lines
-    with their interval as a band."""
-    from analysis.stats import bootstrap_mean
-
-    style = styles(df)
     settings = list(pd.unique(df["setting"]))
     dodge = 0.08 if len(settings) > 1 else 0.0
-
-    def draw(ax, sub: pd.DataFrame) -> None:
+    setting_lines = ("-", "--", "-.", ":")
+    labels = [*pal, *(SEP.join(["auto", s]) if s else "auto" for s in settings)]
+    fig, axes = grid(len(metrics), len(scenarios), 3.0, 1.6, left=0.9, right=legend_width_in(labels) + 0.1,
+                     hspace=0.25, sharex="col")
+    for col, scenario in enumerate(scenarios):
+        sub = df[df["scenario_label"] == scenario]
         auto = sub[sub["strategy"] == "auto"]
-        for i, setting in enumerate(settings):
-            rows = auto[auto["setting"] == setting]
-            if rows.empty:
-                continue
-            hs = sorted(rows["h_wait"].dropna().unique())
-            stats = [bootstrap_mean(rows.loc[rows["h_wait"] == h, metric]) for h in hs]
-            means = [s[0] for s in stats]
-            lo = [s[0] - s[1] if not math.isnan(s[1]) else 0 for s in stats]
-            hi = [s[2] - s[0] if not math.isnan(s[2]) else 0 for s in stats]
-            xs = [h + dodge * (i - (len(settings) - 1) / 2) for h in hs]
-            color = style[rows["variant"].iloc[-1]]["color"]  # the largest h_wait's: full colour
-            ax.errorbar(xs, means, yerr=[lo, hi], marker="o", capsize=3, color=color,
-                        label=SEP.join(["auto", setting]) if setting else "auto")
-        for variant, rows in sub[sub["strategy"] != "auto"].groupby("variant", sort=False):
-            mean, low, high = bootstrap_mean(rows[metric])
-            if math.isnan(mean):
-                continue
-            ax.axhline(mean, label=variant, **style[variant])
-            if not math.isnan(low):
-                ax.axhspan(low, high, color=style[variant]["color"], alpha=0.12)
         hs = sorted(auto["h_wait"].dropna().unique())
-        if hs:  # whole steps only, and room around a single h_wait
-            ax.set_xticks(hs)
-            ax.set_xlim(min(hs) - 0.5, max(hs) + 0.5)
-        ax.set_xlabel("h_wait (steps)")
-        ax.set_ylabel(metric)
-
-    return _per_scenario(df, out, f"h_wait_{metric}.png", draw, legend=True)
-
-
-def box_by_strategy(df: pd.DataFrame, metric: str, out: Path) -> Path:
-    """Box plot of a metric per variant, one panel per scenario group."""
-    style = styles(df)
-    variants = list(pd.unique(df["variant"]))
-
-    def draw(ax, sub: pd.DataFrame) -> None:
-        data = [sub.loc[sub["variant"] == v, metric].dropna().to_numpy() for v in variants]
-        box = ax.boxplot(data, tick_labels=variants, patch_artist=True)
-        for patch, v in zip(box["boxes"], variants, strict=True):
-            patch.set_facecolor(style[v]["color"])
-            patch.set_linestyle(style[v]["linestyle"])
-            patch.set_alpha(0.5)
-        ax.set_ylabel(metric)
-        ax.tick_params(axis="x", rotation=60, labelsize=6)
-        for label in ax.get_xticklabels():
-            label.set_horizontalalignment("right")
-            label.set_rotation_mode("anchor")  # the label's end under its box
-
-    return _per_scenario(df, out, f"box_{metric}.png", draw, panel_width=max(4.2, 1.5 + 0.45 * len(variants)))
-
-
-def trajectories(df: pd.DataFrame, scenario: str, out: Path) -> Path:
-    """Robot paths of each variant (lowest seed) in one scenario group over the static world and the moving
-    obstacles' true paths; contacts are marked with a red x."""
-    style = styles(df)
-    sub = df[df["scenario_label"] == scenario].sort_values("seed", kind="stable")
-    first = sub.groupby("variant", sort=False).head(1)
-    first = first.set_index("variant").loc[list(pd.unique(sub["variant"]))].reset_index()  # the groups' order
-    fig, ax = plt.subplots(figsize=(9, 5), layout="constrained")
-    drawn_world = False
-    for _, row in first.iterrows():
-        log = load_episode(row["log"], ["/scene", "/robot/state", "/obstacles/truth"])
-        if not drawn_world:
-            for poly in log.static_polygons:
-                ax.add_patch(PolygonPatch(np.array(poly.exterior.coords), closed=True, color="0.6"))
-            if log.bounds:
-                xmin, ymin, xmax, ymax = log.bounds
-                ax.plot([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3")
-            if log.goal:
-                ax.add_patch(Circle(log.goal, log.goal_tolerance or 20, color="tab:green", alpha=0.3))
-            tracks: dict[str, list] = {}
-            for m in log.truth:
-                for o in m["obstacles"]:
-                    tracks.setdefault(o["id"], []).append((o["x_cm"], o["y_cm"]))
-            for oid, pts in tracks.items():
-                p = np.array(pts)
-                ax.plot(p[:, 0], p[:, 1], ":", color="tab:red", alpha=0.6)
-                ax.annotate(oid, p[0], fontsize=7, color="tab:red")
-            drawn_world = True
-        pos = log.positions
-        ax.plot(pos[:, 0], pos[:, 1], alpha=0.8, label=row["variant"], **style[row["variant"]])
-        hits = [k + 1 for k, s in enumerate(log.states) if s["contact_static"] or s["contact_dynamic"]]
-        if hits:
-            ax.plot(pos[hits, 0], pos[hits, 1], "x", color="red", markersize=9, mew=2)
-    ax.set_aspect("equal")
-    ax.set_title(f"{scenario}: robot paths (seed {int(first['seed'].min()) if len(first) else '-'})", fontsize=9)
-    ax.set_xlabel("x (cm)")
-    ax.set_ylabel("y (cm)")
+        for row, metric in enumerate(metrics):
+            ax = axes[row][col]
+            for i, setting in enumerate(settings):
+                rows = auto[auto["setting"] == setting]
+                if rows.empty:
+                    continue
+                shift = dodge * (i - (len(settings) - 1) / 2)
+                points = []
+                for variant, g in rows.groupby("variant", sort=False):
+                    mean, lo, hi = _mean_interval(g[metric], metric)
+                    if math.isnan(mean):
+                        continue
+                    x = float(g["h_wait"].iloc[0]) + shift
+                    points.append((x, mean))
+                    interval(ax, x, mean, lo, hi, pal[variant], variant)
+                if points:
+                    xs, ys = zip(*sorted(points), strict=True)
+                    ax.plot(xs, ys, color="0.45", lw=1, linestyle=setting_lines[i % len(setting_lines)], zorder=2,
+                            label=SEP.join(["auto", setting]) if setting else "auto")
+            for variant, rows in sub[sub["strategy"] != "auto"].groupby("variant", sort=False):
+                mean, lo, hi = _mean_interval(rows[metric], metric)
+                if math.isnan(mean):
+                    continue
+                ax.axhline(mean, label=variant, lw=1.2, **pal[variant].line())
+                if not math.isnan(lo):
+                    ax.axhspan(lo, hi, color=pal[variant].color, alpha=0.12, lw=0)
+            if hs:  # whole steps only, and room around a single h_wait
+                ax.set_xticks(hs)
+                ax.set_xlim(min(hs) - 0.5, max(hs) + 0.5)
+            ax.grid(alpha=0.3)
+            ax.tick_params(labelsize=7)
+            if row == 0:
+                ax.set_title(scenario, fontsize=9)
+            if row == len(metrics) - 1:
+                ax.set_xlabel("h_wait (steps)", fontsize=8)
+            if col == 0:
+                ax.set_ylabel(metric, fontsize=8)
     _legend_outside(fig)
+    return _save(fig, out / "h_wait_effect.png")
+
+
+def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
+    """``box_metrics.png``: a row per metric, a column per scenario group, a box per group in its colour."""
+    pal = palette(df)
+    variants = list(pal)
+    scenarios = list(pd.unique(df["scenario_label"]))
+    longest = max(len(v) for v in variants)
+    fig, axes = grid(len(metrics), len(scenarios), max(2.8, 0.25 * len(variants)), 1.5, left=0.9, hspace=0.2,
+                     bottom=0.25 + 0.04 * longest)
+    for col, scenario in enumerate(scenarios):
+        sub = df[df["scenario_label"] == scenario]
+        for row, metric in enumerate(metrics):
+            ax = axes[row][col]
+            data = [sub.loc[sub["variant"] == v, metric].dropna().to_numpy(dtype=float) for v in variants]
+            box = ax.boxplot(data, patch_artist=True, widths=0.6, flierprops={"markersize": 2, "alpha": 0.5})
+            # the groups' names under the bottom row only (the panels above are the same groups)
+            ax.set_xticks(range(1, len(variants) + 1), variants if row == len(metrics) - 1 else [])
+            for patch, v in zip(box["boxes"], variants, strict=True):
+                patch.set_facecolor(pal[v].color)
+                patch.set_alpha(0.6)
+            ax.grid(alpha=0.3, axis="y")
+            ax.yaxis.set_major_locator(MaxNLocator(4))  # fewer ticks: each costs time in every panel
+            ax.tick_params(labelsize=7)
+            if row == 0:
+                ax.set_title(scenario, fontsize=9)
+            if col == 0:
+                ax.set_ylabel(metric, fontsize=8)
+            if row == len(metrics) - 1:
+                ax.tick_params(axis="x", rotation=60, labelsize=6)
+                for label in ax.get_xticklabels():
+                    label.set_horizontalalignment("right")
+                    label.set_rotation_mode("anchor")  # the label's end under its box
+    return _save(fig, out / "box_metrics.png")
+
+
+def draw_world(ax, world: World, margin_cm: float = 20.0) -> None:
+    """Walls, static obstacles and the goal; the axes fitted to the walls (plus ``margin_cm``), so that paths of
+    moving obstacles that start or end outside the world do not shrink it."""
+    if world.polygons:
+        ax.add_collection(PatchCollection([PolygonPatch(p, closed=True) for p in world.polygons], color="0.65",
+                                          lw=0, zorder=1))
+    if world.goal is not None:
+        ax.add_patch(Circle(world.goal, world.goal_tolerance or 20.0, color="#009E73", alpha=0.25, lw=0, zorder=1))
+    if world.bounds is not None:
+        xmin, ymin, xmax, ymax = world.bounds
+        ax.plot([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3", lw=0.8, zorder=1)
+        ax.set_xlim(xmin - margin_cm, xmax + margin_cm)
+        ax.set_ylim(ymin - margin_cm, ymax + margin_cm)
+    ax.set_aspect("equal")
+
+
+def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
+    """Robot paths as thin lines in ``color`` (overlapping paths darken each other), contacts as black ``x``;
+    the moving obstacles' true paths dotted in faint red (each distinct path once)."""
+    seen: set[bytes] = set()
+    for trace in traces:
+        for path in trace.obstacle_paths:
+            key = path.round(1).tobytes()
+            if key not in seen and len(path) > 1:
+                seen.add(key)
+                ax.plot(path[:, 0], path[:, 1], ":", color=OBSTACLE, alpha=0.5, lw=0.8, zorder=2)
+    ax.add_collection(LineCollection([t.positions for t in traces if len(t.positions) > 1], colors=color,
+                                     linewidths=lw, alpha=0.7 if len(traces) < 5 else 0.45, zorder=3))
+    hits = [t.positions[list(t.contact_points)] for t in traces if t.contact_points]
+    if hits:
+        points = np.vstack(hits)
+        ax.plot(points[:, 0], points[:, 1], "x", color=CONTACT, ms=5, mew=1.2, zorder=4)
+
+
+def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out: Path,
+                 max_seeds: int = MAX_SEEDS_PER_PANEL) -> Path:
+    """``trajectories_<scenario>.png``: small multiples, a panel per group of one scenario group with the robot
+    paths of its seeds (the lowest ``max_seeds``) as thin lines in the group's colour, contacts as black ``x``,
+    the moving obstacles' true paths dotted, over the static world (each distinct world of the panel's episodes;
+    axes fitted to the walls). ``traces``: log path -> :class:`Trace` (:func:`analysis.trace.load_traces`)."""
+    pal = palette(df)
+    sub = df[df["scenario_label"] == scenario]
+    variants = [v for v in pal if v in set(sub["variant"])]
+    cols = min(len(variants), 4)
+    rows = -(-len(variants) // cols)
+    worlds = [traces[log].world for log in sub["log"] if log in traces and traces[log].world.bounds is not None]
+    aspect = 1.0
+    if worlds:
+        xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
+        aspect = max(0.25, min(2.0, (ymax - ymin) / max(xmax - xmin, 1e-9)))
+    panel = 3.0
+    fig, axes = grid(rows, cols, panel, panel * aspect, left=0.1, right=0.1, top=0.75, bottom=0.1, wspace=0.15,
+                     hspace=0.45)
+    for ax, variant in zip(axes.flat, variants, strict=False):
+        episodes = sub[sub["variant"] == variant].sort_values("seed", kind="stable")
+        drawn = [traces[log] for log in episodes["log"].head(max_seeds) if log in traces]
+        drawn_worlds = {t.world.key(): t.world for t in drawn}
+        for world in drawn_worlds.values():
+            draw_world(ax, world)
+        draw_traces(ax, drawn, pal[variant].color)
+        failed = int((~episodes["success"].astype(bool)).sum())
+        more = f", lowest {len(drawn)} seeds drawn" if len(drawn) < len(episodes) else ""
+        ax.set_title(f"{variant}\n{len(episodes)} seeds, {failed} failed{more}", fontsize=8)
+        ax.set_xticks([])  # the walls give the scale (in the title); ticks cost time in every panel
+        ax.set_yticks([])
+        for spine in ax.spines.values():
+            spine.set_color(pal[variant].color)
+            spine.set_linewidth(2)
+    for ax in list(axes.flat)[len(variants):]:
+        ax.set_axis_off()
+    size = ""
+    if worlds:
+        xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
+        size = f"; walls {xmax - xmin:.0f} x {ymax - ymin:.0f} cm"
+    fig.suptitle(f"{scenario}: robot paths of every seed (x: contact; dotted: moving obstacles{size})", fontsize=9)
     return _save(fig, out / f"trajectories_{_file_part(scenario)}.png")

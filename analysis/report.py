@@ -1,13 +1,17 @@
 """Reports from logs: ``python -m analysis.report <sweep dir or .mcap files...> [--out DIR]``.
 
-Writes ``report.md`` and ``report.html`` with PNG plots beside them, ``episodes.csv`` (one row per episode, every
-metric, its group's labels), ``groups.csv`` (mean and 95 % bootstrap interval of every metric per group), both
-also as Parquet with units (:mod:`analysis.tables`), and ``paired.csv`` (paired differences between variants on
-the same scenario and seed). A group is every combination of the run parameters whose values differ among the logs
-(:mod:`analysis.run_parameters`): two settings of any parameter are never pooled. Logs that are not used (a copy
-of another log of the same episode, not a regular file, damaged, failing a check, truncated, outcome
-``error``/``interrupted``) are listed with their kind and reason and left out of the statistics. Everything is
-computed from the logs.
+Writes ``report.md`` and ``report.html`` with PNG plots beside them. The report shows before it lists: first the
+overview figure (``overview.png``: success rate with its Wilson interval, time-to-goal and path length with
+bootstrap intervals, per group and scenario), what the data says, the effect of h_wait, every seed's trajectory
+per scenario and group, a gallery of the failed episodes, the paired differences whose interval excludes zero;
+then the tables. Long tables stay in files: ``episodes.csv`` (one row per episode, every metric, its group's
+labels), ``groups.csv`` (mean and 95 % interval of every metric per group), both also as Parquet with units
+(:mod:`analysis.tables`), ``paired.csv`` (every paired difference between variants on the same scenario and seed),
+``failures.csv`` (every failed episode) and ``left_out.csv``. A group is every combination of the run parameters
+whose values differ among the logs (:mod:`analysis.run_parameters`): two settings of any parameter are never
+pooled. Logs that are not used (a copy of another log of the same episode, not a regular file, damaged, failing a
+check, truncated, outcome ``error``/``interrupted``) are listed with their kind and reason and left out of the
+statistics. Everything is computed from the logs.
 """
 
 from __future__ import annotations
@@ -27,12 +31,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis import plots
+from analysis import gallery, plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
+from analysis.overview import overview
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import write_tables
+from analysis.trace import load_traces
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
            "collisions_static", "collisions_dynamic", "min_clearance_static_cm", "min_clearance_dynamic_cm",
@@ -40,8 +46,7 @@ METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", 
            "tpt_fde_cm", "compute_time_us_median", "compute_time_us_p99", "steps"]
 MAIN_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps"]
 PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "turn_count"]
-BOX_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps",
-               "detour_extra_length_cm", "tpt_ade_cm"]
+BOX_METRICS = ["time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "wait_steps"]
 PAIR_KEY = "seed"  # episodes of one scenario group with the same seed face the same world and obstacles
 
 
@@ -186,9 +191,23 @@ def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
     return out
 
 
+INLINE_ROWS = 40
+"""Rows of a long table shown in the report (paired differences, logs left out); the whole table is a CSV file."""
+
+
+def _bounded(table: pd.DataFrame, csv_name: str, what: str, limit: int = INLINE_ROWS) -> tuple[pd.DataFrame, str]:
+    """(the first ``limit`` rows, a sentence saying where the rest are, '' when all are shown): a report of
+    thousands of episodes stays readable."""
+    if len(table) <= limit:
+        return table, ""
+    return table.head(limit), f"The first {limit} of {len(table)} {what} are shown; all of them: {csv_name}."
+
+
 @dataclass
 class Report:
-    """The report's content as blocks, rendered to Markdown and HTML alike."""
+    """The report's content as blocks, rendered to Markdown and HTML alike. Kinds: ``h2``, ``p``, ``list``,
+    ``table`` (a DataFrame), ``img`` (a PNG's path) and ``gallery`` (a list of
+    :class:`analysis.gallery.Failure`)."""
 
     title: str
     blocks: list[tuple[str, object]] = field(default_factory=list)
@@ -209,6 +228,12 @@ class Report:
                 lines += [value.to_markdown(index=False) if not value.empty else "_none_", ""]  # type: ignore
             elif kind == "img":
                 lines += [f"![{Path(value).stem}]({Path(value).name})", ""]  # type: ignore[arg-type]
+            elif kind == "gallery":
+                table = pd.DataFrame([{"picture": f"![{f.picture}]({f.picture})", "scenario": f.row["scenario"],
+                                       "group": f.row["variant"], "seed": f.row["seed"], "outcome": f.row["outcome"],
+                                       "first contact step": _step(f.row["first_contact_step"]), "log": f.row["log"]}
+                                      for f in value])  # type: ignore[attr-defined]
+                lines += [table.to_markdown(index=False) if not table.empty else "_none_", ""]
         return "\n".join(lines)
 
     def html(self) -> str:
@@ -225,10 +250,20 @@ class Report:
                             if not value.empty else "<p><em>none</em></p>")  # type: ignore[attr-defined]
             elif kind == "img":
                 name = html.escape(Path(value).name)  # type: ignore[arg-type]
-                body.append(f'<p><img src="{name}" alt="{name}"></p>')
-        style = ("body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
+                body.append(f'<p><img id="{html.escape(Path(value).stem)}" src="{name}" alt="{name}"></p>')
+            elif kind == "gallery":
+                cards = [f'<figure><img src="{html.escape(f.picture)}" alt="{html.escape(f.picture)}">'
+                         f"<figcaption>{html.escape(str(f.row['variant']))} · seed {f.row['seed']} · "
+                         f"{html.escape(str(f.row['outcome']))} · first contact step "
+                         f"{_step(f.row['first_contact_step'])}<br><code>{html.escape(str(f.row['log']))}</code>"
+                         "</figcaption></figure>" for f in value]  # type: ignore[attr-defined]
+                body.append('<div class="gallery">' + "".join(cards) + "</div>" if cards else "<p><em>none</em></p>")
+        style = ("body{font-family:sans-serif;max-width:1400px;margin:0.5em auto;padding:0 1em}"
+                 "h1{font-size:1.2em;margin:0.2em 0}h2{margin-top:1.4em}"
                  "table.t{border-collapse:collapse;font-size:13px}table.t td,table.t th{border:1px solid #ccc;"
-                 "padding:3px 6px;text-align:right}img{max-width:100%}")
+                 "padding:3px 6px;text-align:right}img{max-width:100%}"
+                 ".gallery{display:flex;flex-wrap:wrap;gap:8px}.gallery figure{margin:0;width:230px;font-size:11px}"
+                 ".gallery code{font-size:9px;word-break:break-all}")
         check = ("<script>window.addEventListener('load',function(){var bad=[].slice.call("
                  "document.images).filter(function(i){return !(i.complete&&i.naturalWidth>0)});"
                  "document.title=bad.length?'report: '+bad.length+' broken image(s)':'report: ok';});</script>")
@@ -236,75 +271,137 @@ class Report:
                 f"<style>{style}</style>{check}</head><body>{''.join(body)}</body></html>")
 
 
+def _step(value: object) -> str:
+    """A first contact step as text: ``–`` when no contact was flagged (a timeout without contact)."""
+    return "–" if value is None or pd.isna(value) else str(int(value))  # type: ignore[arg-type]
+
+
 def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions | None = None,
-                 jobs: int = 1, analysis: Analysis | None = None, split_provenance: bool = False) -> Report:
+                 jobs: int = -1, analysis: Analysis | None = None, split_provenance: bool = False) -> Report:
     """Compute everything and write the report files into ``out``; returns the report content. ``jobs``:
-    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`).
-    ``analysis``: the logs already analysed (the sweep shares it with its summary); ``split_provenance``:
-    logs from different code versions form separate groups instead of being pooled with a warning."""
+    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`), for the
+    metrics and for the pictures (from :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on). ``analysis``: the logs
+    already analysed (the sweep shares it with its summary); ``split_provenance``: logs from different code
+    versions form separate groups instead of being pooled with a warning.
+
+    The order is the reader's: the overview figure first (success rate, time-to-goal and path length per group
+    and scenario with intervals), what the data says, the effect of h_wait, each scenario's trajectories, the
+    failures, the paired differences whose interval excludes zero; then the tables behind them."""
     out.mkdir(parents=True, exist_ok=True)
     sources = [str(p) for p in paths]
     analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance)
     df, grouping = analysis.episodes, analysis.grouping
     excluded = analysis.excluded[["log", "kind", "outcome", "scenario_label", "variant", "reason"]].rename(
         columns={"scenario_label": "scenario"})
+    excluded.to_csv(out / "left_out.csv", index=False)
     report = Report("fuzzynav report")
     kinds = left_out_counts(analysis.excluded)
-    report.add("p", f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out"
-                    + (f" ({kinds})." if kinds else "."))
+    logs_line = (f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out"
+                 + (f" ({kinds})." if kinds else "."))
     if df.empty:
-        report.add("h2", "Logs left out")
-        report.add("table", excluded)
+        report.add("p", logs_line)
+        _left_out(report, excluded)
         _write(report, out, df, pd.DataFrame(), pd.DataFrame())
         return report
     main, long = group_table(df, grouping)
     paired = paired_table(df, grouping)
+    report.add("img", overview(df, long, out))
+    report.add("p", logs_line + " Groups: every combination of the run parameters that differ among these logs "
+                    "(see Run parameters); one colour per group in every figure.")
     report.add("h2", "What the data says")
     report.add("list", warnings(df, analysis) + findings(df, paired))
+
+    report.add("h2", "Effect of h_wait")
+    if (df.groupby("scenario_label")["variant"].nunique() >= 2).any():
+        report.add("p", "Mean against h_wait for auto (a point per group in its colour, joined by a grey line per "
+                        "setting of the other differing parameters) with its 95 % interval (success: Wilson; "
+                        "others: bootstrap); groups that do not read h_wait as horizontal lines with their interval "
+                        "as a band. Every metric per group: groups.csv.")
+        report.add("img", plots.h_wait_effect(df, plots.H_WAIT_METRICS, out))
+    else:
+        report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
+                        "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
+
+    drawn = df.sort_values("seed", kind="stable").groupby(["scenario_label", "variant"], sort=False).head(
+        plots.MAX_SEEDS_PER_PANEL)
+    traces, unreadable = load_traces([*drawn["log"], *gallery.logs_to_read(df)], jobs)
+    report.add("h2", "Trajectories")
+    report.add("p", "Per scenario, a panel per group with the robot paths of its seeds (thin lines; up to "
+                    f"{plots.MAX_SEEDS_PER_PANEL} per panel, the lowest seeds), contacts the simulator flagged as "
+                    "black x, moving obstacles' true paths dotted; axes fitted to the walls.")
+    for scenario in pd.unique(df["scenario_label"]):
+        report.add("img", plots.trajectories(df, scenario, traces, out))
+    if unreadable:
+        report.add("p", f"{len(unreadable)} log(s) could not be read again for the pictures (changed since the "
+                        f"analysis?), e.g. {next(iter(unreadable.values()))[:300]}")
+
+    report.add("h2", "Failures")
+    failures, counts = gallery.gallery(df, traces, out)
+    n_failed = int(counts["failed"].sum()) if not counts.empty else 0
+    read_all = n_failed <= gallery.READ_ALL_MAX
+    report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the goal "
+                    f"reached after a contact); pictured: the first {gallery.MAX_PER_GROUP} of each group (lowest "
+                    f"seeds), {len(failures)} in all. Every failure with its log: failures.csv, with the first "
+                    "contact step (the first step the simulator flagged as in contact; empty with log_read true: none "
+                    "flagged) "
+                    + ("of each." if read_all else f"of those whose log the pictures read (more than "
+                       f"{gallery.READ_ALL_MAX} failures: the others' logs are not read again; "
+                       "`python -m runners.replay <log>` shows any episode's steps)."))
+    if not counts.empty:
+        report.add("table", counts)
+    report.add("gallery", failures)
+
+    report.add("h2", "Paired comparisons (same scenario and seed)")
+    significant = paired[paired["excludes_zero"]]
+    report.add("p", f"Differences A − B whose 95 % bootstrap interval excludes zero: {len(significant)} of "
+                    f"{len(paired)} comparisons (variants differing in one factor, on the same scenario and seed). "
+                    "Every comparison, with its interval: paired.csv.")
+    if not significant.empty:
+        shown_rows = significant.copy()
+        shown_rows["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in zip(
+            shown_rows["mean A−B"], shown_rows["ci_low"], shown_rows["ci_high"], strict=True)]
+        table, note = _bounded(shown_rows[["scenario", "A", "B", "metric", "pairs", "mean A−B [95% CI]"]],
+                               "paired.csv (excludes_zero true)", "differences")
+        report.add("table", table)
+        if note:
+            report.add("p", note)
+
+    report.add("h2", "Outcomes per scenario and variant")
+    report.add("p", "Success = goal reached with no contact before the step limit; 95 % Wilson interval. Other "
+                    "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
+    report.add("table", main)
+    report.add("h2", "Distributions per variant")
+    report.add("img", plots.box_by_variant(df, BOX_METRICS, out))
     report.add("h2", "Run parameters")
     others = (f"here {', '.join(grouping.dimensions)}, named in labels by the end of the key"
               if grouping.dimensions else "here none differs")
     report.add("p", "Episodes are grouped by scenario, strategy and h_wait, and by every other run parameter whose "
                     f"value differs among these logs ({others}); seeds are pooled.")
     report.add("table", parameter_table(df, grouping))
-    report.add("h2", "Outcomes per scenario and variant")
-    report.add("p", "Success = goal reached with no contact before the step limit; 95 % Wilson interval. Other "
-                    "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
-    report.add("table", main)
-    if not paired.empty:
-        report.add("h2", "Paired comparisons (same scenario and seed)")
-        shown = paired.copy()
-        shown["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in
-                                      zip(shown["mean A−B"], shown["ci_low"], shown["ci_high"], strict=True)]
-        report.add("table", shown[["scenario", "A", "B", "metric", "pairs", "mean A−B [95% CI]", "excludes_zero"]])
     disagree = df[~df["collision_check_agrees"]]
     report.add("h2", "Collision cross-check")
     report.add("p", "Contacts recomputed from the logged geometry agree with the simulator's flags in "
                     f"{len(df) - len(disagree)} of {len(df)} episodes.")
     if not disagree.empty:
-        report.add("table", disagree[["log", "scenario_label", "variant", "collisions_static",
-                                      "collisions_logged_static", "collisions_dynamic", "collisions_logged_dynamic"]
-                                     ].rename(columns={"scenario_label": "scenario"}))
-    report.add("h2", "Metrics against h_wait")
-    if (df.groupby("scenario_label")["variant"].nunique() >= 2).any():
-        report.add("p", "Mean and 95 % bootstrap interval per h_wait for auto (one line per setting of the other "
-                        "differing parameters); strategies that do not read h_wait as horizontal lines with their "
-                        "interval as a band.")
-        for metric in ["success", *METRICS]:
-            report.add("img", plots.metric_vs_h_wait(df, metric, out))
-    else:
-        report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
-                        "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
-    report.add("h2", "Distributions per variant")
-    for metric in BOX_METRICS:
-        report.add("img", plots.box_by_strategy(df, metric, out))
-    report.add("h2", "Trajectories")
-    for scenario in pd.unique(df["scenario_label"]):
-        report.add("img", plots.trajectories(df, scenario, out))
-    report.add("h2", "Logs left out")
-    report.add("table", excluded)
+        table, note = _bounded(disagree[["log", "scenario_label", "variant", "collisions_static",
+                                         "collisions_logged_static", "collisions_dynamic",
+                                         "collisions_logged_dynamic"]].rename(columns={"scenario_label": "scenario"}),
+                               "episodes.csv (collision_check_agrees false)", "disagreements")
+        report.add("table", table)
+        if note:
+            report.add("p", note)
+    _left_out(report, excluded)
     _write(report, out, df, long, paired)
     return report
+
+
+def _left_out(report: Report, excluded: pd.DataFrame) -> None:
+    """The *Logs left out* section: the first rows inline, all of them in left_out.csv."""
+    report.add("h2", "Logs left out")
+    table, note = _bounded(excluded, "left_out.csv", "logs left out")
+    report.add("table", table)
+    if note:
+        report.add("p", note)
 
 
 def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame) -> None:

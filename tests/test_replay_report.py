@@ -97,12 +97,40 @@ def test_sweep_writes_the_report(small_sweep):
     out, stdout = small_sweep
     rep = out / "report"
     md = (rep / "report.md").read_text()
-    for section in ("What the data says", "Outcomes per scenario", "Paired comparisons", "Collision cross-check",
-                    "Metrics against h_wait", "Trajectories", "Logs left out"):
-        assert f"## {section}" in md, section
+    sections = ["What the data says", "Effect of h_wait", "Trajectories", "Failures", "Paired comparisons",
+                "Outcomes per scenario", "Distributions per variant", "Run parameters", "Collision cross-check",
+                "Logs left out"]
+    at = [md.index(f"## {section}") for section in sections]
+    assert at == sorted(at), "the report's sections are in the reader's order"
+    assert md.index("![overview](overview.png)") < at[0], "the overview figure comes first"
     assert "success rate [95% Wilson]" in md and "auto(h=2)" in md
-    assert (rep / "trajectories_head_on.png").exists() and (rep / "h_wait_time_to_goal_s.png").exists()
+    for name in ("overview.png", "h_wait_effect.png", "trajectories_head_on.png", "trajectories_crossing_right.png",
+                 "box_metrics.png", "failures.csv", "left_out.csv", "paired.csv"):
+        assert (rep / name).exists(), name
     assert "report:" in stdout
+
+
+def test_the_failures_gallery_pictures_every_failure_of_a_small_sweep(small_sweep):
+    """Every failed episode of the quick sweep (8 episodes or fewer per group: all pictured) has its picture, its
+    log and its first contact step in the report and in failures.csv; a paired difference is shown only if its
+    interval excludes zero."""
+    out, _ = small_sweep
+    rep = out / "report"
+    episodes = pd.read_csv(rep / "episodes.csv")
+    failures = pd.read_csv(rep / "failures.csv")
+    assert sorted(failures["log"]) == sorted(episodes.loc[~episodes["success"], "log"])
+    assert len(failures) > 0 and failures["log_read"].all()
+    md = (rep / "report.md").read_text()
+    for _, failure in failures.iterrows():
+        assert (rep / failure["picture"]).exists() and f"![{failure['picture']}]({failure['picture']})" in md
+        assert failure["log"] in md
+        if failure["outcome"] == "collision":
+            assert failure["first_contact_step"] >= 0
+    paired = pd.read_csv(rep / "paired.csv")
+    section = md[md.index("## Paired comparisons"):md.index("## Outcomes per scenario")]
+    assert f"{int(paired['excludes_zero'].sum())} of {len(paired)} comparisons" in section
+    shown = [line for line in section.splitlines() if line.startswith("| ") and "scenario" not in line]
+    assert len(shown) == int(paired["excludes_zero"].sum())
 
 
 def test_report_lists_bad_logs_and_still_renders(small_sweep, tmp_path):
@@ -123,22 +151,100 @@ def test_report_skips_h_wait_figures_without_variants(fresh_log, tmp_path):
     shutil.copy(fresh_log, tmp_path / "only.mcap")
     build_report([tmp_path / "only.mcap"], tmp_path / "rep")
     md = (tmp_path / "rep" / "report.md").read_text()
-    assert "## Metrics against h_wait" in md and "Not drawn: every scenario was run with a single" in md
+    assert "## Effect of h_wait" in md and "Not drawn: every scenario was run with a single" in md
     assert not list((tmp_path / "rep").glob("h_wait_*.png"))
     assert (tmp_path / "rep" / "trajectories_head_on.png").exists()
 
 
-def test_report_html_renders_in_headless_chromium(small_sweep):
+def _chromium() -> str:
     browser = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
     if browser is None:
         pytest.skip("no Chromium on this machine (.ci/run installs Debian's chromium)")
+    return browser
+
+
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync", "--no-first-run", "--hide-scrollbars",
+                  "--allow-file-access-from-files", "--window-size=1280,900", "--virtual-time-budget=5000"]
+# records where the report's images are once the page has loaded, in the DOM --dump-dom prints
+LAYOUT_PROBE = ("<script>window.addEventListener('load',function(){var r=[].slice.call(document.images).map("
+                "function(i){var b=i.getBoundingClientRect();return {src:i.getAttribute('src'),top:b.top,"
+                "bottom:b.bottom,left:b.left,right:b.right,loaded:i.complete&&i.naturalWidth>0}});"
+                "var p=document.createElement('pre');p.id='layout';p.textContent=JSON.stringify({images:r,"
+                "width:window.innerWidth,height:window.innerHeight});document.body.appendChild(p);});</script>")
+
+
+def first_screen_problems(page, browser: str, tmp_path) -> list[str]:
+    """What keeps the report's first screen (1280 x 900) from showing the overview figure: the figure is not the
+    page's first image, not loaded, not inside the first screen, or its colours are missing from a screenshot of
+    the first screen. Empty when it shows."""
+    import json
+    import re
+
+    import numpy as np
+    from PIL import Image
+
+    from analysis.palette import OKABE_ITO
+
+    probe = page.with_name("layout_probe.html")  # beside the report, so that its images load
+    probe.write_text(page.read_text().replace("</body>", LAYOUT_PROBE + "</body>"))
+    try:
+        dom = subprocess.run([browser, *CHROMIUM_FLAGS, "--dump-dom", probe.as_uri()], capture_output=True, text=True,
+                             timeout=120)
+    finally:
+        probe.unlink()
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    assert "<title>report: ok</title>" in dom.stdout, dom.stdout[:500]  # every image loaded
+    found = re.search(r'<pre id="layout">(.*?)</pre>', dom.stdout, re.S)
+    assert found, dom.stdout[-1000:]
+    layout = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    problems = []
+    first = layout["images"][0] if layout["images"] else None
+    if first is None or first["src"] != "overview.png":
+        problems.append(f"the first image is {first and first['src']}, not overview.png")
+    elif not first["loaded"]:
+        problems.append("overview.png did not load")
+    elif first["top"] < 0 or first["bottom"] > layout["height"] or first["right"] > layout["width"]:
+        problems.append(f"overview.png at {first} is not inside the first screen {layout['width']}x{layout['height']}")
+    shot = tmp_path / "first_screen.png"
+    res = subprocess.run([browser, *CHROMIUM_FLAGS, f"--screenshot={shot}", page.as_uri()], capture_output=True,
+                         text=True, timeout=120, cwd=tmp_path)
+    assert res.returncode == 0 and shot.exists(), res.stderr[-2000:]
+    pixels = np.asarray(Image.open(shot).convert("RGB"), dtype=int)
+    assert pixels.shape[:2] == (900, 1280), pixels.shape
+    # the overview draws each group in a palette colour: the first three groups' colours must be on screen
+    for colour in OKABE_ITO[:3]:
+        rgb = np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)])
+        near = int((np.abs(pixels - rgb).sum(axis=2) < 40).sum())
+        if near < 100:
+            problems.append(f"the first screen has {near} pixels of the overview's colour {colour}")
+    return problems
+
+
+def test_report_html_renders_in_headless_chromium(small_sweep, tmp_path):
+    """Every image loads, and the first screen of a 1280 x 900 window shows the overview figure."""
+    browser = _chromium()
     page = small_sweep[0] / "report" / "report.html"
-    res = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                          "--disable-component-update", "--disable-sync", "--no-first-run",
-                          "--allow-file-access-from-files", "--virtual-time-budget=5000", "--dump-dom",
-                          page.as_uri()], capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0, res.stderr[-2000:]
-    assert "<title>report: ok</title>" in res.stdout, res.stdout[:500]
+    assert first_screen_problems(page, browser, tmp_path) == []
+
+
+def test_the_first_screen_check_fails_when_the_overview_is_not_first(small_sweep, tmp_path):
+    """The check above can fail: the same report with a long table moved above the overview, and with the
+    overview's picture missing."""
+    browser = _chromium()
+    rep = small_sweep[0] / "report"
+    text = (rep / "report.html").read_text()
+    pushed = rep / "pushed_down.html"
+    pushed.write_text(text.replace("<h1>", "<table>" + "<tr><td>row</td></tr>" * 60 + "</table><h1>", 1))
+    broken = rep / "no_overview.html"
+    broken.write_text(text.replace('src="overview.png"', 'src="missing.png"'))
+    try:
+        assert any("not inside the first screen" in p for p in first_screen_problems(pushed, browser, tmp_path))
+        with pytest.raises(AssertionError, match="broken image"):
+            first_screen_problems(broken, browser, tmp_path)
+    finally:
+        pushed.unlink()
+        broken.unlink()
 
 
 def test_the_same_episodes_batched_differently_in_two_sweeps_are_counted_once(tmp_path):
