@@ -411,13 +411,15 @@ def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, pair
     (out / "report.html").write_text(report.html())
 
 
-def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, analysis: Analysis) -> None:
+def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, analysis: Analysis,
+                jobs: int = -1) -> None:
     """Write the report into ``out`` whole or not at all: built in a temporary directory inside ``out``, then each
     file moved into place (a rename needs no space); on a failure (a full disk) the temporary directory is
-    removed and ``out`` holds what it held before, not a few plots of a report that does not exist."""
+    removed and ``out`` holds what it held before, not a few plots of a report that does not exist. ``jobs``: worker
+    processes reading logs again for the pictures (as ``--jobs``)."""
     tmp = Path(tempfile.mkdtemp(prefix=".report.partial-", dir=out))
     try:
-        build_report(paths, tmp, options, analysis=analysis)
+        build_report(paths, tmp, options, jobs=jobs, analysis=analysis)
         for item in sorted(tmp.iterdir()):
             os.replace(item, out / item.name)
     except OSError as err:  # name the file as the user knows it, not inside the temporary directory
@@ -464,7 +466,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: no logs found in {', '.join(args.paths)}", file=sys.stderr)
         return 2
     try:
-        write_whole(args.paths, out, options, analysis)
+        write_whole(args.paths, out, options, analysis, args.jobs)
     except OSError as err:  # disk full, or the directory changed under us: nothing of the report was written
         print(f"error: {err.filename or out}: cannot write the report: {err.strerror or err} (nothing written)",
               file=sys.stderr)

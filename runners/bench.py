@@ -466,6 +466,10 @@ def main(argv: list[str] | None = None) -> int:
     mem = results["memory"]
     print(f"memory: RSS {mem['rss_mb_at_10pct']:.1f} MB after {mem['episodes'] // 10} episodes, "
           f"{mem['rss_mb_at_end']:.1f} MB after {mem['episodes']} ({mem['growth']:+.1%})")
+    from runners.bench_report import bench_report, summary_line  # the report for 10,000 episodes (#18)
+
+    results["report"] = bench_report(1000, 2) if args.quick else bench_report(10_000, 10)
+    print(summary_line(results["report"]))
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(f"wrote {args.out}")
     return 0

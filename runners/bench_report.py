@@ -1,0 +1,145 @@
+"""How long the analysis report takes, measured on real logs and on a 10,000-episode table built from them.
+
+``python -m runners.bench_report [--episodes 10000] [--seeds 10]`` (also called by :mod:`runners.bench`).
+
+1. **Real episodes**: the default sweep (3 scenarios x 7 strategy settings, ``--seeds`` seeds each: 210 episodes
+   with 10) is run with ``runners.sweep``; then, timed separately, the *read stage* (:func:`analysis.metrics.
+   analyse_logs`: every log verified, checked and turned into metrics, on every core) and the *report stage*
+   (:func:`analysis.report.build_report` given that analysis: tables, intervals, figures, pictures of
+   trajectories and failures, files).
+2. **10,000 episodes, report stage**: generating 10,000 real logs would take longer than the rest of the
+   benchmark, so the real episode table is repeated with new seed numbers (each copy keeps its group, its metrics
+   and its real log) until it has ``--episodes`` rows, and the report stage is timed on it. Every per-episode
+   cost of the report is paid for real: intervals over 10,000 rows, paired differences over the seeds, every
+   failed episode's log read again for its first contact step, the capped trajectory panels and failure pictures
+   read and drawn from real logs.
+3. **10,000 episodes, read stage**: estimated from the real episodes' measured rate (logs per second on every
+   core) — the read stage costs the same per log whatever the number of logs (each is read on its own).
+
+The result says which number is measured and which is estimated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _real_sweep(sweep_dir: Path, seeds: int) -> float:
+    """Run the default sweep with ``seeds`` seeds per configuration into ``sweep_dir``; its wall time (s)."""
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "runners.sweep", f"episodes={seeds}", f"hydra.sweep.dir={sweep_dir}"],
+                          cwd=ROOT, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"the benchmark's sweep failed: {done.stderr.strip().splitlines()[-1:]}")
+    return time.perf_counter() - start
+
+
+def repeated(analysis, episodes: int, link_dir: Path | None = None):
+    """An :class:`analysis.metrics.Analysis` of ``episodes`` rows: the real episodes repeated, copy ``c`` of seed
+    ``s`` numbered ``s + c * (largest seed + 1)`` (so that copies stay paired across groups on the same seed),
+    in the groups' natural order then by seed, as :func:`analysis.metrics.analyse_logs` orders them. With
+    ``link_dir``, each copy's log is a hard link of the real log under ``link_dir/<copy>/`` (a path of its own,
+    so that the report reads it as often as it would read 10,000 distinct logs: it reads each path once)."""
+    from analysis.metrics import Analysis
+
+    real = analysis.episodes.assign(_run=range(len(analysis.episodes)))
+    stride = int(real["seed"].max()) + 1
+    copies = math.ceil(episodes / len(real))
+    table = pd.concat([real.assign(seed=real["seed"] + c * stride) for c in range(copies)], ignore_index=True)
+    table = table.head(episodes)
+    if link_dir is not None:
+        links = []
+        for log, seed in zip(table["log"], table["seed"], strict=True):
+            copy = int(seed) // stride
+            if copy == 0:
+                links.append(log)
+                continue
+            link = link_dir / str(copy) / Path(log).relative_to(Path(log).anchor)
+            link.parent.mkdir(parents=True, exist_ok=True)
+            if not link.exists():
+                os.link(log, link)
+            links.append(str(link))
+        table["log"] = links
+    group_rank = {key: rank for rank, key in enumerate(dict.fromkeys(zip(real["scenario_label"], real["variant"],
+                                                                         strict=True)))}
+    table["_rank"] = [group_rank[k] for k in zip(table["scenario_label"], table["variant"], strict=True)]
+    table = table.sort_values(["_rank", "seed"], kind="stable").reset_index(drop=True)
+    runs = [analysis.runs[i] for i in table["_run"]]
+    return Analysis(table.drop(columns=["_run", "_rank"]), analysis.excluded, analysis.grouping, runs)
+
+
+def bench_report(episodes: int = 10_000, seeds: int = 10) -> dict:
+    """Time the report (see the module docstring): the real default sweep with ``seeds`` seeds per configuration,
+    read and report stages; the report stage on ``episodes`` rows built from it; the read stage for ``episodes``
+    estimated from the real rate. Times in seconds, on this machine's cores (``cores``)."""
+    from analysis.metrics import analyse_logs
+    from analysis.report import build_report
+
+    with tempfile.TemporaryDirectory(prefix="bench_report-") as tmp:
+        sweep_dir = Path(tmp) / "sweep"
+        sweep_s = _real_sweep(sweep_dir, seeds)
+        start = time.perf_counter()
+        analysis = analyse_logs([sweep_dir], jobs=-1)
+        read_s = time.perf_counter() - start
+        start = time.perf_counter()
+        build_report([sweep_dir], Path(tmp) / "real", analysis=analysis)
+        real_report_s = time.perf_counter() - start
+        big = repeated(analysis, episodes, Path(tmp) / "links")
+        out = Path(tmp) / "big"
+        start = time.perf_counter()
+        build_report([sweep_dir], out, analysis=big)
+        big_report_s = time.perf_counter() - start
+        html = (out / "report.html").read_text()
+        pngs = list(out.glob("*.png"))
+        real_n = len(analysis.episodes)
+        read_estimate_s = read_s / real_n * episodes
+        return {
+            "cores": os.cpu_count(),
+            "real": {"episodes": real_n, "seeds_per_configuration": seeds, "sweep_s": sweep_s,
+                     "read_stage_s": read_s, "report_stage_s": real_report_s, "measured": True},
+            "synthetic": {"episodes": len(big.episodes), "failed": int((~big.episodes["success"]).sum()),
+                          "report_stage_s": big_report_s, "measured": True,
+                          "read_stage_s_estimate": read_estimate_s,
+                          "total_s_estimate": read_estimate_s + big_report_s,
+                          "html_kb": len(html.encode()) / 1000, "html_table_rows": html.count("<tr>"),
+                          "images": len(pngs), "images_kb": sum(p.stat().st_size for p in pngs) / 1000},
+        }
+
+
+def summary_line(result: dict) -> str:
+    """One line for :mod:`runners.bench`: what was measured and what was estimated."""
+    real, big = result["real"], result["synthetic"]
+    return (f"report: {real['episodes']} real episodes: read {real['read_stage_s']:.1f} s + report "
+            f"{real['report_stage_s']:.1f} s (measured); {big['episodes']} episodes (the real ones repeated): report "
+            f"stage {big['report_stage_s']:.1f} s (measured), read stage ~{big['read_stage_s_estimate']:.0f} s "
+            f"(estimated from the real rate) on {result['cores']} cores; HTML {big['html_kb']:.0f} kB, "
+            f"{big['html_table_rows']} table rows, {big['images']} images")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--episodes", type=int, default=10_000, help="rows of the large table (default 10000)")
+    parser.add_argument("--seeds", type=int, default=10, help="real seeds per configuration (default 10)")
+    parser.add_argument("--out", help="also write the result here (JSON)")
+    args = parser.parse_args(argv)
+    result = bench_report(args.episodes, args.seeds)
+    print(summary_line(result))
+    if args.out:
+        Path(args.out).write_text(json.dumps(result, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
