@@ -253,7 +253,8 @@ class Report:
                 body.append(f'<p><img id="{html.escape(Path(value).stem)}" src="{name}" alt="{name}"></p>')
             elif kind == "gallery":
                 cards = [f'<figure><img src="{html.escape(f.picture)}" alt="{html.escape(f.picture)}">'
-                         f"<figcaption>{html.escape(str(f.row['variant']))} · seed {f.row['seed']} · "
+                         f"<figcaption>{html.escape(str(f.row['scenario']))} · {html.escape(str(f.row['variant']))}"
+                         f" · seed {f.row['seed']} · "
                          f"{html.escape(str(f.row['outcome']))} · first contact step "
                          f"{_step(f.row['first_contact_step'])}<br><code>{html.escape(str(f.row['log']))}</code>"
                          "</figcaption></figure>" for f in value]  # type: ignore[attr-defined]

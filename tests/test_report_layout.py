@@ -1,0 +1,84 @@
+"""The report's palette, its caps for large sweeps and its failures gallery, on hand-made logs and tables (fast: no
+sweep). The report of a real sweep in a browser: tests/test_replay_report.py."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import pandas as pd
+import pytest
+
+from analysis import gallery, plots
+from analysis.palette import OKABE_ITO, TOL_MUTED, group_styles
+from analysis.report import INLINE_ROWS, _bounded, build_report
+from tests.handmade import write_log
+from tests.test_grouping import meta, setter
+
+
+def test_every_group_has_its_own_colour_and_keeps_it():
+    """Distinct colours per group (the two auto settings were both blue), from the colour-blind-safe palettes, in
+    the groups' order: the same groups get the same colours in every figure."""
+    groups = ["auto(h=1)", "auto(h=2)", "auto(h=3)", "auto(h=4)", "wait", "detour", "none"]
+    styles = group_styles(groups, {g: g.split("(")[0] for g in groups})
+    assert [s.color for s in styles.values()] == list(OKABE_ITO)
+    assert styles["wait"].linestyle == "--" and styles["none"].linestyle == ":" and styles["auto(h=2)"].linestyle == "-"
+    assert group_styles(groups) == group_styles(groups)
+    nine = group_styles([f"g{i}" for i in range(9)])
+    assert len({s.color for s in nine.values()}) == 9 and {s.color for s in nine.values()} == set(TOL_MUTED)
+    many = group_styles([f"g{i}" for i in range(20)])  # beyond nine: no two groups drawn alike
+    assert len({(s.color, s.marker, s.linestyle) for s in many.values()}) == 20
+
+
+def test_long_tables_are_capped_inline_and_name_their_file():
+    table = pd.DataFrame({"x": range(INLINE_ROWS + 5)})
+    shown, note = _bounded(table, "paired.csv", "differences")
+    assert len(shown) == INLINE_ROWS and note == f"The first {INLINE_ROWS} of {INLINE_ROWS + 5} differences are " \
+        "shown; all of them: paired.csv."
+    shown, note = _bounded(table.head(3), "paired.csv", "differences")
+    assert len(shown) == 3 and note == ""
+
+
+def test_the_gallery_pictures_the_first_failures_of_each_group_and_lists_all():
+    df = pd.DataFrame({"scenario_label": ["s"] * 9, "variant": ["a"] * 7 + ["b"] * 2, "seed": [*range(7), 0, 1],
+                       "success": [False] * 7 + [True, False], "log": [f"l{i}" for i in range(9)]})
+    shown = gallery.shown(df, max_per_group=3)
+    assert list(shown["log"]) == ["l0", "l1", "l2", "l8"]
+    assert gallery.logs_to_read(df, 3) == [f"l{i}" for i in range(7)] + ["l8"]  # few failures: all read
+
+
+@pytest.fixture
+def crash_logs(tmp_path):
+    """Two groups on three seeds: with a 5 cm margin the robot reaches the goal; with 30 cm it drives into a box
+    (in contact from step 1)."""
+    box = [(200, -40), (300, -40), (300, 40), (200, 40)]
+    for seed in range(3):
+        write_log(tmp_path / f"ok_{seed}.mcap", [(0, 0, 0), (50, 0, 0), (100, 0, 0)], goal=(100.0, 0.0),
+                  meta=meta(setter("planner.safety_margin_cm", 5.0), seed=seed))
+        write_log(tmp_path / f"crash_{seed}.mcap", [(100, 0, 0), (150, 0, 0), (190, 0, 0), (200, 0, 0)], statics=[box],
+                  goal=(400.0, 0.0), contacts_static=[False, True, True], outcome="collision",
+                  meta=meta(setter("planner.safety_margin_cm", 30.0), seed=seed))
+    return tmp_path
+
+
+def test_the_report_opens_with_the_overview_and_pictures_each_failure(crash_logs, tmp_path, monkeypatch):
+    drawn: dict[str, plt.Figure] = {}
+
+    def keep(fig, path):
+        drawn[path.name] = [a.get_title() for a in fig.axes] + [t.get_text() for t in fig.texts]
+        plt.close(fig)
+        path.write_bytes(b"")
+        return path
+
+    monkeypatch.setattr(plots, "_save", keep)
+    out = tmp_path / "rep"
+    build_report([crash_logs], out, jobs=1)
+    md = (out / "report.md").read_text()
+    assert md.startswith("# fuzzynav report\n\n![overview](overview.png)\n")
+    failures = pd.read_csv(out / "failures.csv")
+    assert sorted(failures["seed"]) == [0, 1, 2]
+    assert set(failures["variant"]) == {"auto(h=2) · safety_margin_cm=30"}
+    assert list(failures["first_contact_step"]) == [1, 1, 1] and failures["log_read"].all()
+    for picture in failures["picture"]:
+        assert f"![{picture}]({picture})" in md and picture in drawn
+    assert "3 of 6 episodes failed" in md
+    html = (out / "report.html").read_text()
+    assert html.index('<img id="overview" src="overview.png"') < html.index("<h2>")
