@@ -7,10 +7,12 @@ update). Positions in cm, velocities in cm/s.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
+from fuzzynav import limits
 from fuzzynav.kinematics import RobotState
 from fuzzynav.obstacle_model import DEFAULT_MODEL, CrowdView, ObstacleModel, model_config, model_factory
 from fuzzynav.scenario import DynamicObstacle
@@ -25,6 +27,27 @@ OBSTACLE_STREAM = 11
 def obstacle_rng(seed: int, group: int) -> np.random.Generator:
     """The random stream of the ``group``-th model instance of an episode with ``seed``."""
     return np.random.default_rng((seed, OBSTACLE_STREAM, group))
+
+
+def crowd_work(obstacles: Sequence[DynamicObstacle], dt: float, max_steps: int) -> int:
+    """Pedestrian-substeps an episode of ``max_steps`` steps of ``dt`` seconds may cost: for every obstacle whose
+    model integrates in substeps (``model_params.substep_s``), ceil(dt / substep_s) per step."""
+    per_step = 0
+    for o in obstacles:
+        substep = getattr(o.model_params, "substep_s", None)
+        if substep:
+            per_step += max(1, math.ceil(dt / substep - 1e-9))
+    return per_step * max_steps
+
+
+def check_crowd_work(obstacles: Sequence[DynamicObstacle], dt: float, max_steps: int) -> None:
+    """``ValueError`` naming ``dynamic_obstacles`` when :func:`crowd_work` exceeds its limit (:mod:`fuzzynav.limits`):
+    100 ORCA pedestrians with 0.01 s substeps for 100,000 steps would run for days."""
+    work = crowd_work(obstacles, dt, max_steps)
+    if work > limits.MAX_PEDESTRIAN_SUBSTEPS:
+        raise ValueError(f"dynamic_obstacles: {work:,} pedestrian-substeps per episode (pedestrians x substeps per "
+                         f"step x max_steps), more than the limit of {limits.MAX_PEDESTRIAN_SUBSTEPS:,} (use fewer "
+                         "pedestrians, a larger model_params.substep_s or fewer max_steps)")
 
 
 def model_name(obstacle: DynamicObstacle) -> str:

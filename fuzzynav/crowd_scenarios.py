@@ -25,9 +25,15 @@ import numpy as np
 
 from fuzzynav.checks import check_key, key_text, show
 from fuzzynav.generators import CLEAR_CM, ROBOT_RADIUS, param
+from fuzzynav.obstacle_model import model_config
 from fuzzynav.portable_math import dist, sin_cos_deg
 from fuzzynav.portable_random import uniform
 from fuzzynav.scenario import ScenarioError
+
+#: how far a pedestrian's waypoints stay from the walls (cm, beyond its radius): a social-force pedestrian is held
+#: where the wall's push equals its drive, about 90 cm from a wall at the default parameters (U⁰/R e^(−d/R) =
+#: v⁰/τ), so a waypoint nearer the wall would never be reached (it would stand there instead of walking on)
+WALL_CLEAR_CM = 120.0
 
 #: parameters every crowd generator takes, with their defaults
 _COMMON = {"model": "social_force", "model_params": None, "speed": (20.0, 40.0), "radius": (18.0, 25.0),
@@ -57,6 +63,10 @@ def _common(params: Mapping[str, Any], default_model: str = "social_force") -> d
     model_params = params.get("model_params")
     if model_params is not None and not isinstance(model_params, Mapping):
         raise ScenarioError(f"params.model_params: expected a mapping, got {show(model_params)}")
+    try:  # checked here, also when no pedestrian is generated, and named as the generator's parameter
+        model_config(model, model_params, "params.model_params")
+    except ValueError as err:
+        raise ScenarioError(str(err)) from None
     speed = param(params, "speed", _COMMON["speed"], tuple)
     radius = param(params, "radius", _COMMON["radius"], tuple)
     if speed[0] <= 0 or radius[0] <= 0:
@@ -68,8 +78,8 @@ def _common(params: Mapping[str, Any], default_model: str = "social_force") -> d
 class _Placer:
     """Draws pedestrian starts clear of the robot's start and of each other (rejection, bounded tries)."""
 
-    def __init__(self, rng: np.random.Generator, robot_start: np.ndarray, what: str) -> None:
-        self.rng, self.robot_start, self.what = rng, robot_start, what
+    def __init__(self, rng: np.random.Generator, robot_start: np.ndarray, what: str, count: str = "params.n") -> None:
+        self.rng, self.robot_start, self.what, self.count = rng, robot_start, what, count
         self.placed: list[tuple[np.ndarray, float]] = []
 
     def free(self, p: np.ndarray, radius: float) -> bool:
@@ -82,7 +92,7 @@ class _Placer:
             if self.free(p, radius):
                 self.placed.append((p, radius))
                 return p
-        raise ScenarioError(f"params.n: no free start for {self.what} {len(self.placed)} in 200 tries (ask for "
+        raise ScenarioError(f"{self.count}: no free start for {self.what} {len(self.placed)} in 200 tries (ask for "
                             "fewer or smaller pedestrians, or a larger world)")
 
 
@@ -125,7 +135,7 @@ def crowd_crossing(params: Mapping[str, Any], seed: int, name: str = "crowd_cros
         side = -1.0 if from_below else 1.0  # where it starts relative to the path
         p0 = placer.place(lambda r=radius, s=side: np.array([
             uniform(rng, 250.0, w - 250.0), h / 2 + s * uniform(rng, 2 * r + 40.0, h / 2 - r - 10.0)]), radius)
-        end = np.array([p0[0], h / 2 - side * (h / 2 - radius - 10.0)])
+        end = np.array([p0[0], h / 2 - side * (h / 2 - radius - WALL_CLEAR_CM)])
         dynamics.append(_pedestrian(i, radius, [p0, end], speed, False, common))
     return _scenario(name, "crowd_crossing", seed, w, h, start, goal, dynamics, common)
 
@@ -150,7 +160,7 @@ def corridor_flow(params: Mapping[str, Any], seed: int, name: str = "corridor_fl
         speed = uniform(rng, *common["speed"])
         lane = uniform(rng, radius + 10.0, width - radius - 10.0)
         p0 = placer.place(lambda r=radius, y=lane: np.array([uniform(rng, r + 10.0, length - r - 10.0), y]), radius)
-        ends = [np.array([radius + 10.0, p0[1]]), np.array([length - radius - 10.0, p0[1]])]
+        ends = [np.array([radius + WALL_CLEAR_CM, p0[1]]), np.array([length - radius - WALL_CLEAR_CM, p0[1]])]
         toward = ends[i % 2]  # even: walking against the robot
         dynamics.append(_pedestrian(i, radius, [p0, toward, ends[1 - i % 2]], speed, True, common))
     return _scenario(name, "corridor_flow", seed, length, width, start, goal, dynamics, common)
@@ -178,8 +188,8 @@ def random_walkers(params: Mapping[str, Any], seed: int, name: str = "random_wal
         s, c = sin_cos_deg(uniform(rng, 0.0, 360.0))
         # its intent for reactive models: walk that way to the world's edge and back
         reach = min(w, h) / 2
-        far = np.clip(p0 + reach * np.array([c, s]), [radius + 10.0, radius + 10.0],
-                      [w - radius - 10.0, h - radius - 10.0])
+        far = np.clip(p0 + reach * np.array([c, s]), [radius + WALL_CLEAR_CM, radius + WALL_CLEAR_CM],
+                      [w - radius - WALL_CLEAR_CM, h - radius - WALL_CLEAR_CM])
         if dist(far, p0) < 1.0:
             far = np.array([w / 2, h / 2])
         dynamics.append(_pedestrian(i, radius, [p0, far], speed, True, common))
@@ -197,7 +207,7 @@ def groups(params: Mapping[str, Any], seed: int, name: str = "groups") -> dict[s
     w, h = param(params, "width", 1200, float), param(params, "height", 800, float)
     if w < 600 or h < 400:
         raise ScenarioError(f"params.width/height: at least 600 x 400 cm, got {w:g} x {h:g}")
-    if size < 1 or n_groups * size > 100:
+    if n_groups < 1 or size < 1 or n_groups * size > 100:
         raise ScenarioError(f"params.n_groups/group_size: between 1 and 100 pedestrians in all, got "
                             f"{n_groups} x {size}")
     if spacing < 2 * common["radius"][1]:
@@ -208,7 +218,7 @@ def groups(params: Mapping[str, Any], seed: int, name: str = "groups") -> dict[s
     _fits(common, h)
     rng = np.random.default_rng((int(seed), 7))
     start, goal = np.array([100.0, h / 2]), np.array([w - 100.0, h / 2])
-    placer = _Placer(rng, start, "group")
+    placer = _Placer(rng, start, "group", "params.n_groups")
     dynamics = []
     for g in range(n_groups):
         speed = uniform(rng, *common["speed"])
@@ -221,7 +231,7 @@ def groups(params: Mapping[str, Any], seed: int, name: str = "groups") -> dict[s
             half + radius)
         for m in range(size):
             p0 = centre + np.array([-half + m * spacing, 0.0])
-            end = np.array([p0[0], h / 2 - side * (h / 2 - radius - 10.0)])
+            end = np.array([p0[0], h / 2 - side * (h / 2 - radius - WALL_CLEAR_CM)])
             dynamics.append(_pedestrian(g * size + m, radius, [p0, end], speed, False, common))
     return _scenario(name, "groups", seed, w, h, start, goal, dynamics, common)
 

@@ -23,7 +23,7 @@ import numpy as np
 from fuzzynav import laser as laser_mod
 from fuzzynav import portable_math
 from fuzzynav.checks import check_config_fields
-from fuzzynav.crowd import Crowd
+from fuzzynav.crowd import Crowd, check_crowd_work
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec
 from fuzzynav.geometry import swept_distance, wrap_360
@@ -134,6 +134,7 @@ class Episode:
         self.config = config or EpisodeConfig()
         self.seed = seed
         self.world = World(scenario.bounds, scenario.static_obstacles)
+        check_crowd_work(scenario.dynamic_obstacles, self.config.dt, scenario.max_steps)
         self.crowd = Crowd(scenario.dynamic_obstacles, self.world, scenario.robot.radius)
         self.obstacle_ids = self.crowd.ids
         evaluator = controller if isinstance(controller, FastEvaluator) else FastEvaluator(controller)

@@ -55,7 +55,11 @@ def param(params: Mapping[str, Any], key: str, default: Any, kind: type) -> Any:
 
 def _is_number(value: Any) -> bool:
     """A real, finite number (NaN fails every comparison, so it must be refused before them)."""
-    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    if isinstance(value, int):  # math.isfinite overflows on a 400-digit integer
+        return abs(value) <= limits.MAX_COORD_CM
+    return math.isfinite(value)
 
 
 

@@ -88,3 +88,18 @@ def away_from_static(points: np.ndarray, segments: np.ndarray, circles: np.ndarr
                          np.array([1.0, 0.0]))
     gaps = np.concatenate([gap_seg, d - radii], axis=1)
     return gaps, np.concatenate([away_seg, away_circ], axis=1)
+
+
+def keep_inside(positions: np.ndarray, velocities: np.ndarray, radii: np.ndarray,
+                bounds: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Discs (positions (n, 2) cm, radii (n,) cm) moved back inside the walls of ``bounds`` (xmin, ymin, xmax,
+    ymax), with the velocity component (cm/s) into a wall they were stopped at set to 0: the walls are solid for
+    reactive pedestrians, whatever force pushed them. A disc wider than the world keeps that coordinate."""
+    x, v = positions.copy(), velocities.copy()
+    for axis, lo, hi in ((0, bounds[0], bounds[2]), (1, bounds[1], bounds[3])):
+        lo_r, hi_r = lo + radii, hi - radii
+        fits = lo_r <= hi_r
+        below, above = fits & (x[:, axis] < lo_r), fits & (x[:, axis] > hi_r)
+        x[:, axis] = np.where(below, lo_r, np.where(above, hi_r, x[:, axis]))
+        v[:, axis] = np.where((below & (v[:, axis] < 0.0)) | (above & (v[:, axis] > 0.0)), 0.0, v[:, axis])
+    return x, v

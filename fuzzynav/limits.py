@@ -79,6 +79,7 @@ MAX_TOTAL_VERTICES = 2_000
 MAX_DYNAMIC_OBSTACLES = 100
 MAX_WAYPOINTS = 1_000
 MAX_STEPS = 100_000
+MAX_PEDESTRIAN_SUBSTEPS = 20_000_000  # reactive pedestrians x substeps per step x max_steps
 
 # -- controllers --------------------------------------------------------------------------------------------
 MAX_CONTROLLER_VARIABLES = 16  # inputs and outputs together
@@ -119,6 +120,8 @@ SIZE_LIMITS: tuple[Limit, ...] = (
     Limit("dynamic_obstacles[i].waypoints", MAX_WAYPOINTS, "path bookkeeping per step"),
     Limit("max_steps (also params.max_steps)", MAX_STEPS,
           "an episode of 100,000 steps takes minutes and writes a log of about 200 MB"),
+    Limit("reactive pedestrian-substeps per episode (pedestrians x substeps per step x max_steps)",
+          MAX_PEDESTRIAN_SUBSTEPS, "an ORCA pedestrian's substep costs about 0.1 ms: 20 million is about an hour"),
     Limit("params.n_static of random_mixed", MAX_STATIC_OBSTACLES, "as static_obstacles (200 placements each)"),
     Limit("params.n_dynamic of random_mixed", MAX_DYNAMIC_OBSTACLES, "as dynamic_obstacles"),
     Limit("controller variables (inputs + outputs)", MAX_CONTROLLER_VARIABLES, "evaluated at every decision"),

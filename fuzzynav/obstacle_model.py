@@ -40,6 +40,7 @@ if TYPE_CHECKING:
 #: the model of an obstacle whose scenario entry names none: its scripted path (constant velocity or waypoints)
 DEFAULT_MODEL = "scripted"
 NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
+MAX_ABS = 1e15  # a parameter's absolute value before its own range is checked
 
 
 @dataclass(frozen=True)
@@ -137,6 +138,8 @@ def _coerce(hint: Any, value: Any, where: str) -> Any:
         return tuple(_coerce(float, v, f"{where}[{i}]") for i, v in enumerate(value))
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{where}: expected {'an integer' if hint is int else 'a number'}, got {show(value)}")
+    if isinstance(value, int) and abs(value) > MAX_ABS:  # math.isfinite overflows on a 400-digit integer
+        raise ValueError(f"{where}: must be at most {MAX_ABS:g} in absolute value, got {show(value)}")
     if not math.isfinite(value):
         raise ValueError(f"{where}: must be finite, got {value!r}")
     if hint is int:

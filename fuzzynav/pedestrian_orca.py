@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzynav.geometry import away_from_static
+from fuzzynav.geometry import away_from_static, keep_inside
 from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model
 from fuzzynav.orca import Line, choose_velocity, orca_line, static_point_line
 from fuzzynav.pedestrian_intent import Intent
@@ -108,8 +108,9 @@ class PedestrianOrcaModel:
             for i in range(n):
                 new_v[i] = self._velocity(i, x[i], v[i], pref[i], float(max_speed[i]), pos_all, vel_all, rad_all,
                                           share, gaps[i], away[i], h)
-            v = new_v
-            x = x + v * h
+            # the walls are hard constraints of the linear program, which a speed above what the horizon covers
+            # can still overshoot in one substep: the walls are solid
+            x, v = keep_inside(x + new_v * h, new_v, self.radii, view.world.bounds)
         self.x, self.v = x, v
         return x.copy(), v.copy()
 

@@ -239,6 +239,17 @@ def _check_model(dyn: DynamicObstacle, path: str) -> None:
                             f"{show(dyn.model_params)}")
 
 
+def _check_reactive_starts(reactive: Sequence[tuple[int, DynamicObstacle]]) -> None:
+    """Pedestrians of reactive models must not start overlapping each other: two at one point have no direction
+    to avoid each other in, and would move as one (scripted obstacles pass through everything, so may overlap)."""
+    starts = [(i, d, d.start if d.waypoints is None else d.waypoints[0]) for i, d in reactive]
+    for a, (i, di, pi) in enumerate(starts):
+        for j, dj, pj in starts[a + 1:]:
+            if math.hypot(pi[0] - pj[0], pi[1] - pj[1]) < di.radius + dj.radius:
+                raise ScenarioError(f"dynamic_obstacles[{j}]: starts overlapping dynamic_obstacles[{i}] (pedestrians "
+                                    f"of reactive models, {dj.model} and {di.model}, must start apart)")
+
+
 def _model(data: Mapping[str, Any], path: str) -> dict[str, Any]:
     """``model`` and ``model_params`` of an obstacle entry, checked (:mod:`fuzzynav.obstacle_model`); none when
     the entry names no model (so a scripted scenario's logged YAML is what it was before models existed)."""
@@ -356,9 +367,13 @@ def validate_geometry(s: Scenario) -> None:
         raise ScenarioError(f"robot.start: the robot (radius {r} cm) does not fit inside the bounds there")
     if goal.distance(area.exterior) < r:  # the robot would have to cross the wall to stand at its goal
         raise ScenarioError(f"robot.goal: the robot (radius {r} cm) does not fit inside the bounds there")
+    reactive: list[tuple[int, DynamicObstacle]] = []
     for i, dyn in enumerate(s.dynamic_obstacles):
         if dyn.model is not None or dyn.model_params is not None:
             _check_model(dyn, f"dynamic_obstacles[{i}]")
+            if dyn.model != "scripted":
+                reactive.append((i, dyn))
+    _check_reactive_starts(reactive)
     if s.tolerance <= 0:
         raise ScenarioError(f"goal_tolerance: must be > 0, got {s.goal_tolerance}")
     if start.distance(goal) <= s.tolerance:

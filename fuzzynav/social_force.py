@@ -23,11 +23,12 @@ in metres: V⁰ = 2.1 m²/s², σ = 0.3 m, Δt = 2 s, U⁰ = 10 m²/s², R = 0.2
 in cm (V⁰ = 21,000 cm²/s², σ = 30 cm, U⁰ = 100,000 cm²/s², R = 20 cm). Pedestrians are points for each other
 (the paper's model; the repulsion keeps them about 50 cm apart) and discs of their radius for walls.
 
-Integration: the episode's step dt is split into substeps of at most ``substep_s`` (semi-implicit Euler:
-velocity first, then position with the new velocity); during them the other obstacles and the robot move
-straight at their velocities of the step's start (what a pedestrian sees at that time). Every sum is taken in a
-fixed order (:func:`fuzzynav.portable_math.sequential_sum`) and exp is :func:`~fuzzynav.portable_math.exp_array`,
-so the trajectories are the same on every CPU.
+The world's walls are solid: a pedestrian pushed through one (by strong parameters or a high speed) is put
+back against it and its velocity into it set to 0. Integration: the episode's step dt is split into substeps of
+at most ``substep_s`` (semi-implicit Euler: velocity first, then position with the new velocity); during them
+the other obstacles and the robot move straight at their velocities of the step's start (what a pedestrian sees
+at that time). Every sum is taken in a fixed order (:func:`fuzzynav.portable_math.sequential_sum`) and exp is
+:func:`~fuzzynav.portable_math.exp_array`, so the trajectories are the same on every CPU.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzynav.geometry import away_from_static
+from fuzzynav.geometry import away_from_static, keep_inside
 from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model
 from fuzzynav.pedestrian_intent import Intent
 from fuzzynav.portable_math import exp_array, norm2, sequential_sum, sin_cos_deg
@@ -172,6 +173,6 @@ class SocialForceModel:
             length = norm2(v)
             over = length > v_max
             v = np.where(over[:, None], v * (v_max / np.where(over, length, 1.0))[:, None], v)
-            x = x + v * h
+            x, v = keep_inside(x + v * h, v, self.radii, view.world.bounds)
         self.x, self.v = x, v
         return x.copy(), v.copy()

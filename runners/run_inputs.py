@@ -25,6 +25,7 @@ from omegaconf.errors import OmegaConfBaseException
 from fuzzynav import limits
 from fuzzynav.checks import check_number, kind_of, show
 from fuzzynav.config import episode_config_from_dict
+from fuzzynav.crowd import check_crowd_work
 from fuzzynav.episode import EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError, check_fits_robot
@@ -245,6 +246,10 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
         scenarios = dict.fromkeys(seeds, scenario)
     for scenario in {id(sc): sc for sc in scenarios.values()}.values():
         check_goal_tolerance(scenario, ep_cfg, runtime)
+        try:
+            check_crowd_work(scenario.dynamic_obstacles, ep_cfg.dt, scenario.max_steps)
+        except ValueError as err:
+            raise ConfigFileError(f"{source_of('scenario', runtime)}: {err}") from None
     return RunInputs(seeds, ep_cfg, evaluator, scenarios, plain)
 
 

@@ -2,7 +2,8 @@
 generators' params. Rule under test: bad input is a ``ScenarioError`` whose one-line message starts with the
 field's path; accepted input runs without non-finite state, overflow or silent nonsense.
 
-Tests marked ``xfail(strict=True)`` are open findings (reproducers in /tmp/hostile17/): the fix flips them."""
+The findings of the hostile test (reproducers were in /tmp/hostile17/) are regression tests below, each with
+what it found."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from fuzzynav.random_walk import RandomWalkConfig
 from fuzzynav.scenario import ScenarioError, scenario_from_dict, validate_geometry
 from fuzzynav.social_force import SocialForceConfig
 from fuzzynav.world import World
+from tests.conftest import load_controller
 
 MODEL_NAMES = ["scripted", "social_force", "orca", "random_walk"]
 CONFIGS = {"social_force": SocialForceConfig, "orca": PedestrianOrcaConfig, "random_walk": RandomWalkConfig}
@@ -184,11 +186,11 @@ def test_generators_are_deterministic_per_seed(kind):
     assert a == b
 
 
-# -- open findings (xfail strict: the fix flips them) -----------------------------------------------------------
+# -- findings, fixed ------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.xfail(strict=True, reason="finding 1: a huge integer in model_params raises OverflowError from "
-                   "math.isfinite in obstacle_model._coerce (a traceback, not a ScenarioError)")
+# fixed: finding 1: a huge integer in model_params raises OverflowError from math.isfinite in obstacle_model._coerce
+# (a traceback, not a ScenarioError)
 @pytest.mark.parametrize("key", ["relaxation_s", "max_neighbors", "speed_max_cm_s"])
 def test_huge_integer_model_param_is_a_scenario_error(key):
     model = {"relaxation_s": "social_force", "max_neighbors": "orca", "speed_max_cm_s": "random_walk"}[key]
@@ -196,8 +198,8 @@ def test_huge_integer_model_param_is_a_scenario_error(key):
         build(scene_dict(pedestrian(model=model, params={key: HUGE_INT})))
 
 
-@pytest.mark.xfail(strict=True, reason="finding 1b: a huge integer generator param (scenario.params.n=1000...0) "
-                   "raises OverflowError from math.isfinite in generators._is_number")
+# fixed: finding 1b: a huge integer generator param (scenario.params.n=1000...0) raises OverflowError from
+# math.isfinite in generators._is_number
 @pytest.mark.parametrize("kind, key", [("crowd_crossing", "n"), ("groups", "n_groups"), ("corridor_flow", "length")])
 def test_huge_integer_generator_param_is_a_scenario_error(kind, key):
     with pytest.raises(ScenarioError, match=rf"^params\.{key}: "):
@@ -256,9 +258,9 @@ def test_in_range_social_force_params_do_not_go_non_finite(params):
         crowd.step(ROBOT, 1.0)
 
 
-@pytest.mark.xfail(strict=True, reason="finding 4: two orca pedestrians may start at the same point (validation "
-                   "accepts overlapping pedestrians); they then stay glued together and walk +x (the degenerate "
-                   "half-plane's fixed direction) instead of their intent +y, into the east wall")
+# fixed: finding 4: two orca pedestrians may start at the same point (validation accepts overlapping pedestrians);
+# they then stay glued together and walk +x (the degenerate half-plane's fixed direction) instead of their intent
+# +y, into the east wall
 def test_coincident_orca_pedestrians_are_refused_or_follow_their_intent():
     a = pedestrian("a", model="orca", waypoints=((300, 300), (300, 600)))
     b = pedestrian("b", model="orca", waypoints=((300, 300), (300, 600)))
@@ -274,9 +276,9 @@ def test_coincident_orca_pedestrians_are_refused_or_follow_their_intent():
     assert abs(pos[0][0] - 300.0) < 100.0 and abs(pos[1][0] - 300.0) < 100.0  # not 300 cm off their line
 
 
-@pytest.mark.xfail(strict=True, reason="finding 5: a social_force pedestrian with in-range params "
-                   "(agent_strength_cm2_s2=1e9, agent_range_cm=1e4) is pushed through the wall and leaves the "
-                   "world (y = -3600 cm after 100 s); nothing keeps reactive pedestrians inside the bounds")
+# fixed: finding 5: a social_force pedestrian with in-range params (agent_strength_cm2_s2=1e9, agent_range_cm=1e4)
+# is pushed through the wall and leaves the world (y = -3600 cm after 100 s); nothing keeps reactive pedestrians
+# inside the bounds
 def test_social_force_pedestrians_stay_inside_the_world():
     params = {"agent_strength_cm2_s2": 1e9, "agent_range_cm": 1e4}
     s = build(scene_dict(pedestrian(params=params),
@@ -288,32 +290,31 @@ def test_social_force_pedestrians_stay_inside_the_world():
     assert inside.all(), pos.tolist()
 
 
-@pytest.mark.xfail(strict=True, reason="finding 6: groups with n_groups=0 is accepted (an empty crowd) although "
-                   "the check's message says 'between 1 and 100 pedestrians in all'")
+# fixed: finding 6: groups with n_groups=0 is accepted (an empty crowd) although the check's message says 'between 1
+# and 100 pedestrians in all'
 def test_groups_without_pedestrians_is_refused():
     with pytest.raises(ScenarioError, match=r"^params\.n_groups"):
         generate({"generator": "groups", "params": {"n_groups": 0}, "name": "groups"}, 0)
 
 
-@pytest.mark.xfail(strict=True, reason="finding 7: groups' placement failure names 'params.n', a parameter that "
-                   "groups does not have (it takes n_groups / group_size)")
+# fixed: finding 7: groups' placement failure names 'params.n', a parameter that groups does not have (it takes
+# n_groups / group_size)
 def test_groups_placement_failure_names_a_parameter_of_groups():
     with pytest.raises(ScenarioError) as info:
         generate({"generator": "groups", "params": {"n_groups": 50, "group_size": 2}, "name": "groups"}, 0)
     assert str(info.value).startswith(("params.n_groups", "params.group_size")), str(info.value)
 
 
-@pytest.mark.xfail(strict=True, reason="finding 8: a generator's bad model/model_params is reported as "
-                   "dynamic_obstacles[0].model..., a field the user's generator config does not have (they wrote "
-                   "params.model / params.model_params)")
+# fixed: finding 8: a generator's bad model/model_params is reported as dynamic_obstacles[0].model..., a field the
+# user's generator config does not have (they wrote params.model / params.model_params)
 @pytest.mark.parametrize("params", [{"model": "nope"}, {"model_params": {"bogus": 1}}])
 def test_generator_model_errors_name_the_generator_param(params):
     with pytest.raises(ScenarioError, match=r"^params\.model"):
         generate({"generator": "crowd_crossing", "params": params, "name": "crowd_crossing"}, 0)
 
 
-@pytest.mark.xfail(strict=True, reason="finding 9: with no pedestrians (n=0, n_groups=0) a generator's model and "
-                   "model_params are never checked: model=nope, model_params={bogus: 1} run silently")
+# fixed: finding 9: with no pedestrians (n=0, n_groups=0) a generator's model and model_params are never checked:
+# model=nope, model_params={bogus: 1} run silently
 @pytest.mark.parametrize("kind, count", [("crowd_crossing", {"n": 0}), ("random_walkers", {"n": 0}),
                                          ("corridor_flow", {"n": 0}), ("groups", {"n_groups": 0})])
 def test_generator_model_is_checked_even_without_pedestrians(kind, count):
@@ -322,30 +323,34 @@ def test_generator_model_is_checked_even_without_pedestrians(kind, count):
                   "name": kind}, 0)
 
 
-@pytest.mark.xfail(strict=True, reason="finding 10: no work limit on reactive crowds: 100 orca pedestrians with "
-                   "substep_s=0.01 and max_steps=100000 are accepted; a step takes ~4 s (10 s on a busy machine), "
-                   "the episode days (runners.run looks hung). Expected: refused (a work limit), or fast enough "
-                   "that max_steps steps finish within an hour")
-def test_a_huge_orca_crowd_is_refused_or_finishes_in_bounded_time():
-    import time
+# finding 10 (fixed: fuzzynav.crowd.check_crowd_work, a limit on pedestrian-substeps per episode, checked where a
+# run's inputs are loaded and by Episode): 100 orca pedestrians with 0.01 s substeps for 100,000 steps ran for days
+def test_a_huge_orca_crowd_is_refused_before_it_runs(tmp_path):
+    import subprocess
+    import sys
+
+    from fuzzynav.crowd import check_crowd_work
+    from fuzzynav.episode import Episode
 
     params = {"n": 100, "model": "orca", "model_params": {"substep_s": 0.01}, "max_steps": 100_000}
-    try:
-        s, _ = generate({"generator": "random_walkers", "params": params, "name": "w"}, 0)
-        validate_geometry(s)
-    except ScenarioError as err:
-        assert_one_line(err, ("params", "dynamic_obstacles[", "max_steps"))
-        return
-    crowd = crowd_of(s)
-    started = time.perf_counter()
-    crowd.step(ROBOT, 1.0)
-    assert (time.perf_counter() - started) * s.max_steps <= 3600.0
+    s, _ = generate({"generator": "random_walkers", "params": params, "name": "w"}, 0)
+    with pytest.raises(ValueError, match=r"^dynamic_obstacles: 1,000,000,000 pedestrian-substeps per episode"):
+        check_crowd_work(s.dynamic_obstacles, 1.0, s.max_steps)
+    with pytest.raises(ValueError, match=r"^dynamic_obstacles: "):
+        Episode(s, load_controller("table1"))
+    out = subprocess.run([sys.executable, "-m", "runners.run", "scenario=random_walkers", "scenario.params.n=100",
+                          "scenario.params.model=orca", "+scenario.params.model_params.substep_s=0.01",
+                          "scenario.params.max_steps=100000", f"hydra.run.dir={tmp_path}"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode != 0
+    lines = [ln for ln in out.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "pedestrian-substeps per episode" in lines[0], out.stderr[-2000:]
 
 
-@pytest.mark.xfail(strict=True, reason="finding 11: corridor_flow's default (social_force) pedestrians never reach "
-                   "their end waypoints (placed radius + 10 cm from the end walls; the wall repulsion holds them "
-                   "~70 cm away, beyond arrive_cm=30): by step 100 every one stands still forever, no 'back and "
-                   "forth' flow (orca pedestrians keep walking); random_walkers with model=social_force: 5 of 8 stand")
+# fixed: finding 11: corridor_flow's default (social_force) pedestrians never reach their end waypoints (placed
+# radius + 10 cm from the end walls; the wall repulsion holds them ~70 cm away, beyond arrive_cm=30): by step 100
+# every one stands still forever, no 'back and forth' flow (orca pedestrians keep walking); random_walkers with
+# model=social_force: 5 of 8 stand
 @pytest.mark.parametrize("kind", ["corridor_flow", "random_walkers"])
 def test_looping_social_force_pedestrians_keep_walking(kind):
     s, _ = generate({"generator": kind, "params": {"model": "social_force"}, "name": kind}, 1)
@@ -357,10 +362,9 @@ def test_looping_social_force_pedestrians_keep_walking(kind):
     assert (speeds > 1.0).sum() >= len(speeds) // 2, speeds.round(2).tolist()
 
 
-@pytest.mark.xfail(strict=True, reason="finding 12: fast reactive pedestrians leave the world through its walls: "
-                   "orca at 300 cm/s (a jogger/cyclist) heading +y from the middle ends 86 m outside, social_force "
-                   "at 1000 cm/s 300 m outside (orca at 100 cm/s: the disc 16 cm into the wall); the walls are "
-                   "'hard half-planes' / repulsions in the docs")
+# fixed: finding 12: fast reactive pedestrians leave the world through its walls: orca at 300 cm/s (a
+# jogger/cyclist) heading +y from the middle ends 86 m outside, social_force at 1000 cm/s 300 m outside (orca at 100
+# cm/s: the disc 16 cm into the wall); the walls are 'hard half-planes' / repulsions in the docs
 @pytest.mark.parametrize("model, speed", [("orca", 300.0), ("social_force", 1000.0)])
 def test_fast_reactive_pedestrians_stay_inside_the_world(model, speed):
     s = build({"name": "t", "bounds": [0, 0, 1200, 800],
@@ -373,8 +377,8 @@ def test_fast_reactive_pedestrians_stay_inside_the_world(model, speed):
         assert 0.0 <= pos[0][1] <= 800.0, pos.tolist()
 
 
-@pytest.mark.xfail(strict=True, reason="finding 12b: generated crowds with speed [250, 300] cm/s and model=orca: "
-                   "pedestrians' centres end up to 1.07 m outside the bounds (corridor_flow, random_walkers, groups)")
+# fixed: finding 12b: generated crowds with speed [250, 300] cm/s and model=orca: pedestrians' centres end up to
+# 1.07 m outside the bounds (corridor_flow, random_walkers, groups)
 @pytest.mark.parametrize("kind", ["corridor_flow", "groups"])
 def test_fast_generated_orca_crowd_stays_inside_the_world(kind):
     s, _ = generate({"generator": kind, "params": {"model": "orca", "speed": [250, 300]}, "name": kind}, 3)
