@@ -46,7 +46,8 @@ def density_table(df: pd.DataFrame) -> pd.DataFrame:
         rows.append({"scenario": scenario, "pedestrians": int(float(count)), "variant": variant, "episodes": len(g),
                      "success": rate, "success_lo": lo, "success_hi": hi, "min_clearance_dynamic_cm": clear,
                      "clearance_lo": c_lo, "clearance_hi": c_hi})
-    return pd.DataFrame(rows).sort_values(["scenario", "variant", "pedestrians"], kind="stable")
+    # the variants keep the report's natural order (first appearance); counts ascend
+    return pd.DataFrame(rows).sort_values(["scenario", "pedestrians"], kind="stable").reset_index(drop=True)
 
 
 def density_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] | None = None) -> Path | None:
@@ -59,9 +60,12 @@ def density_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] 
                              layout="constrained")
     for (ax_s, ax_c), scenario in zip(axes, scenarios, strict=True):
         rows = table[table["scenario"] == scenario]
-        for variant, g in rows.groupby("variant", sort=False):
+        variants = list(pd.unique(rows["variant"]))
+        span = max(float(rows["pedestrians"].max() - rows["pedestrians"].min()), 1.0)
+        for k, (variant, g) in enumerate(rows.groupby("variant", sort=False)):
             color = (colors or {}).get(variant)
-            x = g["pedestrians"].to_numpy()
+            # variants side by side at each count, so that equal values (all 1.0) do not hide each other
+            x = g["pedestrians"].to_numpy() + 0.012 * span * (k - (len(variants) - 1) / 2)
             ax_s.errorbar(x, g["success"], yerr=[g["success"] - g["success_lo"], g["success_hi"] - g["success"]],
                           marker="o", capsize=3, label=variant, color=color)
             lo = [0.0 if math.isnan(a) else m - a for m, a in zip(g["min_clearance_dynamic_cm"], g["clearance_lo"],

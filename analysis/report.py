@@ -33,11 +33,13 @@ import pandas as pd
 
 from analysis import gallery, plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
+from analysis.density import density_figure, density_table
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.overview import overview
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import write_tables
+from analysis.tpt_errors import MODEL_COLUMNS
 from analysis.trace import load_traces
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
@@ -323,6 +325,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
                         "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
 
+    _crowd_sections(report, df, out)
+
     drawn = df.sort_values("seed", kind="stable").groupby(["scenario_label", "variant"], sort=False).head(
         plots.MAX_SEEDS_PER_PANEL)
     traces, unreadable = load_traces([*drawn["log"], *gallery.logs_to_read(df)], jobs)
@@ -403,6 +407,46 @@ def _left_out(report: Report, excluded: pd.DataFrame) -> None:
     report.add("table", table)
     if note:
         report.add("p", note)
+
+
+def _crowd_sections(report: Report, df: pd.DataFrame, out: Path) -> None:
+    """Crowds: success and clearance against the pedestrian count where a sweep varied it, and the TPT's
+    prediction error per obstacle model where logs have reactive pedestrians (each group's mean, never pooled)."""
+    table = density_table(df)
+    if not table.empty:
+        report.add("h2", "Crowd density")
+        report.add("p", "Success rate (Wilson 95 % interval) and minimum clearance to moving obstacles (bootstrap "
+                        "95 % interval, cm) against the number of pedestrians: one point per group, every count "
+                        "its own group (density.csv).")
+        table.to_csv(out / "density.csv", index=False)
+        colours = {variant: style.color for variant, style in plots.palette(df).items()}
+        report.add("img", density_figure(table, out, colours))
+    by_model = tpt_error_table(df)
+    if not by_model.empty:
+        report.add("h2", "TPT prediction error by obstacle model")
+        report.add("p", "Average and final displacement error (cm) of the Trajectory Prediction Table's obstacle "
+                        "rows against the logged truth, per group and obstacle model (mean over the episodes that "
+                        "predicted that model's obstacles, 95 % bootstrap interval). The TPT assumes constant "
+                        "velocity: scripted obstacles fit it, reactive pedestrians do not.")
+        report.add("table", by_model)
+
+
+def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Rows (scenario, group, obstacle model, episodes, ADE, FDE) for the groups whose logs have obstacles of a
+    model other than ``scripted``; empty when every obstacle is scripted."""
+    models = [m for m in MODEL_COLUMNS if f"tpt_ade_cm_{m}" in df.columns]
+    if not any(m != "scripted" and df[f"tpt_ade_cm_{m}"].notna().any() for m in models):
+        return pd.DataFrame()
+    rows = []
+    for (scenario, variant), g in _groups(df):
+        for m in models:
+            ade = g[f"tpt_ade_cm_{m}"].dropna()
+            if ade.empty:
+                continue
+            rows.append({"scenario": scenario, "variant": variant, "obstacle model": m, "episodes": len(ade),
+                         "ADE (cm)": _fmt(*bootstrap_mean(ade)),
+                         "FDE (cm)": _fmt(*bootstrap_mean(g[f"tpt_fde_cm_{m}"].dropna()))})
+    return pd.DataFrame(rows)
 
 
 def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame) -> None:

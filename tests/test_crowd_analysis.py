@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -14,6 +16,7 @@ from fuzzynav.config import episode_config_from_dict
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.scenario import scenario_from_dict
 from runners.run import run_episode
+from tests.conftest import ROOT
 
 
 def _mixed_scenario():
@@ -64,3 +67,21 @@ def test_density_table_lines_up_groups_without_pooling():
     assert auto20["success"] == 0.25 and auto20["success_lo"] < 0.25 < auto20["success_hi"]
     assert auto20["min_clearance_dynamic_cm"] == pytest.approx(np.mean([200, 201, 202, 203]))
     assert count_key(df[df["scenario.params.n"] == 5]) is None
+
+
+def test_a_crowd_density_sweep_runs_and_reports(tmp_path):
+    """The issue's command, small: two crowd densities x two strategies, one seed; the report lines the densities
+    up and tabulates the TPT's error for the social-force pedestrians."""
+    out = subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=crowd_crossing",
+                          "scenario.params.n=2,4", "planner=auto,none", "episodes=1", "scenario.params.max_steps=60",
+                          f"hydra.sweep.dir={tmp_path}", "hydra.launcher.n_jobs=2"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert len(summary) == 4
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "## Crowd density" in report and "## TPT prediction error by obstacle model" in report
+    assert "social_force" in report
+    density = pd.read_csv(tmp_path / "report" / "density.csv")
+    assert sorted(set(density["pedestrians"])) == [2, 4] and set(density["episodes"]) == {1}
+    assert (tmp_path / "report" / "density.png").stat().st_size > 0
