@@ -105,7 +105,8 @@ def test_dataset_list_and_manifests():
     assert names["paper_fig5"]["episodes"] == 7 * 20 and names["paper_fig5"]["built"]
     assert names["paper_fig5"]["committed_logs"] == 21 and names["paper_fig5"]["logs_MB"] < 5
     assert names["suite_v1"]["episodes"] == 14 * 4 * 10 and names["suite_v1"]["built"]
-    for name in ("paper_fig5", "suite_v1"):
+    assert names["suite_v2"]["episodes"] == 5 * 5 * 10 and names["suite_v2"]["built"]
+    for name in ("paper_fig5", "suite_v1", "suite_v2"):
         m = dataset.load_manifest(name)
         assert len(m["episodes"]) == len(dataset.jobs(m)) and "success" in m["metrics_columns"]
 
@@ -125,6 +126,13 @@ def test_suite_v1_dataset_verifies_on_its_first_seeds():
     """Every suite scenario and four strategies, seeds 0-1: catches a change of behaviour (or of floating-point
     summation order) that the paper_fig5 dataset alone would not exercise."""
     out = run_dataset("verify", "suite_v1", "--seeds", "0:2")
+    assert out.returncode == 0, out.stdout + out.stderr[-2000:]
+    assert "seeds 0:2 of the dataset match" in out.stdout
+
+
+def test_suite_v2_dataset_verifies_on_its_first_seeds():
+    """The crowd scenarios (social force, ORCA and random-walk pedestrians) with every strategy, seeds 0-1."""
+    out = run_dataset("verify", "suite_v2", "--seeds", "0:2")
     assert out.returncode == 0, out.stdout + out.stderr[-2000:]
     assert "seeds 0:2 of the dataset match" in out.stdout
 
