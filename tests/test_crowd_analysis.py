@@ -85,3 +85,16 @@ def test_a_crowd_density_sweep_runs_and_reports(tmp_path):
     density = pd.read_csv(tmp_path / "report" / "density.csv")
     assert sorted(set(density["pedestrians"])) == [2, 4] and set(density["episodes"]) == {1}
     assert (tmp_path / "report" / "density.png").stat().st_size > 0
+
+
+def test_foxglove_shows_a_reactive_pedestrian_with_its_heading(mixed_log):
+    from analysis.logs import iter_messages
+
+    arrows: dict[str, list] = {"obstacle/scripted_one": [], "obstacle/pedestrian": []}
+    for _, _, msg in iter_messages(mixed_log, ["/scene"]):
+        for ent in msg["entities"]:
+            if ent["id"] in arrows:
+                arrows[ent["id"]].append(ent["arrows"])
+    assert arrows["obstacle/pedestrian"] and all(len(a) == 1 for a in arrows["obstacle/pedestrian"][:5])
+    # scripted obstacles are drawn as before models existed (their logs unchanged): a disc, no arrow
+    assert arrows["obstacle/scripted_one"] and not any(arrows["obstacle/scripted_one"])
