@@ -21,12 +21,15 @@ def wilson(successes: int, n: int, z: float = Z95) -> tuple[float, float, float]
 
 
 def bootstrap_mean(values, n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> tuple[float, float, float]:
-    """Mean and percentile-bootstrap interval of the mean (NaNs dropped; interval NaN below 2 values).
+    """Mean and percentile-bootstrap interval of the mean (NaNs dropped; interval NaN below 2 values; with an
+    infinite value the mean is infinite and so is an end of the interval).
 
     Seeded, so a report is reproducible."""
     x = np.asarray(values, dtype=float)
     x = x[~np.isnan(x)]
     if len(x) == 0:
+        return math.nan, math.nan, math.nan
+    if np.isposinf(x).any() and np.isneginf(x).any():  # +inf and -inf together: no mean
         return math.nan, math.nan, math.nan
     mean = float(x.mean())
     if len(x) < 2:
@@ -36,7 +39,11 @@ def bootstrap_mean(values, n_boot: int = 2000, seed: int = 0, level: float = 0.9
     rng = np.random.default_rng(seed)
     means = x[rng.integers(0, len(x), size=(n_boot, len(x)))].mean(axis=1)
     alpha = (1 - level) / 2
-    return mean, float(np.quantile(means, alpha)), float(np.quantile(means, 1 - alpha))
+    # an infinite value (min_ttc_s: never on a collision course) makes resampled means infinite; interpolating
+    # between two of them is inf - inf (NaN, and a warning): take order statistics instead, e.g. [1.2, inf]
+    method = "linear" if np.isfinite(means).all() else "inverted_cdf"
+    return (mean, float(np.quantile(means, alpha, method=method)),
+            float(np.quantile(means, 1 - alpha, method=method)))
 
 
 def excludes_zero(lo: float, hi: float) -> bool:

@@ -82,3 +82,18 @@ def test_the_report_opens_with_the_overview_and_pictures_each_failure(crash_logs
     assert "3 of 6 episodes failed" in md
     html = (out / "report.html").read_text()
     assert html.index('<img id="overview" src="overview.png"') < html.index("<h2>")
+
+
+def test_an_infinite_value_gives_an_infinite_mean_and_interval_end_without_a_warning():
+    """min_ttc_s is inf for an episode never on a collision course: its group's interval was inf - inf (NaN, with a
+    RuntimeWarning from numpy in every sweep)."""
+    import math
+    import warnings
+
+    from analysis.stats import bootstrap_mean
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mean, lo, hi = bootstrap_mean([1.0, 2.0, math.inf, 3.0])
+        assert mean == math.inf and lo == pytest.approx(1.5) and hi == math.inf
+        assert all(math.isnan(v) for v in bootstrap_mean([math.inf, -math.inf]))
