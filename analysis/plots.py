@@ -6,6 +6,7 @@ same in every figure of a report). PNGs are small (90 dpi): a report of many sce
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 from pathlib import Path
@@ -43,9 +44,18 @@ def styles(df: pd.DataFrame) -> dict[str, dict]:
     return {variant: style.line() for variant, style in palette(df).items()}
 
 
+FILE_PART_MAX = 60
+"""Characters of a label in a file name: a label of many differing parameters (a controller's whole rule base)
+would exceed the file system's 255 bytes."""
+
+
 def _file_part(label: str) -> str:
-    """A scenario label as part of a file name (``random_mixed · n_dynamic=5`` -> ``random_mixed__n_dynamic=5``)."""
-    return re.sub(r"[^A-Za-z0-9_.=-]+", "_", label.replace(SEP, "__"))
+    """A label as part of a file name (``random_mixed · n_dynamic=5`` -> ``random_mixed__n_dynamic=5``); a long one
+    as its first 40 characters and a hash of the whole, still unique."""
+    part = re.sub(r"[^A-Za-z0-9_.=-]+", "_", label.replace(SEP, "__"))
+    if len(part) <= FILE_PART_MAX:
+        return part
+    return f"{part[:40]}_{hashlib.sha1(label.encode()).hexdigest()[:10]}"
 
 
 def _save(fig, path: Path) -> Path:

@@ -97,3 +97,11 @@ def test_an_infinite_value_gives_an_infinite_mean_and_interval_end_without_a_war
         mean, lo, hi = bootstrap_mean([1.0, 2.0, math.inf, 3.0])
         assert mean == math.inf and lo == pytest.approx(1.5) and hi == math.inf
         assert all(math.isnan(v) for v in bootstrap_mean([math.inf, -math.inf]))
+
+
+def test_file_names_of_long_labels_stay_short_and_distinct():
+    """A group label of many differing parameters (a controller's rule base) made a picture's name longer than the
+    file system allows: the report failed with 'File name too long'."""
+    a, b = "auto(h=2) · " + "rules=x" * 60 + "a", "auto(h=2) · " + "rules=x" * 60 + "b"
+    assert len(plots._file_part(a)) <= plots.FILE_PART_MAX and plots._file_part(a) != plots._file_part(b)
+    assert plots._file_part("random_mixed · n_dynamic=5") == "random_mixed__n_dynamic=5"
