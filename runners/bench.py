@@ -462,7 +462,8 @@ def main(argv: list[str] | None = None) -> int:
         print("    phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in shape["phases_s"].items()))
     an = results["analysis"]
     print(f"analysis: {an['episodes_per_s']:.1f} episodes/s, {an['messages_per_s']:.0f} messages/s "
-          f"({an['episodes']} {an['scenario']} episodes of {an['mean_steps']:.0f} steps)")
+          f"({an['episodes']} {an['scenario']} episodes of {an['mean_steps']:.0f} steps); target 4 of issue #19 "
+          f"(>= 200 episodes/s): {an['episodes_per_s'] / 200:.2f} of it")
     mem = results["memory"]
     print(f"memory: RSS {mem['rss_mb_at_10pct']:.1f} MB after {mem['episodes'] // 10} episodes, "
           f"{mem['rss_mb_at_end']:.1f} MB after {mem['episodes']} ({mem['growth']:+.1%})")
