@@ -163,6 +163,21 @@ def _check_against_scenario(log: EpisodeLog) -> None:
                                                        f"distance_to_goal_cm says {st['distance_to_goal_cm']!r}")
     if log.goal is not None and max(abs(log.goal[0] - gx), abs(log.goal[1] - gy)) > 0.011:
         raise CheckError("/scene goal", f"{log.goal} is not the scenario's goal ({gx}, {gy})")
+    _check_obstacle_ids(log, world)
+
+
+def _check_obstacle_ids(log: EpisodeLog, world: dict) -> None:
+    """The moving obstacles of the logged truth are the scenario's (by id, in order): the analysis reads each
+    obstacle's model from the scenario (TPT error per model), so a scenario that names other obstacles than the
+    log moved is not this log's."""
+    entries = world.get("dynamic_obstacles") or []
+    ids = [e.get("id") if isinstance(e, dict) else None for e in entries] if isinstance(entries, list) else None
+    for m in log.truth:
+        logged = [o["id"] for o in m["obstacles"]]
+        if logged != ids:
+            raise CheckError(f"/obstacles/truth step {m['step']}", f"obstacle ids {logged[:5]} are not the "
+                                                                   f"scenario's {(ids or [])[:5]} (metadata "
+                                                                   "scenario_yaml dynamic_obstacles)")
 
 
 def _check_robot_path(log: EpisodeLog) -> None:

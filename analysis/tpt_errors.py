@@ -4,7 +4,8 @@ obstacle model (the constant-velocity prediction fits scripted obstacles by cons
 turn and slow down).
 
 An obstacle's model is the ``model`` of its entry in the logged scenario (metadata ``scenario_yaml``;
-``scripted`` where the entry names none — every log written before obstacle models had only scripted obstacles).
+``scripted`` where the entry names none, or where the log has no readable scenario — every log written before
+obstacle models had only scripted obstacles; the log check refuses a scenario whose obstacles are not the log's).
 """
 
 from __future__ import annotations
@@ -53,8 +54,8 @@ def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, fl
         return *nan, {}
     models = obstacle_models(log.meta)
     truth_at = {m["step"]: {o["id"]: (o["x_cm"], o["y_cm"]) for o in m["obstacles"]} for m in log.truth}
-    errors: dict[str | None, list[float]] = {}
-    finals: dict[str | None, list[float]] = {}
+    errors: dict[str, list[float]] = {}
+    finals: dict[str, list[float]] = {}
     for step, t in log.tpts.items():
         now = truth_at.get(step)
         if not now:
@@ -73,7 +74,7 @@ def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, fl
             if rows:
                 actual = np.array([truth_at[step + k][oid] for k in rows])
                 errs = norm2(pred[rows] - actual)
-                model = models.get(oid)
+                model = models.get(oid, DEFAULT_MODEL)
                 errors.setdefault(model, []).extend(errs.tolist())
                 finals.setdefault(model, []).append(float(errs[-1]))
     if not errors:
@@ -81,7 +82,7 @@ def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, fl
     every = [e for errs in errors.values() for e in errs]
     every_final = [f for fs in finals.values() for f in fs]
     by_model = {m: (math.fsum(errors[m]) / len(errors[m]), math.fsum(finals[m]) / len(finals[m]))
-                for m in errors if m is not None}
+                for m in errors}
     return math.fsum(every) / len(every), math.fsum(every_final) / len(every_final), by_model
 
 
