@@ -17,6 +17,9 @@
    time of each phase.
 4. Analysis: episodes/s and messages/s of the metrics table on logs of ~100-step episodes.
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
+6. Report: the time to write the report of 10,000 episodes (:mod:`runners.bench_report`).
+7. Crowds: ``crowd_crossing`` with 20 pedestrians of each obstacle model (scripted, social force, ORCA, random
+   walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.bench_crowd`).
 
 Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
 Writes ``bench.json`` (path with ``--out``).
@@ -471,6 +474,10 @@ def main(argv: list[str] | None = None) -> int:
 
     results["report"] = bench_report(1000, 2) if args.quick else bench_report(10_000, 10)
     print(summary_line(results["report"]))
+    from runners.bench_crowd import bench_crowd, print_crowd  # 20 reactive pedestrians (#17)
+
+    results["crowd"] = bench_crowd(2 if args.quick else 10)
+    print_crowd(results["crowd"])
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(f"wrote {args.out}")
     return 0

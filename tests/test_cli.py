@@ -51,6 +51,9 @@ def test_bench_quick_writes_results(tmp_path):
     for section in ("simulation", "sweep", "analysis", "memory"):
         assert section in data, section
     assert data["simulation"]["steps_per_s_with_logging"] > 0
+    assert [r["model"] for r in data["crowd"]] == ["scripted", "social_force", "orca", "random_walk"]
+    assert all(r["pedestrians"] == 20 and r["steps_per_s_with_logging"] > 0 for r in data["crowd"])
+    assert "crowds (crowd_crossing, 20 pedestrians" in res.stdout
     assert set(data["simulation"]["us_per_step_by_stage"]) >= {"sensors", "tracking", "logging", "controller"}
     assert data["sweep"]["episodes"] >= 100 and len(data["sweep"]["shapes"]) == 2
     assert data["sweep"]["rounds"] == 1
