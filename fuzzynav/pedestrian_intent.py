@@ -33,7 +33,12 @@ class Intent:
                                 for o in obstacles], dtype=float)
         self.paths = [np.array(o.waypoints, float) if o.waypoints is not None else np.zeros((0, 2))
                       for o in obstacles]
-        self.loops = [bool(o.loop) for o in obstacles]
+        self.lengths = np.array([len(p) for p in self.paths], dtype=int)
+        #: a looping path of at least two points goes round again after its last waypoint
+        self.loop_ok = np.array([bool(o.loop) for o in obstacles], dtype=bool) & (self.lengths > 1)
+        self.padded = np.zeros((len(self.paths), max(1, int(self.lengths.max(initial=0))), 2))
+        for i, path in enumerate(self.paths):
+            self.padded[i, :len(path)] = path
         self.reset()
 
     def reset(self) -> None:
@@ -43,41 +48,40 @@ class Intent:
     def initial_velocities(self) -> np.ndarray:
         """Velocities at t = 0 (cm/s): the given velocity, or ``speed`` towards the second waypoint (0 when there
         is none)."""
-        vel = self.start_velocities.copy()
-        for i in np.nonzero(~self.constant)[0]:
-            vel[i] = self._towards(int(i), self.starts[i])
-        return vel
+        return self._towards(self.starts, self.start_velocities.copy())
 
-    def _goal_of(self, i: int) -> np.ndarray | None:
-        path = self.paths[i]
-        k = int(self.target[i])
-        if k < len(path):
-            return path[k]
-        if self.loops[i] and len(path) > 1:
-            return path[k % len(path)]
-        return None
+    def _goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each pedestrian's current waypoint (n, 2) cm and whether it has one (n,): none for constant-velocity
+        pedestrians and after the last waypoint of a path without ``loop``."""
+        k = self.target
+        inside = k < self.lengths
+        wrapped = self.loop_ok & ~inside
+        index = np.where(inside, k, np.where(wrapped, k % np.maximum(self.lengths, 1), 0))
+        has = (inside | wrapped) & ~self.constant
+        return self.padded[np.arange(len(k)), index], has
 
-    def _towards(self, i: int, position: np.ndarray) -> np.ndarray:
-        goal = self._goal_of(i)
-        if goal is None:
-            return np.zeros(2)
-        d = goal - position
-        length = float(norm2(d))
-        if length == 0.0:
-            return np.zeros(2)
-        return d * (self.speeds[i] / length)
+    def _towards(self, positions: np.ndarray, pref: np.ndarray) -> np.ndarray:
+        """``pref`` with each waypoint pedestrian's entry set to ``speed`` towards its current waypoint (0 without
+        one, or when it stands on it)."""
+        goal, has = self._goals()
+        d = goal - positions
+        length = norm2(d)
+        moving = has & (length > 0.0)
+        pref[~self.constant] = 0.0
+        pref[moving] = d[moving] * (self.speeds[moving] / length[moving])[:, None]
+        return pref
 
     def preferred(self, positions: np.ndarray) -> np.ndarray:
         """Preferred velocities (n, 2) cm/s at ``positions`` (n, 2) cm, first moving each pedestrian that has
         reached its waypoint on to the next one."""
-        pref = self.start_velocities.copy()
-        for i in np.nonzero(~self.constant)[0]:
-            i = int(i)
-            goal = self._goal_of(i)
-            # a waypoint reached: on to the next (at most one per call: the steps are shorter than the legs)
-            if goal is not None and float(norm2(goal - positions[i])) <= self.arrive_cm:
-                self.target[i] += 1
-                if self.loops[i] and self.target[i] >= 2 * len(self.paths[i]):
-                    self.target[i] -= len(self.paths[i])  # keep the index small on a long loop
-            pref[i] = self._towards(i, positions[i])
-        return pref
+        if self.constant.all():
+            return self.start_velocities.copy()
+        goal, has = self._goals()
+        # a waypoint reached: on to the next (at most one per call: the steps are shorter than the legs)
+        arrived = has & (norm2(goal - positions) <= self.arrive_cm)
+        if arrived.any():
+            self.target[arrived] += 1
+            # keep the index small on a long loop
+            self.target = np.where(self.loop_ok & (self.target >= 2 * self.lengths), self.target - self.lengths,
+                                   self.target)
+        return self._towards(positions, self.start_velocities.copy())
