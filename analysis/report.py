@@ -301,6 +301,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     kinds = left_out_counts(analysis.excluded)
     logs_line = (f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out"
                  + (f" ({kinds})." if kinds else "."))
+    opt = options or MetricOptions()
+    logs_line += (f" Metric thresholds: a turn is a heading change above {opt.turn_threshold_deg:g}° per step, a "
+                  f"near miss a clearance below {opt.near_miss_cm:g} cm, stalled slower than "
+                  f"{opt.stall_speed_cm_s:g} cm/s, personal space {opt.personal_space_cm:g} cm beyond a moving "
+                  "obstacle's surface (analysis.report --turn-threshold-deg, --near-miss-cm, --stall-speed-cm-s, "
+                  "--personal-space-cm).")
     if df.empty:
         report.add("p", logs_line)
         _left_out(report, excluded)
@@ -483,6 +489,12 @@ def main(argv: list[str] | None = None) -> int:
                                       "else ./report)")
     parser.add_argument("--turn-threshold-deg", type=number_in(0.0, 180.0, "degrees", lo_open=True), default=5.0,
                         help="heading change counted as a turn (degrees per step, in (0, 180])")
+    parser.add_argument("--near-miss-cm", type=number_in(0.0, 10_000.0, "cm", lo_open=True), default=20.0,
+                        help="a step whose clearance to an obstacle is below this is a near miss (cm, default 20)")
+    parser.add_argument("--stall-speed-cm-s", type=number_in(0.0, 1_000.0, "cm/s", lo_open=True), default=1.0,
+                        help="a step slower than this away from the goal is stalled (cm/s, default 1)")
+    parser.add_argument("--personal-space-cm", type=number_in(0.0, 10_000.0, "cm"), default=45.0,
+                        help="personal-space radius beyond a moving obstacle's surface (cm, default 45)")
     parser.add_argument("--jobs", type=jobs, default=-1,
                         help="worker processes reading the logs (default -1: every core; 1: this process only)")
     parser.add_argument("--split-provenance", action="store_true",
@@ -502,7 +514,8 @@ def main(argv: list[str] | None = None) -> int:
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
-    options = MetricOptions(turn_threshold_deg=args.turn_threshold_deg)
+    options = MetricOptions(turn_threshold_deg=args.turn_threshold_deg, near_miss_cm=args.near_miss_cm,
+                            stall_speed_cm_s=args.stall_speed_cm_s, personal_space_cm=args.personal_space_cm)
     analysis = analyse_logs(args.paths, options, jobs=args.jobs, split_provenance=args.split_provenance)
     if analysis.episodes.empty and analysis.excluded.empty:  # an empty report with exit 0 looked like a result
         if not existed:

@@ -314,3 +314,18 @@ def test_a_failed_report_leaves_nothing_behind(fresh_log, tmp_path, monkeypatch,
     assert report.main([str(fresh_log), "--out", str(out), "--jobs", "1"]) == 0
     assert {"notes.txt", "report.md", "report.html", "episodes.csv"} <= {p.name for p in out.iterdir()}
     assert list(out.glob("*.png")) and not list(out.glob(".report.partial*"))
+
+
+def test_metric_thresholds_are_flags_and_recorded_in_the_report(small_sweep, tmp_path):
+    from analysis.report import main as report_main
+
+    out, _ = small_sweep
+    assert report_main([str(out), "--out", str(tmp_path / "wide"), "--near-miss-cm", "500",
+                        "--personal-space-cm", "0", "--jobs", "1"]) == 0
+    default = pd.read_csv(out / "report" / "episodes.csv")
+    wide = pd.read_csv(tmp_path / "wide" / "episodes.csv")
+    assert wide["near_miss_steps"].sum() > default["near_miss_steps"].sum()
+    assert (wide["personal_space_intrusion_s"] <= default["personal_space_intrusion_s"]).all()
+    md = (tmp_path / "wide" / "report.md").read_text()
+    assert "a near miss a clearance below 500 cm" in md and "personal space 0 cm" in md
+    assert "a near miss a clearance below 20 cm" in (out / "report" / "report.md").read_text()
