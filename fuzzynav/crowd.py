@@ -18,7 +18,7 @@ from fuzzynav.obstacle_model import DEFAULT_MODEL, CrowdView, ObstacleModel, mod
 from fuzzynav.scenario import DynamicObstacle
 from fuzzynav.world import World
 
-#: the second word of the obstacles' random stream ``default_rng((seed, OBSTACLE_STREAM))``: independent of the
+#: the second word of the obstacles' random streams ``default_rng((seed, OBSTACLE_STREAM, group))``: independent of the
 #: sensor noise (``default_rng(seed)``) and of the generators' ``(seed, 7)``, so a scripted scenario (which
 #: draws nothing) keeps its logs, and a model's draws never shift the sensor noise
 OBSTACLE_STREAM = 11

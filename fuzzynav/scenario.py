@@ -34,6 +34,7 @@ from shapely.validation import explain_validity
 
 from fuzzynav import limits
 from fuzzynav.checks import check_count, check_key, check_name, check_text, key_text, kind_of, show
+from fuzzynav.portable_math import dist
 
 Vec2 = tuple[float, float]
 
@@ -245,7 +246,7 @@ def _check_reactive_starts(reactive: Sequence[tuple[int, DynamicObstacle]]) -> N
     starts = [(i, d, d.start if d.waypoints is None else d.waypoints[0]) for i, d in reactive]
     for a, (i, di, pi) in enumerate(starts):
         for j, dj, pj in starts[a + 1:]:
-            if math.hypot(pi[0] - pj[0], pi[1] - pj[1]) < di.radius + dj.radius:
+            if dist(pi, pj) < di.radius + dj.radius:
                 raise ScenarioError(f"dynamic_obstacles[{j}]: starts overlapping dynamic_obstacles[{i}] (pedestrians "
                                     f"of reactive models, {dj.model} and {di.model}, must start apart)")
 

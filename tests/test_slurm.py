@@ -339,7 +339,9 @@ def test_job_array_equals_the_same_sweep_on_all_cores(slurm: Cluster, tmp_path: 
     for table in ("episodes.csv", "groups.csv", "paired.csv"):
         pd.testing.assert_frame_equal(comparable_csv(on_slurm / "report" / table, on_slurm),
                                       comparable_csv(local / "report" / table, local), obj=table)
-    report = [(d / "report" / "report.md").read_text().replace(str(d), "<sweep>") for d in (on_slurm, local)]
+    # the sweeps' directories differ in length, and a Markdown table pads its columns to the longest log path
+    report = [re.sub(r"-{3,}", "---", re.sub(r" {2,}", " ", (d / "report" / "report.md").read_text().replace(
+        str(d), "<sweep>"))) for d in (on_slurm, local)]
     assert report[0] == report[1]
 
 
