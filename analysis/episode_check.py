@@ -86,9 +86,10 @@ _ROBOT = obj(start=array(number(), length=2), goal=array(number(), length=2), he
 
 
 @functools.lru_cache(maxsize=16)
-def _parse_world(text: str) -> Any:
+def parse_world(text: str) -> Any:
     """The parsed ``scenario_yaml`` metadata (None when it is too long or not YAML). Read-only: shared by the
-    checks of one log (two of them read it) and by the logs of a sweep, which often log the same world text."""
+    checks of one log (two of them read it), the TPT error per obstacle model (:mod:`analysis.tpt_errors`) and the
+    logs of a sweep, which often log the same world text."""
     try:
         return yaml.load(text, Loader=YAML_LOADER) if len(text) <= MAX_CONFIG_BYTES else None
     except (yaml.YAMLError, RecursionError):
@@ -97,7 +98,7 @@ def _parse_world(text: str) -> Any:
 
 def _scenario(log: EpisodeLog) -> dict | None:
     """The logged scenario (metadata ``scenario_yaml``) when it is one with a robot, else None."""
-    world = _parse_world(log.meta.get("scenario_yaml", ""))
+    world = parse_world(log.meta.get("scenario_yaml", ""))
     return world if isinstance(world, dict) and world.get("robot") is not None else None
 
 
@@ -143,7 +144,7 @@ def _check_against_scenario(log: EpisodeLog) -> None:
     logs have none, or a placeholder that is not a scenario): the robot starts at its start pose with its
     radius, each step's ``distance_to_goal_cm`` is the distance from the position after the move to the goal,
     and the scene's goal is that goal (to the 0.1 mm the scene rounds to)."""
-    world = _parse_world(log.meta.get("scenario_yaml", ""))
+    world = parse_world(log.meta.get("scenario_yaml", ""))
     robot = world.get("robot") if isinstance(world, dict) else None
     if robot is None:
         return

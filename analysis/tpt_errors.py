@@ -15,10 +15,9 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import yaml
 
+from analysis.episode_check import parse_world
 from analysis.episode_log import EpisodeLog
-from analysis.log_check import MAX_CONFIG_BYTES, YAML_LOADER
 from fuzzynav.obstacle_model import DEFAULT_MODEL
 from fuzzynav.portable_math import norm2
 
@@ -29,11 +28,7 @@ MODEL_COLUMNS = ("scripted", "social_force", "orca", "random_walk")
 
 def obstacle_models(meta: Mapping[str, str]) -> dict[str, str]:
     """Obstacle id -> model name from the logged scenario; {} when the log has no readable scenario."""
-    text = meta.get("scenario_yaml", "")
-    try:
-        world = yaml.load(text, Loader=YAML_LOADER) if 0 < len(text) <= MAX_CONFIG_BYTES else None
-    except (yaml.YAMLError, RecursionError):
-        return {}
+    world = parse_world(meta.get("scenario_yaml", ""))
     entries = world.get("dynamic_obstacles") if isinstance(world, dict) else None
     if not isinstance(entries, list):
         return {}

@@ -7,14 +7,13 @@ update). Positions in cm, velocities in cm/s.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from fuzzynav import limits
 from fuzzynav.kinematics import RobotState
-from fuzzynav.obstacle_model import DEFAULT_MODEL, CrowdView, ObstacleModel, model_config, model_factory
+from fuzzynav.obstacle_model import DEFAULT_MODEL, CrowdView, ObstacleModel, model_config, model_factory, substeps
 from fuzzynav.scenario import DynamicObstacle
 from fuzzynav.world import World
 
@@ -36,7 +35,7 @@ def crowd_work(obstacles: Sequence[DynamicObstacle], dt: float, max_steps: int) 
     for o in obstacles:
         substep = getattr(o.model_params, "substep_s", None)
         if substep:
-            per_step += max(1, math.ceil(dt / substep - 1e-9))
+            per_step += substeps(dt, substep)[0]
     return per_step * max_steps
 
 

@@ -56,6 +56,17 @@ def _fits(common: Mapping[str, Any], h: float) -> None:
                             "world (need 3 x radius + 50 < height / 2)")
 
 
+def _open_world(params: Mapping[str, Any], common: Mapping[str, Any], seed: int
+                ) -> tuple[float, float, np.random.Generator, np.ndarray, np.ndarray]:
+    """The open ``width`` x ``height`` world (cm, at least 600 x 400) of crowd_crossing, random_walkers and groups:
+    (w, h, the generator's random stream, robot start (100, h/2), goal (w - 100, h/2))."""
+    w, h = param(params, "width", 1200, float), param(params, "height", 800, float)
+    if w < 600 or h < 400:
+        raise ScenarioError(f"params.width/height: at least 600 x 400 cm, got {w:g} x {h:g}")
+    _fits(common, h)
+    return w, h, np.random.default_rng((int(seed), 7)), np.array([100.0, h / 2]), np.array([w - 100.0, h / 2])
+
+
 def _common(params: Mapping[str, Any], default_model: str = "social_force") -> dict[str, Any]:
     model = params.get("model", default_model)
     if not isinstance(model, str):
@@ -120,12 +131,7 @@ def crowd_crossing(params: Mapping[str, Any], seed: int, name: str = "crowd_cros
     _check_known(params, {"n", "width", "height"})
     common = _common(params)
     n = param(params, "n", 10, int)
-    w, h = param(params, "width", 1200, float), param(params, "height", 800, float)
-    if w < 600 or h < 400:
-        raise ScenarioError(f"params.width/height: at least 600 x 400 cm, got {w:g} x {h:g}")
-    _fits(common, h)
-    rng = np.random.default_rng((int(seed), 7))
-    start, goal = np.array([100.0, h / 2]), np.array([w - 100.0, h / 2])
+    w, h, rng, start, goal = _open_world(params, common, seed)
     placer = _Placer(rng, start, "pedestrian")
     dynamics = []
     for i in range(n):
@@ -172,12 +178,7 @@ def random_walkers(params: Mapping[str, Any], seed: int, name: str = "random_wal
     _check_known(params, {"n", "width", "height"})
     common = _common(params, default_model="random_walk")
     n = param(params, "n", 8, int)
-    w, h = param(params, "width", 1200, float), param(params, "height", 800, float)
-    if w < 600 or h < 400:
-        raise ScenarioError(f"params.width/height: at least 600 x 400 cm, got {w:g} x {h:g}")
-    _fits(common, h)
-    rng = np.random.default_rng((int(seed), 7))
-    start, goal = np.array([100.0, h / 2]), np.array([w - 100.0, h / 2])
+    w, h, rng, start, goal = _open_world(params, common, seed)
     placer = _Placer(rng, start, "pedestrian")
     dynamics = []
     for i in range(n):
@@ -204,9 +205,7 @@ def groups(params: Mapping[str, Any], seed: int, name: str = "groups") -> dict[s
     n_groups = param(params, "n_groups", 3, int)
     size = param(params, "group_size", 3, int)
     spacing = param(params, "spacing_cm", 60.0, float)
-    w, h = param(params, "width", 1200, float), param(params, "height", 800, float)
-    if w < 600 or h < 400:
-        raise ScenarioError(f"params.width/height: at least 600 x 400 cm, got {w:g} x {h:g}")
+    w, h, rng, start, goal = _open_world(params, common, seed)
     if n_groups < 1 or size < 1 or n_groups * size > 100:
         raise ScenarioError(f"params.n_groups/group_size: between 1 and 100 pedestrians in all, got "
                             f"{n_groups} x {size}")
@@ -215,9 +214,6 @@ def groups(params: Mapping[str, Any], seed: int, name: str = "groups") -> dict[s
     if (size - 1) * spacing + 2 * common["radius"][1] + 520.0 > w:
         raise ScenarioError(f"params.group_size: {size} side by side, {spacing:g} cm apart, do not fit the "
                             f"{w:g} cm wide world")
-    _fits(common, h)
-    rng = np.random.default_rng((int(seed), 7))
-    start, goal = np.array([100.0, h / 2]), np.array([w - 100.0, h / 2])
     placer = _Placer(rng, start, "group", "params.n_groups")
     dynamics = []
     for g in range(n_groups):

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from fuzzynav.checks import check_key, key_text, show
+from fuzzynav.portable_math import sin_cos_deg
 
 if TYPE_CHECKING:
     from fuzzynav.kinematics import RobotState
@@ -58,6 +59,26 @@ class CrowdView:
     radii: np.ndarray
     time_s: float
     step: int
+
+    def others(self, indices: np.ndarray, sees_robot: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the obstacles at ``indices`` avoid: every other moving obstacle, then the robot when
+        ``sees_robot`` (its velocity along its heading at its last speed) — positions (m, 2) cm, velocities
+        (m, 2) cm/s, radii (m,) cm."""
+        mask = np.ones(len(self.positions), dtype=bool)
+        mask[indices] = False
+        pos, vel, radii = self.positions[mask], self.velocities[mask], self.radii[mask]
+        if sees_robot:
+            sin_h, cos_h = sin_cos_deg(self.robot.heading)
+            pos = np.vstack([pos, [[self.robot.x, self.robot.y]]])
+            vel = np.vstack([vel, [[self.robot.v * cos_h, self.robot.v * sin_h]]])
+            radii = np.append(radii, self.robot_radius)
+        return pos, vel, radii
+
+
+def substeps(dt: float, substep_s: float) -> tuple[int, float]:
+    """How a step of ``dt`` seconds is integrated in substeps of at most ``substep_s`` seconds: (count, length s)."""
+    count = max(1, math.ceil(dt / substep_s - 1e-9))
+    return count, dt / count
 
 
 class ObstacleModel(Protocol):

@@ -28,10 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzynav.geometry import away_from_static, keep_inside
-from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model
+from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model, substeps
 from fuzzynav.orca import Line, choose_velocity, orca_line, static_point_line
 from fuzzynav.pedestrian_intent import Intent
-from fuzzynav.portable_math import hypot, norm2, sin_cos_deg
+from fuzzynav.portable_math import hypot, norm2
 from fuzzynav.scenario import DynamicObstacle
 
 
@@ -81,19 +81,10 @@ class PedestrianOrcaModel:
 
     def step(self, view: CrowdView, indices: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         c = self.config
-        n_sub = max(1, math.ceil(dt / c.substep_s - 1e-9))
-        h = dt / n_sub
-        others = np.ones(len(view.positions), dtype=bool)
-        others[indices] = False
-        o_pos0, o_vel = view.positions[others], view.velocities[others]
-        o_rad = view.radii[others]
-        o_share = [1.0] * len(o_pos0)
-        if c.sees_robot:
-            sin_h, cos_h = sin_cos_deg(view.robot.heading)
-            o_pos0 = np.vstack([o_pos0, [[view.robot.x, view.robot.y]]])
-            o_vel = np.vstack([o_vel, [[view.robot.v * cos_h, view.robot.v * sin_h]]])
-            o_rad = np.append(o_rad, view.robot_radius)
-            o_share.append(c.robot_responsibility)
+        n_sub, h = substeps(dt, c.substep_s)
+        o_pos0, o_vel, o_rad = view.others(indices, c.sees_robot)
+        # all of each avoidance against obstacles of other models, the robot's share against the robot (last)
+        o_share = [1.0] * (len(o_pos0) - c.sees_robot) + [c.robot_responsibility] * c.sees_robot
         max_speed = c.max_speed_factor * self.intent.speeds
         x, v = self.x, self.v
         n = len(x)

@@ -33,14 +33,13 @@ at that time). Every sum is taken in a fixed order (:func:`fuzzynav.portable_mat
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from fuzzynav.geometry import away_from_static, keep_inside
-from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model
+from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model, substeps
 from fuzzynav.pedestrian_intent import Intent
 from fuzzynav.portable_math import exp_array, norm2, sequential_sum, sin_cos_deg
 from fuzzynav.scenario import DynamicObstacle
@@ -136,16 +135,8 @@ class SocialForceModel:
 
     def step(self, view: CrowdView, indices: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         c = self.config
-        n_sub = max(1, math.ceil(dt / c.substep_s - 1e-9))
-        h = dt / n_sub
-        others = np.ones(len(view.positions), dtype=bool)
-        others[indices] = False
-        o_pos0, o_vel = view.positions[others], view.velocities[others]
-        if c.sees_robot:
-            sin_h, cos_h = sin_cos_deg(view.robot.heading)
-            robot_vel = np.array([[view.robot.v * cos_h, view.robot.v * sin_h]])
-            o_pos0 = np.vstack([o_pos0, [[view.robot.x, view.robot.y]]])
-            o_vel = np.vstack([o_vel, robot_vel])
+        n_sub, h = substeps(dt, c.substep_s)
+        o_pos0, o_vel, _ = view.others(indices, c.sees_robot)
         segments, circles = view.world.segments, view.world.circles
         v_max = c.max_speed_factor * self.intent.speeds
         x, v = self.x, self.v
