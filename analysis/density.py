@@ -33,14 +33,21 @@ def count_key(df: pd.DataFrame) -> str | None:
 
 
 def density_table(df: pd.DataFrame) -> pd.DataFrame:
-    """One row per scenario, count and variant: episodes, success rate [Wilson 95 %], mean minimum clearance to
-    moving obstacles [bootstrap 95 %] (cm). Empty when no count differs."""
+    """One row per scenario (with its other differing ``scenario.*`` parameters), count and variant: episodes,
+    success rate [Wilson 95 %], mean minimum clearance to moving obstacles [bootstrap 95 %] (cm). Empty when no
+    count differs."""
     key = count_key(df)
     if key is None:
         return pd.DataFrame()
     rows = []
     sub = df[pd.to_numeric(df[key], errors="coerce").notna()]
-    for (scenario, count, variant), g in sub.groupby(["scenario", key, "variant"], sort=False):
+    # a scenario's other differing parameters (its model, its speeds...) split its lines: never pooled
+    others = [c for c in df.columns if c.startswith("scenario.") and c != key]
+    line = sub["scenario"].astype(str)
+    for c in others:
+        line = line + f" · {c.rpartition('.')[2]}=" + sub[c].astype(str)
+    sub = sub.assign(_line=line)
+    for (scenario, count, variant), g in sub.groupby(["_line", key, "variant"], sort=False):
         rate, lo, hi = wilson(int(g["success"].sum()), len(g))
         clear, c_lo, c_hi = bootstrap_mean(g["min_clearance_dynamic_cm"])
         rows.append({"scenario": scenario, "pedestrians": int(float(count)), "variant": variant, "episodes": len(g),

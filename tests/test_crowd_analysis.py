@@ -67,6 +67,12 @@ def test_density_table_lines_up_groups_without_pooling():
     assert auto20["success"] == 0.25 and auto20["success_lo"] < 0.25 < auto20["success_hi"]
     assert auto20["min_clearance_dynamic_cm"] == pytest.approx(np.mean([200, 201, 202, 203]))
     assert count_key(df[df["scenario.params.n"] == 5]) is None
+    # another differing scenario parameter (the pedestrians' model) is its own line, never pooled
+    two_models = pd.concat([df.assign(**{"scenario.params.model": "social_force"}),
+                            df.assign(**{"scenario.params.model": "orca"})])
+    lines = density_table(two_models)
+    assert len(lines) == 8 and set(lines["episodes"]) == {4}
+    assert set(lines["scenario"]) == {"crowd_crossing · model=social_force", "crowd_crossing · model=orca"}
 
 
 def test_a_crowd_density_sweep_runs_and_reports(tmp_path):
