@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -20,13 +21,67 @@ def wilson(successes: int, n: int, z: float = Z95) -> tuple[float, float, float]
     return p, max(0.0, centre - half), min(1.0, centre + half)
 
 
+_RESAMPLES_BYTES = 256 * 2**20
+"""Memory the cached resampling indices may hold (a report of 10,000 episodes needs a few dozen sizes)."""
+_resamples: OrderedDict[tuple[int, int, int], list] = OrderedDict()
+_RESULTS_MAX = 20_000
+_results: OrderedDict[tuple, tuple[float, float, float]] = OrderedDict()
+_EXACT_SUM = 2.0**52
+"""Sums of integers below this are exact in float64 whatever the order of the additions."""
+
+
+def _resample(n: int, n_boot: int, seed: int) -> list:
+    """[indices (n_boot, n), their counts per row or None]: the resampling of ``n`` values that the seeded generator
+    draws (the same for every sample of ``n`` values, so it is drawn once and kept: drawing it was most of a report's
+    time); least recently used sizes are dropped beyond :data:`_RESAMPLES_BYTES`."""
+    key = (n, n_boot, seed)
+    entry = _resamples.get(key)
+    if entry is not None:
+        _resamples.move_to_end(key)
+        return entry
+    entry = [np.random.default_rng(seed).integers(0, n, size=(n_boot, n)), None]
+    _resamples[key] = entry
+    while len(_resamples) > 1 and sum(e[0].nbytes * 2 for e in _resamples.values()) > _RESAMPLES_BYTES:
+        _resamples.popitem(last=False)
+    return entry
+
+
+def _resampled_means(x: np.ndarray, n_boot: int, seed: int) -> np.ndarray:
+    """The means of the ``n_boot`` seeded resamples of ``x``: ``x[indices].mean(axis=1)``. For integers (counts,
+    booleans, steps) whose sums are exact in float64 whatever the order, the same numbers from the resamples' counts
+    of each value (a matrix product instead of gathering ``n_boot`` x ``n`` values)."""
+    entry = _resample(len(x), n_boot, seed)
+    indices = entry[0]
+    if np.isfinite(x).all() and np.abs(x).sum() * len(x) < _EXACT_SUM and (x == np.round(x)).all():
+        if entry[1] is None:
+            n = len(x)
+            flat = (indices + (np.arange(n_boot) * n)[:, None]).ravel()
+            entry[1] = np.bincount(flat, minlength=n_boot * n).reshape(n_boot, n).astype(float)
+        return entry[1] @ x / len(x)
+    return x[indices].mean(axis=1)
+
+
 def bootstrap_mean(values, n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> tuple[float, float, float]:
     """Mean and percentile-bootstrap interval of the mean (NaNs dropped; interval NaN below 2 values; with an
     infinite value the mean is infinite and so is an end of the interval).
 
-    Seeded, so a report is reproducible."""
+    Seeded, so a report is reproducible: the resamples are those of ``default_rng(seed).integers(0, n, (n_boot,
+    n))`` for ``n`` values. The result of equal values is kept, so that figures and tables showing the same
+    interval compute it once."""
     x = np.asarray(values, dtype=float)
     x = x[~np.isnan(x)]
+    key = (x.tobytes(), n_boot, seed, level)
+    if key in _results:
+        _results.move_to_end(key)
+        return _results[key]
+    result = _bootstrap_mean(x, n_boot, seed, level)
+    _results[key] = result
+    if len(_results) > _RESULTS_MAX:
+        _results.popitem(last=False)
+    return result
+
+
+def _bootstrap_mean(x: np.ndarray, n_boot: int, seed: int, level: float) -> tuple[float, float, float]:
     if len(x) == 0:
         return math.nan, math.nan, math.nan
     if np.isposinf(x).any() and np.isneginf(x).any():  # +inf and -inf together: no mean
@@ -36,14 +91,13 @@ def bootstrap_mean(values, n_boot: int = 2000, seed: int = 0, level: float = 0.9
         return mean, math.nan, math.nan
     if np.all(x == x[0]):
         return mean, mean, mean
-    rng = np.random.default_rng(seed)
-    means = x[rng.integers(0, len(x), size=(n_boot, len(x)))].mean(axis=1)
+    means = _resampled_means(x, n_boot, seed)
     alpha = (1 - level) / 2
     # an infinite value (min_ttc_s: never on a collision course) makes resampled means infinite; interpolating
     # between two of them is inf - inf (NaN, and a warning): take order statistics instead, e.g. [1.2, inf]
     method = "linear" if np.isfinite(means).all() else "inverted_cdf"
-    return (mean, float(np.quantile(means, alpha, method=method)),
-            float(np.quantile(means, 1 - alpha, method=method)))
+    low, high = np.quantile(means, [alpha, 1 - alpha], method=method)
+    return mean, float(low), float(high)
 
 
 def excludes_zero(lo: float, hi: float) -> bool:
