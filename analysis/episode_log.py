@@ -19,7 +19,7 @@ import shapely
 from shapely.geometry import Point, Polygon, box
 
 from analysis.episode_check import check_episode
-from analysis.log_check import CheckError, check_message, check_metadata
+from analysis.log_check import CheckError, check_message, check_metadata, messages_acceptable
 from analysis.logs import LogError, LogFile, decode
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
@@ -127,12 +127,37 @@ def _read_scene(log: EpisodeLog, scene: dict[str, Any]) -> None:
 def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], times: dict[str, list[int]]
                    ) -> None:
     """Decode each message, check the fields the analysis reads (:func:`check_message`) and file it into
-    ``log``; ``times`` collects each topic's log times (ns) for :func:`check_episode`."""
+    ``log``; ``times`` collects each topic's log times (ns) for :func:`check_episode`.
+
+    The checks are decided per topic over the whole episode at once (:func:`messages_acceptable`); only when that
+    says no are the messages checked one by one, in file order, so that the error names the first bad message
+    and field exactly as a message-by-message reading would."""
+    decoded: list[tuple[str, int, Any]] = []
     scene_seen = False
-    for topic, t, data in messages:
-        if topic == "/scene" and scene_seen:
-            continue  # only the first scene (the static world) is read; the later ones are for Foxglove
-        msg = decode(log.path, topic, data)
+    try:
+        for topic, t, data in messages:
+            if topic == "/scene":
+                if scene_seen:
+                    continue  # only the first scene (the static world) is read; the later ones are for Foxglove
+                scene_seen = True
+            decoded.append((topic, t, decode(log.path, topic, data)))
+    except LogError:
+        _check_each_and_file(log, decoded, times)  # a bad message before the undecodable one is named first
+        raise
+    by_topic: dict[str, list[Any]] = {}
+    for topic, _t, msg in decoded:
+        by_topic.setdefault(topic, []).append(msg)
+    if all(messages_acceptable(topic, msgs) for topic, msgs in by_topic.items()):
+        for topic, t, msg in decoded:
+            times[topic].append(t)
+            _file(log, topic, msg)
+    else:
+        _check_each_and_file(log, decoded, times)
+
+
+def _check_each_and_file(log: EpisodeLog, decoded: list[tuple[str, int, Any]], times: dict[str, list[int]]) -> None:
+    """Check the messages one by one in file order (raising at the first bad one), filing each into ``log``."""
+    for topic, t, msg in decoded:
         try:
             check_message(topic, msg)
         except CheckError as err:
@@ -141,19 +166,23 @@ def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], 
             what = f"missing field '{err.where}'" if err.problem == "missing" else str(err)
             raise LogError(f"{log.path}: {topic} message {at} does not match its schema: {what}", "schema") from None
         times[topic].append(t)
-        if topic == "/scene":
-            _read_scene(log, msg)
-            scene_seen = True
-        elif topic == "/tpt":
-            if msg["step"] in log.tpts:
-                raise CheckError(f"/tpt step {msg['step']}", "two tables for one step")
-            log.tpts[msg["step"]] = msg
-        elif topic == "/episode":
-            if log.episode is not None:
-                raise CheckError("/episode", "two outcome messages")
-            log.episode = msg
-        else:
-            getattr(log, _TOPIC_LISTS[topic]).append(msg)
+        _file(log, topic, msg)
+
+
+def _file(log: EpisodeLog, topic: str, msg: Any) -> None:
+    """Put one checked message where the analysis reads it."""
+    if topic == "/scene":
+        _read_scene(log, msg)
+    elif topic == "/tpt":
+        if msg["step"] in log.tpts:
+            raise CheckError(f"/tpt step {msg['step']}", "two tables for one step")
+        log.tpts[msg["step"]] = msg
+    elif topic == "/episode":
+        if log.episode is not None:
+            raise CheckError("/episode", "two outcome messages")
+        log.episode = msg
+    else:
+        getattr(log, _TOPIC_LISTS[topic]).append(msg)
 
 
 _TOPIC_LISTS = {"/robot/state": "states", "/obstacles/truth": "truth", "/planner/decision": "decisions",

@@ -2,7 +2,13 @@
 that raise :class:`CheckError` naming the field and the problem. Common cases are decided at C speed — the number
 fields of one object that share a range with one ``itemgetter``, a set of types, ``min`` and ``max``; arrays of
 numbers, of [x, y] pairs and of booleans likewise — and only a value that fails is walked item by item to say
-what is wrong. Units are the caller's (the log checks use cm, cm/s, degrees, s)."""
+what is wrong. Units are the caller's (the log checks use cm, cm/s, degrees, s).
+
+Every rule also has a *batch* form, :func:`accepts_all` (``rule.batch(values) -> bool``): whether every value of a
+list is acceptable, decided over the whole list at once — an episode's hundred ``/robot/state`` messages are one
+``itemgetter`` per field group, one set of types, one ``min`` and one ``max``. It never says what is wrong: when it
+says no, the caller runs the rule value by value, which names the first bad field. The batch form accepts exactly
+what the rule accepts (a property test checks the two against each other on mutated messages)."""
 
 from __future__ import annotations
 
@@ -31,6 +37,51 @@ class CheckError(ValueError):
 
 
 Check = Callable[[Any], None]  # raises CheckError (with an empty ``where``) if the value is not acceptable
+Batch = Callable[[list[Any]], bool]  # True if every value of the list is acceptable
+
+
+def accepts_all(rule: Check, values: list[Any]) -> bool:
+    """Whether ``rule`` accepts every one of ``values``: its batch form when it has one, else value by value."""
+    batch = getattr(rule, "batch", None)
+    if batch is not None:
+        try:
+            return bool(batch(values))
+        except (KeyError, TypeError, IndexError, AttributeError, ValueError, OverflowError):  # an unexpected shape
+            return False
+    try:
+        for v in values:
+            rule(v)
+    except CheckError:
+        return False
+    return True
+
+
+def with_batch(rule: Check, batch: Batch) -> Check:
+    rule.batch = batch  # type: ignore[attr-defined]
+    return rule
+
+
+def _types_within(values: Any, allowed: frozenset) -> bool:
+    return set(map(type, values)) <= allowed
+
+
+def _numbers_within(values: list[Any], lo: float, hi: float) -> bool:
+    """All ``values`` are JSON numbers (not booleans) in [lo, hi] (JSON has no NaN: orjson refuses it)."""
+    return not values or (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi)
+
+
+def _integers_within(values: list[Any], lo: int, hi: int) -> bool:
+    return not values or (set(map(type, values)) <= INT_TYPES and lo <= min(values) and max(values) <= hi)
+
+
+def _lists(values: list[Any], min_items: int = 0, length: int | None = None) -> bool:
+    """All ``values`` are lists of at least ``min_items`` (exactly ``length`` when given) items."""
+    if not values:
+        return True
+    if not set(map(type, values)) <= LIST_TYPES:
+        return False
+    lengths = set(map(len, values))
+    return min(lengths) >= min_items and (length is None or lengths == {length})
 
 
 def kind_of(value: Any) -> str:
@@ -48,7 +99,7 @@ def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo:g}, {hi:g}]")
     check.bounds = (lo, hi)  # type: ignore[attr-defined]  # lets obj() check such fields together
-    return check
+    return with_batch(check, lambda vs: _numbers_within(vs, lo, hi))
 
 
 def integer(lo: int = 0, hi: int = 2**63 - 1) -> Check:
@@ -57,7 +108,7 @@ def integer(lo: int = 0, hi: int = 2**63 - 1) -> Check:
             raise CheckError("", f"expected an integer, got {kind_of(v)}")
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo}, {hi}]")
-    return check
+    return with_batch(check, lambda vs: _integers_within(vs, lo, hi))
 
 
 def boolean(v: Any) -> None:
@@ -65,9 +116,15 @@ def boolean(v: Any) -> None:
         raise CheckError("", f"expected a boolean, got {kind_of(v)}")
 
 
+boolean.batch = lambda vs: _types_within(vs, BOOL_TYPES)  # type: ignore[attr-defined]
+
+
 def string(v: Any) -> None:
     if type(v) is not str:
         raise CheckError("", f"expected a string, got {kind_of(v)}")
+
+
+string.batch = lambda vs: _types_within(vs, STR_TYPES)  # type: ignore[attr-defined]
 
 
 def one_of(*values: str) -> Check:
@@ -76,7 +133,7 @@ def one_of(*values: str) -> Check:
     def check(v: Any) -> None:
         if type(v) is not str or v not in allowed:
             raise CheckError("", f"{v!r} is not one of {', '.join(values)}")
-    return check
+    return with_batch(check, lambda vs: _types_within(vs, STR_TYPES) and set(vs) <= allowed)
 
 
 def matching(pattern: re.Pattern[str], what: str) -> Check:
@@ -84,14 +141,14 @@ def matching(pattern: re.Pattern[str], what: str) -> Check:
     def check(v: Any) -> None:
         if type(v) is not str or not pattern.fullmatch(v):
             raise CheckError("", f"{str(v)[:40]!r} is not {what}")
-    return check
+    return with_batch(check, lambda vs: _types_within(vs, STR_TYPES) and all(map(pattern.fullmatch, set(vs))))
 
 
 def nullable(inner: Check) -> Check:
     def check(v: Any) -> None:
         if v is not None:
             inner(v)
-    return check
+    return with_batch(check, lambda vs: accepts_all(inner, [v for v in vs if v is not None]))
 
 
 def array(item: Check, min_items: int = 0, length: int | None = None) -> Check:
@@ -107,7 +164,8 @@ def array(item: Check, min_items: int = 0, length: int | None = None) -> Check:
                 item(x)
         except CheckError as err:
             raise err.inside(f"[{i}]") from None
-    return check
+    return with_batch(check, lambda vs: _lists(vs, min_items, length)
+                       and accepts_all(item, list(chain.from_iterable(vs))))
 
 
 class _Slow(Exception):
@@ -151,12 +209,25 @@ def obj(**fields: Check) -> Check:
         except (KeyError, CheckError, _Slow):
             field_by_field(v)
             raise CheckError("", "not acceptable") from None  # unreachable while the two paths agree
-    return check
+
+    def batch(vs: list[Any]) -> bool:
+        if not vs:
+            return True
+        if not set(map(type, vs)) <= DICT_TYPES:
+            return False
+        for get, lo, hi in groups:
+            if not _numbers_within(list(chain.from_iterable(map(get, vs))), lo, hi):
+                return False
+        return all(accepts_all(field_check, list(map(itemgetter(name), vs))) for name, field_check in others)
+    return with_batch(check, batch)
 
 
 NUMBER_TYPES = frozenset({int, float})
+INT_TYPES = frozenset({int})
 LIST_TYPES = frozenset({list})
 BOOL_TYPES = frozenset({bool})
+STR_TYPES = frozenset({str})
+DICT_TYPES = frozenset({dict})
 
 
 def _fast(accept: Callable[[Any], bool], slow: Check) -> Check:
@@ -175,7 +246,9 @@ def numbers(lo: float = -MAX_CM, hi: float = MAX_CM, min_items: int = 0, length:
         if type(v) is not list or len(v) < min_items or (length is not None and len(v) != length):
             return False
         return not v or (set(map(type, v)) <= NUMBER_TYPES and lo <= min(v) and max(v) <= hi)
-    return _fast(accept, array(number(lo, hi), min_items, length))
+    return with_batch(_fast(accept, array(number(lo, hi), min_items, length)),
+                       lambda vs: _lists(vs, min_items, length) and _numbers_within(list(chain.from_iterable(vs)),
+                                                                                    lo, hi))
 
 
 def are_points(v: Any) -> bool:
@@ -192,7 +265,9 @@ def are_points(v: Any) -> bool:
 
 def points(min_items: int = 0) -> Check:
     """An array of [x, y] pairs of numbers (cm)."""
-    return _fast(lambda v: are_points(v) and len(v) >= min_items, array(array(number(), length=2), min_items))
+    return with_batch(_fast(lambda v: are_points(v) and len(v) >= min_items,
+                             array(array(number(), length=2), min_items)),
+                       lambda vs: _lists(vs, min_items) and are_points(list(chain.from_iterable(vs))))
 
 
 def point_rows(min_items: int = 0) -> Check:
@@ -200,7 +275,10 @@ def point_rows(min_items: int = 0) -> Check:
     def accept(v: Any) -> bool:
         return type(v) is list and len(v) >= min_items and set(map(type, v)) <= LIST_TYPES \
             and are_points(list(chain.from_iterable(v)))
-    return _fast(accept, array(points(), min_items))
+    def batch(vs: list[Any]) -> bool:
+        rows = list(chain.from_iterable(vs)) if _lists(vs, min_items) else None
+        return rows is not None and _lists(rows) and are_points(list(chain.from_iterable(rows)))
+    return with_batch(_fast(accept, array(points(), min_items)), batch)
 
 
 def boolean_rows(min_items: int = 0) -> Check:
@@ -208,6 +286,9 @@ def boolean_rows(min_items: int = 0) -> Check:
     def accept(v: Any) -> bool:
         return type(v) is list and len(v) >= min_items and set(map(type, v)) <= LIST_TYPES \
             and set(map(type, chain.from_iterable(v))) <= BOOL_TYPES
-    return _fast(accept, array(array(boolean), min_items))
+    def batch(vs: list[Any]) -> bool:
+        rows = list(chain.from_iterable(vs)) if _lists(vs, min_items) else None
+        return rows is not None and _lists(rows) and _types_within(chain.from_iterable(rows), BOOL_TYPES)
+    return with_batch(_fast(accept, array(array(boolean), min_items)), batch)
 
 

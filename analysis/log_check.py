@@ -23,17 +23,19 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from itertools import chain
+from itertools import chain, repeat
 from typing import Any
 
 import yaml
 
 from analysis.json_checks import (
     BOOL_TYPES,
+    DICT_TYPES,
     LIST_TYPES,
     MAX_CM,
     Check,
     CheckError,
+    accepts_all,
     are_points,
     array,
     boolean,
@@ -49,13 +51,15 @@ from analysis.json_checks import (
     point_rows,
     points,
     string,
+    with_batch,
 )
 from fuzzynav import limits
 from fuzzynav import policy as policy_names
 from fuzzynav.episode_identity import POLICY_SOURCE, config_hash  # what runners.run records: one definition
 from fuzzynav.policy import DEFAULT_POLICY
 
-__all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash"]
+__all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash",
+           "messages_acceptable"]
 
 MAX_US = 1e12  # compute time of one decision (µs): 11 days
 MIN_DT_S, MAX_DT_S = limits.MIN_DT_S, limits.MAX_DT_S  # the step lengths (s) a run accepts: one definition
@@ -111,6 +115,39 @@ def check_tpt(v: Any) -> None:
     raise CheckError("", "not acceptable")  # unreachable while the fast and slow rules agree
 
 
+def _tpts_acceptable(vs: list[Any]) -> bool:
+    """:func:`check_tpt`'s acceptance over a whole episode's tables at once (see :func:`accepts_all`)."""
+    if not accepts_all(_TPT_SCALARS, vs):
+        return False
+    rows = [v["n_traj"] + 1 for v in vs]
+    ks = [len(v["obstacle_ids"]) for v in vs]
+    if [len(v["obstacle_radii_cm"]) for v in vs] != ks:
+        return False
+    robot = [v.get("robot_cm") for v in vs]
+    if not (_all_lists(robot) and list(map(len, robot)) == rows and are_points(list(chain.from_iterable(robot)))):
+        return False
+    per_row = None
+    for name in ("obstacles_cm", "collide"):
+        tables = [v.get(name) for v in vs]
+        if not (_all_lists(tables) and list(map(len, tables)) == rows):  # the rows exist before k per row is built
+            return False
+        table_rows = list(chain.from_iterable(tables))
+        if per_row is None:
+            per_row = list(chain.from_iterable(map(repeat, ks, rows)))
+        if not (_all_lists(table_rows) and list(map(len, table_rows)) == per_row):
+            return False
+        cells = list(chain.from_iterable(table_rows))
+        if not (are_points(cells) if name == "obstacles_cm" else set(map(type, cells)) <= BOOL_TYPES):
+            return False
+    return True
+
+
+def _all_lists(values: list[Any]) -> bool:
+    return set(map(type, values)) <= LIST_TYPES
+
+
+with_batch(check_tpt, _tpts_acceptable)
+
 _DECISION = obj(
     step=STEP, mode=matching(MODE, "a mode such as fuzzy or wait"), new_plan=boolean, left_cm=READING,
     front_cm=READING, right_cm=READING,
@@ -134,6 +171,27 @@ def _check_decision(v: Any) -> None:
             continue
         raise CheckError(f"policy_fields.{str(key)[:40]}", f"expected a finite number, a boolean or a string, got "
                                                            f"{kind_of(value)}")
+
+
+_POLICY_FIELD_TYPES = frozenset({bool, str, int, float})
+
+
+def _decisions_acceptable(vs: list[Any]) -> bool:
+    """:func:`_check_decision`'s acceptance over a whole episode's decisions at once (see :func:`accepts_all`)."""
+    if not accepts_all(_DECISION, vs):
+        return False
+    policies = {v["policy"] for v in vs if "policy" in v}
+    if not all(map(policy_names.is_policy_id, policies)):
+        return False
+    fields = [v.get("policy_fields", {}) for v in vs]
+    if not set(map(type, fields)) <= DICT_TYPES:
+        return False
+    values = list(chain.from_iterable(f.values() for f in fields))
+    return set(map(type, values)) <= _POLICY_FIELD_TYPES \
+        and all(math.isfinite(x) for x in values if type(x) is float or type(x) is int)
+
+
+with_batch(_check_decision, _decisions_acceptable)
 
 
 MESSAGE_CHECKS: dict[str, Check] = {
@@ -170,6 +228,13 @@ def check_message(topic: str, msg: Any) -> None:
     check = MESSAGE_CHECKS.get(topic)
     if check is not None:
         check(msg)
+
+
+def messages_acceptable(topic: str, msgs: list[Any]) -> bool:
+    """Whether :func:`check_message` accepts every one of ``msgs`` (one topic's), decided over the list at once; it
+    never says what is wrong — when it says no, check the messages one by one."""
+    check = MESSAGE_CHECKS.get(topic)
+    return check is None or accepts_all(check, msgs)
 
 
 # -- metadata -------------------------------------------------------------------------------------------------

@@ -39,6 +39,7 @@ _RECORD = struct.Struct("<BQ")  # opcode, body length
 _CHUNK_HEAD = struct.Struct("<QQQI")  # message start time, end time, uncompressed size, uncompressed CRC
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 _CHANNEL_TIME = struct.Struct("<H4xQ")  # a message's channel id and log time
+_MESSAGE_START = struct.Struct("<BQH4xQ")  # a record's opcode and length, and if it is a message its channel and time
 
 
 class McapError(ValueError):
@@ -253,21 +254,23 @@ class _Reader:
             raise McapError(f"chunk at byte {at}: CRC mismatch (the chunk's content is damaged)")
         keep_of, append = self.keep.get, self.out.messages.append
         pos = 0
+        start, head = _MESSAGE_START.unpack_from, _RECORD.size + _MESSAGE_HEAD.size
         while pos < size:
-            if pos + _RECORD.size > size:
+            if pos + _MESSAGE_START.size <= size:  # one unpack for most records (messages); the rest is ignored
+                opcode, length, channel, log_time = start(records, pos)
+            elif pos + _RECORD.size <= size:
+                (opcode, length), channel, log_time = _RECORD.unpack_from(records, pos), -1, 0
+            else:
                 raise McapError(f"chunk at byte {at}: a record header is cut at the chunk's end")
-            opcode, length = _RECORD.unpack_from(records, pos)
             stop = pos + _RECORD.size + length
             if stop > size:
                 raise McapError(f"chunk at byte {at}: a record runs past the chunk's end")
             if opcode == MESSAGE:  # inline: most records are messages
-                body = pos + _RECORD.size
                 if length < _MESSAGE_HEAD.size:
                     raise McapError(f"chunk at byte {at}: a message record is too short")
-                channel, log_time = _CHANNEL_TIME.unpack_from(records, body)
                 keep = keep_of(channel)
                 if keep:
-                    append((channel, log_time, records[body + _MESSAGE_HEAD.size:stop]))
+                    append((channel, log_time, records[pos + head:stop]))
                 elif keep is None:
                     raise McapError(f"chunk at byte {at}: message on undeclared channel {channel}")
             elif opcode in _IN_CHUNK:

@@ -42,43 +42,71 @@ def obstacle_models(meta: Mapping[str, str]) -> dict[str, str]:
 
 def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, float]]]:
     """(ADE, FDE) in cm over all predicted obstacles, and per obstacle model. Each predicted obstacle is matched to
-    the nearest true obstacle at the table's time (within its radius + 50 cm); rows past the end of the episode
-    are not scored. NaN where nothing was predicted."""
+    the nearest true obstacle at the table's time (within its radius + 50 cm; the first of equally near ones); rows
+    past the end of the episode are not scored. NaN where nothing was predicted.
+
+    The tables of one shape (rows x obstacle columns) are scored together as arrays; the means are correctly
+    rounded sums (``math.fsum``), so they do not depend on that order."""
     nan = (math.nan, math.nan)
     if not log.tpts or not log.truth:
         return *nan, {}
+    ids = [o["id"] for o in log.truth[0]["obstacles"]]  # the same obstacles at every step (the log check)
+    last = {oid: j for j, oid in enumerate(ids)}  # an id given twice: its last entry, as a dict of the step keeps
+    if not last:
+        return *nan, {}
+    columns = list(last.values())
+    truth = np.array([[(o["x_cm"], o["y_cm"]) for o in m["obstacles"]] for m in log.truth], dtype=float)
+    truth = truth[:, columns]  # (steps, obstacles, 2)
     models = obstacle_models(log.meta)
-    truth_at = {m["step"]: {o["id"]: (o["x_cm"], o["y_cm"]) for o in m["obstacles"]} for m in log.truth}
-    errors: dict[str, list[float]] = {}
-    finals: dict[str, list[float]] = {}
+    model_of = np.array([models.get(oid, DEFAULT_MODEL) for oid in last])
+    errors: dict[str, list[np.ndarray]] = {}
+    finals: dict[str, list[np.ndarray]] = {}
+    by_shape: dict[tuple[int, int], list[dict[str, Any]]] = {}
     for step, t in log.tpts.items():
-        now = truth_at.get(step)
-        if not now:
-            continue
-        ids = list(now)
-        true_now = np.array([now[i] for i in ids])
-        predicted = np.array(t["obstacles_cm"], dtype=float).reshape(len(t["obstacles_cm"]), -1, 2)  # (rows, K, 2)
-        for j, radius in enumerate(t["obstacle_radii_cm"]):
-            pred = predicted[:, j]  # (n_traj + 1, 2)
-            d0 = norm2(true_now - pred[0])
-            match = int(np.argmin(d0))
-            if d0[match] > radius + 50.0:
-                continue
-            oid = ids[match]
-            rows = [k for k in range(1, len(pred)) if oid in truth_at.get(step + k, {})]
-            if rows:
-                actual = np.array([truth_at[step + k][oid] for k in rows])
-                errs = norm2(pred[rows] - actual)
-                model = models.get(oid, DEFAULT_MODEL)
-                errors.setdefault(model, []).extend(errs.tolist())
-                finals.setdefault(model, []).append(float(errs[-1]))
+        if step < len(truth) and t["obstacle_radii_cm"]:
+            by_shape.setdefault((len(t["obstacles_cm"]), len(t["obstacle_radii_cm"])), []).append(t)
+    for (rows, k), tables in by_shape.items():
+        for model, errs, final in _score(truth, tables, rows, k, model_of):
+            errors.setdefault(model, []).append(errs)
+            finals.setdefault(model, []).append(final)
     if not errors:
         return *nan, {}
-    every = [e for errs in errors.values() for e in errs]
-    every_final = [f for fs in finals.values() for f in fs]
-    by_model = {m: (math.fsum(errors[m]) / len(errors[m]), math.fsum(finals[m]) / len(finals[m]))
-                for m in errors}
-    return math.fsum(every) / len(every), math.fsum(every_final) / len(every_final), by_model
+    by_model = {m: _mean(errors[m]) for m in errors}
+    finals_by_model = {m: _mean(finals[m]) for m in finals}
+    return (_mean([e for es in errors.values() for e in es]), _mean([f for fs in finals.values() for f in fs]),
+            {m: (by_model[m], finals_by_model[m]) for m in by_model})
+
+
+def _score(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int, model_of: np.ndarray):
+    """Yield (model, displacement errors, final errors) in cm for ``tables`` of ``rows`` rows and ``k`` obstacle
+    columns, all within the truth's steps. ``truth``: (steps, obstacles, 2) cm; ``model_of``: per obstacle."""
+    if rows < 2:  # a table of the present only predicts nothing
+        return
+    n_steps = len(truth)
+    step = np.array([t["step"] for t in tables])
+    predicted = np.array([t["obstacles_cm"] for t in tables], dtype=float).reshape(len(tables), rows, k, 2)
+    radius = np.array([t["obstacle_radii_cm"] for t in tables], dtype=float)  # (tables, k)
+    now = truth[step]  # (tables, obstacles, 2)
+    d0 = norm2(now[:, None, :, :] - predicted[:, 0, :, None, :])  # (tables, k, obstacles)
+    match = np.argmin(d0, axis=2)  # (tables, k)
+    near = np.take_along_axis(d0, match[..., None], axis=2)[..., 0] <= radius + 50.0
+    scored = np.minimum(rows - 1, n_steps - 1 - step)  # rows after the table's own that the truth still covers
+    ahead = np.arange(1, rows)
+    at = np.minimum(step[:, None] + ahead[None, :], n_steps - 1)  # (tables, rows - 1), clipped where unscored
+    actual = truth[at[:, :, None], match[:, None, :]]  # (tables, rows - 1, k, 2)
+    errs = norm2(predicted[:, 1:] - actual)  # (tables, rows - 1, k)
+    counted = (ahead[None, :] <= scored[:, None])[:, :, None] & near[:, None, :]  # (tables, rows - 1, k)
+    has_final = near & (scored >= 1)[:, None]  # (tables, k)
+    final = np.take_along_axis(errs, np.maximum(scored - 1, 0)[:, None, None], axis=1)[:, 0, :]  # (tables, k)
+    model = model_of[match]  # (tables, k)
+    for name in dict.fromkeys(model[has_final].tolist()):
+        mine = model == name
+        yield name, errs[counted & mine[:, None, :]], final[has_final & mine]
+
+
+def _mean(parts: list[np.ndarray]) -> float:
+    values = [v for part in parts for v in part.tolist()]
+    return math.fsum(values) / len(values)
 
 
 def model_columns(by_model: Mapping[str, tuple[float, float]]) -> dict[str, Any]:
