@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -91,18 +92,24 @@ def measure(episodes: int, scenario: str, jobs: int) -> dict:
         cmd = [sys.executable, "-m", "runners.sweep", f"scenario={scenario}",
                f"planner={','.join(STRATEGIES[:jobs])}", f"episodes={per_job}", f"hydra.sweep.dir={tmp}/sweep"]
         start = time.perf_counter()
-        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        while proc.poll() is None:
-            now = time.perf_counter() - start
-            tree = _tree(proc.pid)
-            for pid in tree:
-                rss = _rss_mb(pid)
-                if rss is not None:
-                    s = series.setdefault(pid, Series(pid))
-                    s.times.append(now)
-                    s.rss_mb.append(rss)
-            time.sleep(SAMPLE_S)
-        err = proc.stderr.read() if proc.stderr else ""
+        errors = Path(tmp, "sweep.stderr")  # a file, not a pipe: a long sweep's progress bar would fill a pipe
+        with errors.open("w") as stderr:
+            proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=stderr, text=True)
+        try:
+            while proc.poll() is None:
+                now = time.perf_counter() - start
+                for pid in _tree(proc.pid):
+                    rss = _rss_mb(pid)
+                    if rss is not None:
+                        s = series.setdefault(pid, Series(pid))
+                        s.times.append(now)
+                        s.rss_mb.append(rss)
+                time.sleep(SAMPLE_S)
+        finally:  # interrupted: stop the sweep before its directory is removed
+            if proc.poll() is None:
+                proc.terminate()
+                proc.wait()
+        err = errors.read_text(errors="replace")
         seconds = time.perf_counter() - start
     if proc.returncode != 0:
         raise RuntimeError(f"the sweep failed (exit {proc.returncode}): {err.strip().splitlines()[-1:]}")
@@ -139,6 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 10 * args.jobs:
         parser.error(f"--episodes: at least 10 per job, got {args.episodes} for {args.jobs} jobs")
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # unwinds: the sweep is stopped, its logs removed
     try:
         result = measure(args.episodes, args.scenario, args.jobs)
     except (RuntimeError, ValueError) as err:
