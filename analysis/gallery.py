@@ -84,7 +84,10 @@ def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group
     every = failed(df)
     pictured = set(shown(df, max_per_group).index)
     rows, pictures = [], []
-    for index, episode in every.iterrows():
+    needed = ["scenario_label", "variant", "seed", "outcome", "steps", "collisions_static", "collisions_dynamic", "log"]
+    # plain records (one per failure, thousands in a large sweep): iterrows built a Series per row
+    records = every[needed].astype(object).to_dict("records")
+    for index, episode in zip(every.index, records, strict=True):
         trace = traces.get(episode["log"])
         row = {"scenario": episode["scenario_label"], "variant": episode["variant"], "seed": episode["seed"],
                "outcome": episode["outcome"], "steps": episode["steps"],

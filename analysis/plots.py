@@ -29,7 +29,15 @@ from analysis.trace import Trace, World
 
 DPI = 90
 MAX_SEEDS_PER_PANEL = 20
-"""Trajectories drawn per group and scenario (the lowest seeds); the panel's title says when there are more."""
+"""Trajectories drawn per group and scenario (the failed episodes first, then the lowest seeds); the panel's title
+says when there are more."""
+
+
+def panel_episodes(df: pd.DataFrame, max_seeds: int = MAX_SEEDS_PER_PANEL) -> pd.DataFrame:
+    """The episodes a trajectory panel draws, per group (scenario label and variant) in the groups' order: its failed
+    episodes first (the ones a reader wants to see), then the others, each by seed; at most ``max_seeds``."""
+    order = df.assign(_ok=df["success"].astype(bool)).sort_values(["_ok", "seed"], kind="stable")
+    return order.groupby(["scenario_label", "variant"], sort=False).head(max_seeds).drop(columns="_ok")
 
 
 def palette(df: pd.DataFrame) -> dict[str, Style]:
@@ -147,15 +155,16 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
         sub = df[df["scenario_label"] == scenario]
         auto = sub[sub["strategy"] == "auto"]
         hs = sorted(auto["h_wait"].dropna().unique())
+        # each setting's groups and the other strategies' groups, split once for every metric's row
+        auto_groups = [(i, setting, list(rows.groupby("variant", sort=False))) for i, setting in enumerate(settings)
+                       if not (rows := auto[auto["setting"] == setting]).empty]
+        other_groups = list(sub[sub["strategy"] != "auto"].groupby("variant", sort=False))
         for row, metric in enumerate(metrics):
             ax = axes[row][col]
-            for i, setting in enumerate(settings):
-                rows = auto[auto["setting"] == setting]
-                if rows.empty:
-                    continue
+            for i, setting, groups in auto_groups:
                 shift = dodge * (i - (len(settings) - 1) / 2)
                 points = []
-                for variant, g in rows.groupby("variant", sort=False):
+                for variant, g in groups:
                     mean, lo, hi = _mean_interval(g[metric], metric)
                     if math.isnan(mean):
                         continue
@@ -166,7 +175,7 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
                     xs, ys = zip(*sorted(points), strict=True)
                     ax.plot(xs, ys, color="0.45", lw=1, linestyle=setting_lines[i % len(setting_lines)], zorder=2,
                             label=SEP.join(["auto", setting]) if setting else "auto")
-            for variant, rows in sub[sub["strategy"] != "auto"].groupby("variant", sort=False):
+            for variant, rows in other_groups:
                 mean, lo, hi = _mean_interval(rows[metric], metric)
                 if math.isnan(mean):
                     continue
@@ -196,11 +205,13 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
     longest = max(len(v) for v in variants)
     fig, axes = grid(len(metrics), len(scenarios), max(2.8, 0.25 * len(variants)), 1.5, left=0.9, hspace=0.2,
                      bottom=0.25 + 0.04 * longest)
+    by_scenario = dict(iter(df.groupby("scenario_label", sort=False)))
     for col, scenario in enumerate(scenarios):
-        sub = df[df["scenario_label"] == scenario]
+        by_variant = dict(iter(by_scenario[scenario].groupby("variant", sort=False)))  # once, not per metric
         for row, metric in enumerate(metrics):
             ax = axes[row][col]
-            data = [sub.loc[sub["variant"] == v, metric].dropna().to_numpy(dtype=float) for v in variants]
+            data = [by_variant[v][metric].dropna().to_numpy(dtype=float) if v in by_variant else np.empty(0)
+                    for v in variants]
             box = ax.boxplot(data, patch_artist=True, widths=0.6, flierprops={"markersize": 2, "alpha": 0.5})
             # the groups' names under the bottom row only (the panels above are the same groups)
             ax.set_xticks(range(1, len(variants) + 1), variants if row == len(metrics) - 1 else [])
@@ -259,7 +270,8 @@ def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
 def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out: Path,
                  max_seeds: int = MAX_SEEDS_PER_PANEL) -> Path:
     """``trajectories_<scenario>.png``: small multiples, a panel per group of one scenario group with the robot
-    paths of its seeds (the lowest ``max_seeds``) as thin lines in the group's colour, contacts as black ``x``,
+    paths of its seeds (at most ``max_seeds``: :func:`panel_episodes`, failed ones first) as thin lines in the group's
+    colour, contacts as black ``x``,
     the moving obstacles' true paths dotted, over the static world (each distinct world of the panel's episodes;
     axes fitted to the walls). ``traces``: log path -> :class:`Trace` (:func:`analysis.trace.load_traces`)."""
     pal = palette(df)
@@ -275,15 +287,21 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     panel = 3.0
     fig, axes = grid(rows, cols, panel, panel * aspect, left=0.1, right=0.1, top=0.75, bottom=0.1, wspace=0.15,
                      hspace=0.45)
+    chosen = panel_episodes(sub, max_seeds)
     for ax, variant in zip(axes.flat, variants, strict=False):
-        episodes = sub[sub["variant"] == variant].sort_values("seed", kind="stable")
-        drawn = [traces[log] for log in episodes["log"].head(max_seeds) if log in traces]
+        episodes = sub[sub["variant"] == variant]
+        mine = chosen[chosen["variant"] == variant]
+        drawn = [traces[log] for log in mine["log"] if log in traces]
         drawn_worlds = {t.world.key(): t.world for t in drawn}
         for world in drawn_worlds.values():
             draw_world(ax, world)
-        draw_traces(ax, drawn, pal[variant].color)
+        ok = set(mine.loc[mine["success"].astype(bool), "log"])
+        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color)  # the failed on top
         failed = int((~episodes["success"].astype(bool)).sum())
-        more = f", lowest {len(drawn)} seeds drawn" if len(drawn) < len(episodes) else ""
+        more = ""
+        if len(drawn) < len(episodes):  # the failed first (panel_episodes): say so where it made a difference
+            more = (f", {len(drawn)} drawn, failed first" if 0 < failed < len(episodes)
+                    else f", lowest {len(drawn)} seeds drawn")
         ax.set_title(f"{variant}\n{len(episodes)} seeds, {failed} failed{more}", fontsize=8)
         ax.set_xticks([])  # the walls give the scale (in the title); ticks cost time in every panel
         ax.set_yticks([])

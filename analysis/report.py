@@ -5,8 +5,8 @@ overview figure (``overview.png``: success rate with its Wilson interval, time-t
 bootstrap intervals, per group and scenario), what the data says, the effect of h_wait, every seed's trajectory
 per scenario and group, a gallery of the failed episodes, the paired differences whose interval excludes zero;
 then the tables. Long tables stay in files: ``episodes.csv`` (one row per episode, every metric, its group's
-labels), ``groups.csv`` (mean and 95 % interval of every metric per group), both also as Parquet with units
-(:mod:`analysis.tables`), ``paired.csv`` (every paired difference between variants on the same scenario and seed),
+labels), ``groups.csv`` (mean and 95 % interval of every metric per group), ``paired.csv`` (every paired difference
+between variants on the same scenario and seed), these three also as Parquet with units (:mod:`analysis.tables`),
 ``failures.csv`` (every failed episode) and ``left_out.csv``. A group is every combination of the run parameters
 whose values differ among the logs (:mod:`analysis.run_parameters`): two settings of any parameter are never
 pooled. Logs that are not used (a copy of another log of the same episode, not a regular file, damaged, failing a
@@ -29,6 +29,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from analysis import gallery, plots
@@ -69,8 +70,11 @@ def group_table(df: pd.DataFrame, grouping: Grouping) -> tuple[pd.DataFrame, pd.
     """(main table for the report, long table of every metric per group with interval bounds). A group is one
     scenario label and one variant: every run parameter that differs among the logs is in one or the other."""
     constant = [*SHOWN, *(k for k in grouping.dimensions if k not in SHOWN), "scenario_label", "variant"]
+    metrics = [*METRICS, *STANDARD_METRICS]  # groups.csv: every metric
+    values = {m: np.asarray(df[m], dtype=float) for m in metrics}  # once, not a Series per group and metric
     main_rows, long_rows = [], []
-    for (scenario, variant), g in _groups(df):
+    for (scenario, variant), g in _groups(df.assign(_row=np.arange(len(df)))):
+        at = g["_row"].to_numpy()
         k, n = int(g["success"].sum()), len(g)
         p, lo, hi = wilson(k, n)
         row = {"scenario": scenario, "variant": variant, "episodes": n,
@@ -78,9 +82,10 @@ def group_table(df: pd.DataFrame, grouping: Grouping) -> tuple[pd.DataFrame, pd.
         keys = {c: g[c].iloc[0] for c in constant}
         long_rows.append({**keys, "metric": "success", "n": n, "mean": p, "ci_low": lo, "ci_high": hi,
                           "interval": "wilson"})
-        for metric in [*METRICS, *STANDARD_METRICS]:  # groups.csv: every metric
-            mean, mlo, mhi = bootstrap_mean(g[metric])
-            long_rows.append({**keys, "metric": metric, "n": int(g[metric].notna().sum()), "mean": mean,
+        for metric in metrics:
+            x = values[metric][at]
+            mean, mlo, mhi = bootstrap_mean(x)
+            long_rows.append({**keys, "metric": metric, "n": int((~np.isnan(x)).sum()), "mean": mean,
                               "ci_low": mlo, "ci_high": mhi, "interval": "bootstrap"})
             if metric in MAIN_METRICS:
                 row[metric] = _fmt(mean, mlo, mhi)
@@ -118,8 +123,9 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
             common = left.index.intersection(right.index)
             if len(common) == 0:
                 continue
+            diffs = left.loc[common, PAIRED_METRICS].astype(float) - right.loc[common, PAIRED_METRICS].astype(float)
             for metric in PAIRED_METRICS:
-                diff = left.loc[common, metric].astype(float) - right.loc[common, metric].astype(float)
+                diff = diffs[metric]
                 mean, lo, hi = bootstrap_mean(diff)
                 rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": int(diff.notna().sum()),
                              "mean A−B": mean, "ci_low": lo, "ci_high": hi, "excludes_zero": excludes_zero(lo, hi)})
@@ -333,13 +339,13 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
 
     _crowd_sections(report, df, out)
 
-    drawn = df.sort_values("seed", kind="stable").groupby(["scenario_label", "variant"], sort=False).head(
-        plots.MAX_SEEDS_PER_PANEL)
+    drawn = plots.panel_episodes(df)
     traces, unreadable = load_traces([*drawn["log"], *gallery.logs_to_read(df)], jobs)
     report.add("h2", "Trajectories")
     report.add("p", "Per scenario, a panel per group with the robot paths of its seeds (thin lines; up to "
-                    f"{plots.MAX_SEEDS_PER_PANEL} per panel, the lowest seeds), contacts the simulator flagged as "
-                    "black x, moving obstacles' true paths dotted; axes fitted to the walls.")
+                    f"{plots.MAX_SEEDS_PER_PANEL} per panel: the failed episodes first, then the lowest seeds), "
+                    "contacts the simulator flagged as black x, moving obstacles' true paths dotted; axes fitted to "
+                    "the walls.")
     for scenario in pd.unique(df["scenario_label"]):
         report.add("img", plots.trajectories(df, scenario, traces, out))
     if unreadable:
@@ -366,7 +372,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     significant = paired[paired["excludes_zero"]]
     report.add("p", f"Differences A − B whose 95 % bootstrap interval excludes zero: {len(significant)} of "
                     f"{len(paired)} comparisons (variants differing in one factor, on the same scenario and seed). "
-                    "Every comparison, with its interval: paired.csv.")
+                    "Every comparison, with its interval: paired.csv (also paired.parquet, with units).")
     if not significant.empty:
         shown_rows = significant.copy()
         shown_rows["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in zip(
@@ -456,8 +462,7 @@ def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame) -> None:
-    write_tables(out, df, long)  # episodes and groups: CSV and Parquet with units (analysis.tables)
-    paired.to_csv(out / "paired.csv", index=False)
+    write_tables(out, df, long, paired)  # episodes, groups, paired: CSV and Parquet with units (analysis.tables)
     (out / "report.md").write_text(report.markdown())
     (out / "report.html").write_text(report.html())
 

@@ -1,14 +1,16 @@
 """The report's tables as CSV and as Parquet (pyarrow), side by side.
 
-``episodes.parquet`` and ``groups.parquet`` hold what ``episodes.csv`` and ``groups.csv`` hold, with column types
-kept (CSV turns a boolean into text and NaN into an empty field) and, in the file's key-value metadata:
+``episodes.parquet``, ``groups.parquet`` and ``paired.parquet`` hold what ``episodes.csv``, ``groups.csv`` and
+``paired.csv`` hold, with column types kept (CSV turns a boolean into text and NaN into an empty field) and, in the
+file's key-value metadata:
 
 - ``fuzzynav.schema_version``: :data:`SCHEMA_VERSION`, raised when a column is renamed, removed or changes meaning
   (adding a column does not raise it);
-- ``fuzzynav.table``: ``episodes`` or ``groups``;
+- ``fuzzynav.table``: ``episodes``, ``groups`` or ``paired``;
 - ``fuzzynav.units``: JSON object column -> unit (:data:`analysis.metrics.COLUMN_UNITS`; ``""`` for labels, counts
-  and ratios). In ``groups`` the ``mean``, ``ci_low`` and ``ci_high`` columns are in the unit of the row's metric:
-  ``fuzzynav.metric_units`` maps each metric to its unit.
+  and ratios). In ``groups`` the ``mean``, ``ci_low`` and ``ci_high`` columns, in ``paired`` the ``mean A−B``,
+  ``ci_low`` and ``ci_high`` columns are in the unit of the row's metric: ``fuzzynav.metric_units`` maps each metric
+  to its unit.
 
 Each column's unit is also in its Arrow field metadata (``unit``), so tools that show field metadata see it.
 """
@@ -28,6 +30,10 @@ SCHEMA_VERSION = "1"
 #: units of the groups table's own columns (``mean``/``ci_low``/``ci_high``: the unit of the row's metric)
 GROUP_UNITS = {"metric": "", "n": "episodes", "mean": "unit of metric", "ci_low": "unit of metric",
                "ci_high": "unit of metric", "interval": ""}
+#: units of the paired table's own columns (the difference and its interval: the unit of the row's metric)
+PAIRED_UNITS = {"A": "", "B": "", "metric": "", "pairs": "seeds", "mean A−B": "unit of metric",
+                "ci_low": "unit of metric", "ci_high": "unit of metric", "excludes_zero": ""}
+TABLE_UNITS = {"groups": GROUP_UNITS, "paired": PAIRED_UNITS}
 
 
 def _units(df: pd.DataFrame, extra: dict[str, str]) -> dict[str, str]:
@@ -52,7 +58,7 @@ def _arrow_ready(df: pd.DataFrame) -> pd.DataFrame:
 def write_parquet(df: pd.DataFrame, path: Path, table: str, extra_metadata: dict[str, str] | None = None) -> None:
     """Write ``df`` to ``path`` as Parquet with the schema version, the table name and each column's unit in the
     file metadata (see the module docstring)."""
-    units = _units(df, GROUP_UNITS if table == "groups" else {})
+    units = _units(df, TABLE_UNITS.get(table, {}))
     arrow = pa.Table.from_pandas(_arrow_ready(df), preserve_index=False)
     fields = [f.with_metadata({"unit": units.get(f.name, "")}) for f in arrow.schema]
     metadata = {**(arrow.schema.metadata or {}), b"fuzzynav.schema_version": SCHEMA_VERSION.encode(),
@@ -61,13 +67,21 @@ def write_parquet(df: pd.DataFrame, path: Path, table: str, extra_metadata: dict
     pq.write_table(arrow.cast(pa.schema(fields, metadata=metadata)), path)
 
 
-def write_tables(out: Path, episodes: pd.DataFrame, groups: pd.DataFrame) -> None:
-    """``episodes``/``groups`` as ``.csv`` and ``.parquet`` in ``out``."""
+def _metric_units(table: pd.DataFrame) -> dict[str, str]:
+    """``fuzzynav.metric_units`` of a table of one row per metric: each metric's unit (``success``: ``""``)."""
+    units = {m: COLUMN_UNITS.get(m, "") for m in table["metric"].unique()} if "metric" in table else {}
+    return {"fuzzynav.metric_units": json.dumps(units)}
+
+
+def write_tables(out: Path, episodes: pd.DataFrame, groups: pd.DataFrame, paired: pd.DataFrame | None = None) -> None:
+    """``episodes``/``groups``/``paired`` (when given) as ``.csv`` and ``.parquet`` in ``out``."""
     episodes.to_csv(out / "episodes.csv", index=False)
     groups.to_csv(out / "groups.csv", index=False)
     write_parquet(episodes, out / "episodes.parquet", "episodes")
-    metric_units = {m: COLUMN_UNITS.get(m, "") for m in groups["metric"].unique()} if "metric" in groups else {}
-    write_parquet(groups, out / "groups.parquet", "groups", {"fuzzynav.metric_units": json.dumps(metric_units)})
+    write_parquet(groups, out / "groups.parquet", "groups", _metric_units(groups))
+    if paired is not None:
+        paired.to_csv(out / "paired.csv", index=False)
+        write_parquet(paired, out / "paired.parquet", "paired", _metric_units(paired))
 
 
 def read_units(path: Path) -> dict[str, str]:

@@ -23,7 +23,7 @@ def test_parquet_tables_equal_the_csv_tables_and_carry_units(tmp_path):
                       meta={"seed": str(seed), "h_wait": str(2 + offset)}, outcome="goal" if seed == 2 else "timeout")
     out = tmp_path / "report"
     build_report([logs], out)
-    for table in ("episodes", "groups"):
+    for table in ("episodes", "groups", "paired"):
         csv_text = (out / f"{table}.csv").read_text()
         frame = pd.read_parquet(out / f"{table}.parquet")
         assert frame.to_csv(index=False) == csv_text  # same columns, rows and values, to the last digit
@@ -42,6 +42,12 @@ def test_parquet_tables_equal_the_csv_tables_and_carry_units(tmp_path):
     metric_units = json.loads(pq.read_schema(out / "groups.parquet").metadata[b"fuzzynav.metric_units"])
     assert metric_units["accel_mean_cm_s2"] == COLUMN_UNITS["accel_mean_cm_s2"] == "cm/s^2"
     assert read_units(out / "groups.parquet")["mean"] == "unit of metric"
+    paired = pd.read_parquet(out / "paired.parquet")
+    assert len(paired) > 0 and paired["excludes_zero"].dtype == bool
+    assert read_units(out / "paired.parquet")["mean A−B"] == "unit of metric"
+    paired_units = json.loads(pq.read_schema(out / "paired.parquet").metadata[b"fuzzynav.metric_units"])
+    assert paired_units["path_length_cm"] == "cm" and set(paired_units) == set(paired["metric"])
+    assert "paired.parquet" in (out / "report.md").read_text()
 
 
 def test_a_column_of_numbers_and_text_is_written_as_text(tmp_path):

@@ -1,0 +1,25 @@
+"""runners.bench_report: the report stage (measured) and the whole report (read stage estimated) against the budget."""
+
+from __future__ import annotations
+
+from runners.bench_report import BUDGET_S, REPORT_BUDGET_S, budget_lines, summary_line
+
+
+def _result(report_s: float, read_s: float) -> dict:
+    return {"cores": 2,
+            "real": {"episodes": 210, "seeds_per_configuration": 10, "sweep_s": 40.0, "read_stage_s": 0.63,
+                     "report_stage_s": 4.0, "measured": True},
+            "synthetic": {"episodes": 10_000, "failed": 1420, "report_stage_s": report_s, "measured": True,
+                          "read_stage_s_estimate": read_s, "total_s_estimate": read_s + report_s,
+                          "budget_s": BUDGET_S, "report_stage_budget_s": REPORT_BUDGET_S, "html_kb": 25.0,
+                          "html_table_rows": 70, "images": 21, "images_kb": 900.0}}
+
+
+def test_budget_lines_say_what_is_measured_and_what_is_estimated():
+    stage, whole = budget_lines(_result(7.4, 30.0))
+    assert stage == "report stage, 10000 episodes: 7.4 s (measured) — within its 15 s share"
+    assert whole.startswith("whole report, 10000 episodes: ~37 s = read stage ~30 s (estimated from 210 real logs'")
+    assert "report stage 7.4 s (measured) — within the 60 s budget" in whole
+    stage, whole = budget_lines(_result(16.0, 50.0))
+    assert "OVER its 15 s share" in stage and "OVER the 60 s budget" in whole
+    assert "(measured)" in summary_line(_result(7.4, 30.0)) and "(estimated" in summary_line(_result(7.4, 30.0))
