@@ -431,7 +431,10 @@ def _compose(overrides: list[str]) -> Any:
 def register() -> None:
     """Register :data:`ENV_ID` with Gymnasium (once; importing this module does it)."""
     if ENV_ID not in gymnasium.registry:
-        gymnasium.register(id=ENV_ID, entry_point="runners.gym_env:NavigationEnv")
+        # Gymnasium's passive checker, which make() would add, breaks the environment for good when the first
+        # reset is refused (a bad seed or option): its first step then fails inside the checker with a TypeError.
+        # The environment passes the full checker instead (gymnasium.utils.env_checker.check_env, in the tests).
+        gymnasium.register(id=ENV_ID, entry_point="runners.gym_env:NavigationEnv", disable_env_checker=True)
 
 
 register()

@@ -80,7 +80,7 @@ def test_check_env_through_make_and_module_prefix() -> None:
     with warnings.catch_warnings():
         _strict_warnings()
         check_env(made.unwrapped)
-        obs, _ = made.reset(seed=0)  # through make's wrappers (order enforcing, passive checker)
+        obs, _ = made.reset(seed=0)  # through make's wrappers (order enforcing)
         assert made.observation_space.contains(obs)
         obs, reward, _, _, info = made.step(made.action_space.sample())
         assert made.observation_space.contains(obs) and math.isfinite(reward) and info["step"] == 1
@@ -88,6 +88,15 @@ def test_check_env_through_make_and_module_prefix() -> None:
     # gymnasium's "module:" prefix imports runners.gym_env itself (already imported here: the id resolves)
     prefixed = gymnasium.make("runners.gym_env:fuzzynav/Navigation-v0", scenario="head_on")
     assert isinstance(prefixed.unwrapped, NavigationEnv)
+
+
+def test_a_refused_first_reset_leaves_the_made_environment_usable() -> None:
+    made = gymnasium.make(ENV_ID, scenario="head_on")
+    with pytest.raises(ValueError, match="seed"):
+        made.reset(seed=-1)
+    obs, _ = made.reset(seed=0)
+    obs, reward, _, _, info = made.step(made.action_space.sample())
+    assert made.observation_space.contains(obs) and math.isfinite(reward) and info["step"] == 1
 
 
 def test_module_prefix_registers_in_a_fresh_process() -> None:
