@@ -37,7 +37,7 @@ from fuzzynav.portable_random import NormalStream
 from fuzzynav.scenario import Scenario
 from fuzzynav.sonar import Sonar, SonarConfig
 from fuzzynav.tracking import Track, TrackerState
-from fuzzynav.world import World
+from fuzzynav.world import world_of
 
 OUTCOMES = ("goal", "collision", "timeout")
 
@@ -133,7 +133,7 @@ class Episode:
         self.scenario = scenario
         self.config = config or EpisodeConfig()
         self.seed = seed
-        self.world = World(scenario.bounds, scenario.static_obstacles)
+        self.world = world_of(scenario.bounds, scenario.static_obstacles)  # shared: read-only
         check_crowd_work(scenario.dynamic_obstacles, self.config.dt, scenario.max_steps)
         self.crowd = Crowd(scenario.dynamic_obstacles, self.world, scenario.robot.radius)
         self.obstacle_ids = self.crowd.ids

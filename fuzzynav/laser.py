@@ -77,14 +77,18 @@ def beam_directions(config: LaserConfig, heading_deg: float) -> np.ndarray:
     points with this same function, so that they are the episode's to the last bit."""
     s, c = sin_cos_deg(heading_deg)
     rel_sin, rel_cos = config.relative_directions
-    return np.stack([c * rel_cos - s * rel_sin, s * rel_cos + c * rel_sin], axis=1)
+    out = np.empty((len(rel_sin), 2))
+    np.subtract(c * rel_cos, s * rel_sin, out=out[:, 0])
+    np.add(s * rel_cos, c * rel_sin, out=out[:, 1])
+    return out
 
 
 def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: np.ndarray,
          static_circles: np.ndarray, discs: np.ndarray, noise: NormalStream | None = None) -> LaserScan:
     """Cast all beams from (x, y) cm against the static world and moving discs (K, 3: x, y, r in cm)."""
     directions = beam_directions(config, heading_deg)
-    circles = np.vstack([static_circles.reshape(-1, 3), discs.reshape(-1, 3)])
+    static_circles, discs = static_circles.reshape(-1, 3), discs.reshape(-1, 3)
+    circles = np.concatenate([static_circles, discs]) if len(static_circles) else discs
     ranges, hit = cast_rays(np.array([x, y]), directions, segments, circles, config.range_cm)
     n_static = len(segments) + len(static_circles)
     labels = np.where(hit < 0, -1, np.where(hit < n_static, 0, hit - n_static + 1))

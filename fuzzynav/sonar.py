@@ -10,6 +10,7 @@ vectorised shapely call.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -52,19 +53,19 @@ class Sonar:
         self.robot_radius = robot_radius
         reach = robot_radius + config.range_cm
         self._reach = reach
-        # wedge templates in the robot frame (apex at the origin, heading along +x), one per sector
-        self._templates = []
-        for name in SECTOR_NAMES:
-            lo, hi = getattr(config, name)
-            n = max(2, math.ceil((hi - lo) / config.arc_step_deg) + 1)
-            sin, cos = sin_cos_deg_array(np.linspace(lo, hi, n))
-            arc = np.stack([cos, sin], axis=1) * reach
-            self._templates.append(np.vstack([[0.0, 0.0], arc, [0.0, 0.0]]))
+        self._templates, self._stacked = _wedge_templates(config, reach)
 
     def wedges(self, x: float, y: float, heading_deg: float) -> np.ndarray:
         """The three sector wedges (shapely polygons, world frame, cm) of a robot at (x, y) with ``heading_deg``."""
         s, c = sin_cos_deg(heading_deg)
-        # rotate the templates by the heading elementwise (a matrix product would go through BLAS)
+        # rotate the templates by the heading elementwise (a matrix product would go through BLAS); the same
+        # operations in the same order either way, so the stacked and the per-sector paths give the same bits
+        if self._stacked is not None:
+            tx, ty = self._stacked
+            coords = np.empty((*tx.shape, 2))
+            coords[..., 0] = tx * c - ty * s + x
+            coords[..., 1] = tx * s + ty * c + y
+            return shapely.polygons(coords)
         return shapely.polygons([np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y], axis=1)
                                  for t in self._templates])
 
@@ -81,7 +82,35 @@ class Sonar:
             if self.config.sees_dynamic and discs is not None and len(discs):
                 target = shapely.union_all([target, *shapely.buffer(shapely.points(discs[:, :2]), discs[:, 2])])
             hits = shapely.intersection(wedges, target)
-            dist = shapely.distance(hits, shapely.Point(x, y))  # NaN for an empty intersection
-        out = np.where(np.isnan(dist), self.config.range_cm, np.clip(dist - self.robot_radius, 0.0,
-                                                                        self.config.range_cm))
-        return float(out[0]), float(out[1]), float(out[2])
+            dist = shapely.distance(hits, shapely.points((x, y)))  # NaN for an empty intersection
+        left, front, right = (self._reading(d) for d in dist.tolist())
+        return left, front, right
+
+    def _reading(self, distance: float) -> float:
+        """A sector's reading (cm) from the distance (cm) of the robot centre to what is in its wedge (NaN: nothing):
+        the gap to the robot's surface, clipped to [0, range]."""
+        if math.isnan(distance):
+            return float(self.config.range_cm)
+        return float(min(max(distance - self.robot_radius, 0.0), self.config.range_cm))
+
+
+@functools.lru_cache(maxsize=16)
+def _wedge_templates(config: SonarConfig, reach: float) -> tuple[tuple[np.ndarray, ...],
+                                                                  tuple[np.ndarray, np.ndarray] | None]:
+    """The wedge of each sector in the robot frame (apex at the origin, heading along +x, radius ``reach`` cm),
+    made once per configuration and shared read-only by every episode's sonar. Sectors of one width (the usual
+    case) have templates of one length, also given stacked as (3, K) x and y rows: all three wedges are then
+    rotated by one set of array operations per frame."""
+    templates = []
+    for name in SECTOR_NAMES:
+        lo, hi = getattr(config, name)
+        n = max(2, math.ceil((hi - lo) / config.arc_step_deg) + 1)
+        sin, cos = sin_cos_deg_array(np.linspace(lo, hi, n))
+        arc = np.stack([cos, sin], axis=1) * reach
+        templates.append(np.vstack([[0.0, 0.0], arc, [0.0, 0.0]]))
+    stacked = None
+    if len({len(t) for t in templates}) == 1:
+        stacked = (np.stack([t[:, 0] for t in templates]), np.stack([t[:, 1] for t in templates]))
+    for array in (*templates, *(stacked or ())):
+        array.flags.writeable = False
+    return tuple(templates), stacked

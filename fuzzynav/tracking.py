@@ -22,13 +22,14 @@ into one cluster and is lost while they touch; occlusion hides obstacles behind 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from fuzzynav.laser import LaserScan
-from fuzzynav.portable_math import atan2_deg, fsum_dot, fsum_mean, hypot, norm2
+from fuzzynav.portable_math import atan2_deg, hypot, norm2
 
 
 @dataclass(frozen=True)
@@ -114,23 +115,38 @@ class Detection:
 
 
 def segment(scan: LaserScan, gap_cm: float) -> list[np.ndarray]:
-    """Split the returned beams into clusters of neighbouring returns; each cluster is an index array."""
+    """Split the returned beams into clusters of neighbouring returns; each cluster is an index array (beam
+    indices in angular order, the clusters starting from the first beam that starts one)."""
+    beams, cuts = _clusters(scan, gap_cm)
+    return [beams[i:j] for i, j in itertools.pairwise(cuts)]
+
+
+def _clusters(scan: LaserScan, gap_cm: float) -> tuple[np.ndarray, list[int]]:
+    """The clusters of :func:`segment` as one array of beam indices and the positions where each cluster starts
+    in it (plus its length at the end): cluster k is ``beams[cuts[k]:cuts[k + 1]]``."""
     n = len(scan.ranges)
     ret = scan.returned
     if not ret.any():
-        return []
+        return np.empty(0, dtype=np.intp), [0]
     pts = scan.xy
-    to_next = np.concatenate([pts[1:], pts[:1]]) - pts  # to the next beam, wrapping around
-    linked = ret & np.concatenate([ret[1:], ret[:1]]) & (norm2(to_next) <= gap_cm)
+    to_next = np.empty_like(pts)  # to the next beam, wrapping around
+    np.subtract(pts[1:], pts[:-1], out=to_next[:-1])
+    np.subtract(pts[:1], pts[-1:], out=to_next[-1:])
+    linked = norm2(to_next) <= gap_cm
+    linked &= ret
+    linked[:-1] &= ret[1:]
+    linked[-1] &= ret[0]
     if linked.all():
-        return [np.arange(n)]
-    # start a cluster at each returned beam not linked from its predecessor; rotate so index 0 starts one
-    starts = ret & ~np.concatenate([linked[-1:], linked[:-1]])
-    first = int(np.argmax(starts))
-    order = np.concatenate([np.arange(first, n), np.arange(first)])
-    label = np.cumsum(starts[order])
-    keep = ret[order]
-    return np.split(order[keep], np.nonzero(np.diff(label[keep]))[0] + 1)
+        return np.arange(n), [0, n]
+    # a cluster starts at each returned beam not linked from its predecessor; list the returned beams from the
+    # first start on (wrapping around) and cut that list at every other start
+    starts = ret.copy()
+    starts[1:] &= ~linked[:-1]
+    starts[0] &= ~linked[-1]
+    beams = np.flatnonzero(ret)
+    k = int(np.searchsorted(beams, int(np.argmax(starts))))
+    beams = np.concatenate([beams[k:], beams[:k]])
+    return beams, [0, *np.flatnonzero(starts[beams])[1:].tolist(), len(beams)]
 
 
 def fit_disc(points: np.ndarray) -> tuple[float, float, float, float]:
@@ -138,42 +154,54 @@ def fit_disc(points: np.ndarray) -> tuple[float, float, float, float]:
 
     Solved in coordinates centred on the points' mean, where Kasa's normal equations reduce to a 2 x 2
     system for the centre offset (a, b): [Suu Suv; Suv Svv] (a, b) = ½ (Suz, Svz) with z = u² + v²; then
-    r² = a² + b² + mean(z). Collinear points (no circle) give an infinite radius."""
-    # correctly rounded sums (math.fsum), not u @ v: BLAS's dot product depends on the CPU's kernel
-    mx, my = fsum_mean(points[:, 0]), fsum_mean(points[:, 1])
-    u, v = points[:, 0] - mx, points[:, 1] - my
-    z = u * u + v * v
-    suu, svv, suv = fsum_dot(u, u), fsum_dot(v, v), fsum_dot(u, v)
-    suz, svz = fsum_dot(u, z), fsum_dot(v, z)
+    r² = a² + b² + mean(z). Collinear points (no circle) give an infinite radius.
+
+    Computed with Python floats over the few points of a cluster (numpy's per-call overhead would dominate):
+    the same IEEE operations elementwise, and correctly rounded sums (math.fsum), never u @ v (BLAS's dot
+    product depends on the CPU's kernel)."""
+    xs, ys = points[:, 0].tolist(), points[:, 1].tolist()
+    n = len(xs)
+    mx, my = math.fsum(xs) / n, math.fsum(ys) / n
+    u = [x - mx for x in xs]
+    v = [y - my for y in ys]
+    z = [p * p + q * q for p, q in zip(u, v, strict=True)]
+    suu, svv = math.fsum([p * p for p in u]), math.fsum([q * q for q in v])
+    suv = math.fsum([p * q for p, q in zip(u, v, strict=True)])
+    suz = math.fsum([p * w for p, w in zip(u, z, strict=True)])
+    svz = math.fsum([q * w for q, w in zip(v, z, strict=True)])
     det = suu * svv - suv * suv
     if not det > 1e-12 * (suu + svv) * (suu + svv):
         return float(mx), float(my), math.inf, math.inf
     a = (suz * svv - svz * suv) / (2.0 * det)
     b = (svz * suu - suz * suv) / (2.0 * det)
-    r = math.sqrt(a * a + b * b + fsum_mean(z))
-    du, dv = u - a, v - b
-    residual = np.sqrt(du * du + dv * dv) - r
-    rms = math.sqrt(fsum_mean(residual * residual))
+    r = math.sqrt(a * a + b * b + math.fsum(z) / n)
+    residual = [math.sqrt((p - a) * (p - a) + (q - b) * (q - b)) - r for p, q in zip(u, v, strict=True)]
+    rms = math.sqrt(math.fsum([e * e for e in residual]) / n)
     return float(mx + a), float(my + b), r, rms
 
 
 def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
     """Disc-shaped clusters of one laser frame (world coordinates)."""
+    beams, cuts = _clusters(scan, config.cluster_gap_cm)
+    if len(beams) == 0:
+        return []
+    # every cluster's extent (cm, the diagonal of its bounding box) and nearest range at once: exact minima and
+    # maxima, so the same numbers as cluster by cluster
+    pts = scan.xy[beams]
+    first = np.array(cuts[:-1])
+    extent = norm2(np.maximum.reduceat(pts, first, axis=0) - np.minimum.reduceat(pts, first, axis=0))
+    nearest = np.minimum.reduceat(scan.ranges[beams], first).tolist()
+    small = (np.diff(cuts) >= config.min_points) & (extent <= 2.0 * config.max_radius_cm)
     ox, oy = scan.origin
     out = []
-    for beams in segment(scan, config.cluster_gap_cm):
-        if len(beams) < config.min_points:
-            continue
-        pts = scan.xy[beams]
-        extent = float(norm2(pts.max(0) - pts.min(0)))
-        if extent > 2.0 * config.max_radius_cm:
-            continue
-        cx, cy, radius, rms = fit_disc(pts)
+    for k in np.flatnonzero(small).tolist():
+        i, j = cuts[k], cuts[k + 1]
+        cx, cy, radius, rms = fit_disc(pts[i:j])
         if radius > config.max_radius_cm or rms > config.max_fit_rms_cm:
             continue
-        if hypot(cx - ox, cy - oy) <= float(scan.ranges[beams].min()):  # concave side towards us: not a disc
+        if hypot(cx - ox, cy - oy) <= nearest[k]:  # concave side towards us: not a disc
             continue
-        out.append(Detection(cx, cy, radius, beams))
+        out.append(Detection(cx, cy, radius, beams[i:j]))
     return out
 
 
