@@ -271,15 +271,18 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
                  max_seeds: int = MAX_SEEDS_PER_PANEL) -> Path:
     """``trajectories_<scenario>.png``: small multiples, a panel per group of one scenario group with the robot
     paths of its seeds (at most ``max_seeds``: :func:`panel_episodes`, failed ones first) as thin lines in the group's
-    colour, contacts as black ``x``,
-    the moving obstacles' true paths dotted, over the static world (each distinct world of the panel's episodes;
-    axes fitted to the walls). ``traces``: log path -> :class:`Trace` (:func:`analysis.trace.load_traces`)."""
+    colour, contacts as black ``x``, the moving obstacles' true paths dotted, over the static world (each distinct
+    world of the panel's episodes; axes fitted to the walls). ``traces``: log path -> :class:`Trace`
+    (:func:`analysis.trace.load_traces`)."""
     pal = palette(df)
-    sub = df[df["scenario_label"] == scenario]
+    sub = df.loc[df["scenario_label"] == scenario, ["scenario_label", "variant", "seed", "success", "log"]]
     variants = [v for v in pal if v in set(sub["variant"])]
     cols = min(len(variants), 4)
     rows = -(-len(variants) // cols)
-    worlds = [traces[log].world for log in sub["log"] if log in traces and traces[log].world.bounds is not None]
+    # the first episode read (in the table's order) gives the walls; not a list of thousands of them
+    world0 = next((traces[log].world for log in sub["log"] if log in traces and traces[log].world.bounds is not None),
+                  None)
+    worlds = [world0] if world0 is not None else []
     aspect = 1.0
     if worlds:
         xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
@@ -288,8 +291,9 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     fig, axes = grid(rows, cols, panel, panel * aspect, left=0.1, right=0.1, top=0.75, bottom=0.1, wspace=0.15,
                      hspace=0.45)
     chosen = panel_episodes(sub, max_seeds)
+    seeds = sub.groupby("variant", sort=False).size()
+    failures = (~sub["success"].astype(bool)).groupby(sub["variant"], sort=False).sum()
     for ax, variant in zip(axes.flat, variants, strict=False):
-        episodes = sub[sub["variant"] == variant]
         mine = chosen[chosen["variant"] == variant]
         drawn = [traces[log] for log in mine["log"] if log in traces]
         drawn_worlds = {t.world.key(): t.world for t in drawn}
@@ -297,12 +301,11 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
             draw_world(ax, world)
         ok = set(mine.loc[mine["success"].astype(bool), "log"])
         draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color)  # the failed on top
-        failed = int((~episodes["success"].astype(bool)).sum())
+        n, failed = int(seeds[variant]), int(failures[variant])
         more = ""
-        if len(drawn) < len(episodes):  # the failed first (panel_episodes): say so where it made a difference
-            more = (f", {len(drawn)} drawn, failed first" if 0 < failed < len(episodes)
-                    else f", lowest {len(drawn)} seeds drawn")
-        ax.set_title(f"{variant}\n{len(episodes)} seeds, {failed} failed{more}", fontsize=8)
+        if len(drawn) < n:  # the failed first (panel_episodes): say so where it made a difference
+            more = f", {len(drawn)} drawn, failed first" if 0 < failed < n else f", lowest {len(drawn)} seeds drawn"
+        ax.set_title(f"{variant}\n{n} seeds, {failed} failed{more}", fontsize=8)
         ax.set_xticks([])  # the walls give the scale (in the title); ticks cost time in every panel
         ax.set_yticks([])
         for spine in ax.spines.values():
