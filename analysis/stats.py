@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections import OrderedDict
 
@@ -70,7 +71,7 @@ def bootstrap_mean(values, n_boot: int = 2000, seed: int = 0, level: float = 0.9
     interval compute it once."""
     x = np.asarray(values, dtype=float)
     x = x[~np.isnan(x)]
-    key = (x.tobytes(), n_boot, seed, level)
+    key = (hashlib.blake2b(x.tobytes(), digest_size=20).digest(), len(x), n_boot, seed, level)  # small keys
     if key in _results:
         _results.move_to_end(key)
         return _results[key]
