@@ -18,7 +18,7 @@ def _result(report_s: float, read_s: float) -> dict:
 def test_budget_lines_say_what_is_measured_and_what_is_estimated():
     stage, whole = budget_lines(_result(7.4, 30.0))
     assert stage == "report stage, 10000 episodes: 7.4 s (measured) — within its 15 s share"
-    assert whole.startswith("whole report, 10000 episodes: ~37 s = read stage ~30 s (estimated from 210 real logs'")
+    assert whole.startswith("whole report, 10000 episodes: ~37 s = read stage ~30 s (estimated: the 210 real logs'")
     assert "report stage 7.4 s (measured) — within the 60 s budget" in whole
     stage, whole = budget_lines(_result(16.0, 50.0))
     assert "OVER its 15 s share" in stage and "OVER the 60 s budget" in whole
