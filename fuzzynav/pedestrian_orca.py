@@ -125,11 +125,14 @@ class PedestrianOrcaModel:
         rel_all = pos_all - xi
         d = norm2(rel_all)
         d[i] = math.inf
-        near = [int(j) for j in np.argsort(d, kind="stable") if d[j] < c.neighbor_dist_cm][:c.max_neighbors]
+        order = np.argsort(d, kind="stable")
+        near = order[d[order] < c.neighbor_dist_cm][:c.max_neighbors].tolist()  # nearest first, within reach
+        # Python floats of the rows (the same values; indexing numpy element by element is what would cost)
+        rel_rows, vel_rows, rad_list = rel_all.tolist(), vel_all.tolist(), rad_all.tolist()
         for j in near:
-            rel = (float(rel_all[j][0]), float(rel_all[j][1]))
-            rel_vel = (velocity[0] - float(vel_all[j][0]), velocity[1] - float(vel_all[j][1]))
-            lines.append(orca_line(rel, rel_vel, r + float(rad_all[j]), c.time_horizon_s, h, share[j], velocity))
+            rel = (rel_rows[j][0], rel_rows[j][1])
+            rel_vel = (velocity[0] - vel_rows[j][0], velocity[1] - vel_rows[j][1])
+            lines.append(orca_line(rel, rel_vel, r + rad_list[j], c.time_horizon_s, h, share[j], velocity))
         preferred = (float(pref[0]), float(pref[1]))
         speed = hypot(*preferred)
         if speed > max_speed:

@@ -152,6 +152,12 @@ class _Timers:
         setattr(owner, attr, timed)
         self._undo.append((owner, attr, original))
 
+    def us_per_step(self, seconds: float, steps: int) -> dict[str, float]:
+        """µs per step of each stage, and ``rest`` (the run's ``seconds`` not in any stage), largest first."""
+        stages = {k: v for k, v in self.total.items() if not k.startswith("_")}
+        stages["rest"] = max(seconds - sum(stages.values()), 0.0)
+        return {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}
+
     def restore(self) -> None:
         for owner, attr, original in reversed(self._undo):
             setattr(owner, attr, original)
@@ -175,13 +181,6 @@ def bench_simulation(episodes: int, reps: int) -> dict:
     the per-stage breakdown."""
     import tempfile
 
-    from fuzzynav import episode as episode_mod
-    from fuzzynav import laser as laser_mod
-    from fuzzynav import navigator as nav_mod
-    from fuzzynav.episode import Episode
-    from fuzzynav.fuzzy_policy import FuzzyPolicy
-    from fuzzynav.sonar import Sonar
-    from runners.mcap_log import EpisodeLogWriter
     from runners.run import run_episode
 
     scenario, evaluator, cfg = _scenario_and_config("mixed")
@@ -204,6 +203,29 @@ def bench_simulation(episodes: int, reps: int) -> dict:
     t_plain, t_log = statistics.median(plain), statistics.median(logged)
     # the share from each alternated pair, then the median: a slow spell of the machine hits a pair alike
     shares = [(log_s - plain_s) / log_s for plain_s, log_s in zip(plain, logged, strict=True)]
+    timers = stage_timers()
+    try:
+        t_prof, _ = run(True)
+    finally:
+        timers.restore()
+    return {"scenario": "mixed", "episodes": episodes, "repetitions": reps, "steps": steps,
+            "steps_per_s_without_logging": steps / t_plain, "steps_per_s_with_logging": steps / t_log,
+            "logging_share_of_step": statistics.median(shares), "logging_share_per_pair": shares,
+            "us_per_step_by_stage": timers.us_per_step(t_prof, steps)}
+
+
+def stage_timers(obstacles: bool = False) -> _Timers:
+    """Timers on the stages of a step (call :meth:`_Timers.restore` afterwards): sensors (sonar and laser), tracking
+    (perception), TPT, planner, controller, logging and, with ``obstacles``, the obstacle models' motion
+    (:meth:`fuzzynav.crowd.Crowd.step`); what is left of a run's time is ``rest``."""
+    from fuzzynav import episode as episode_mod
+    from fuzzynav import laser as laser_mod
+    from fuzzynav import navigator as nav_mod
+    from fuzzynav.crowd import Crowd
+    from fuzzynav.fuzzy_policy import FuzzyPolicy
+    from fuzzynav.sonar import Sonar
+    from runners.mcap_log import EpisodeLogWriter
+
     timers = _Timers()
     timers.wrap(Sonar, "read", "sensors")
     timers.wrap(laser_mod, "scan", "sensors")
@@ -213,17 +235,9 @@ def bench_simulation(episodes: int, reps: int) -> dict:
     timers.wrap(nav_mod.Navigator, "_still_valid", "planner")
     timers.wrap(FuzzyPolicy, "fuzzy", "controller")
     timers.wrap(EpisodeLogWriter, "step", "logging")
-    timers.wrap(Episode, "step", "_episode_step")
-    try:
-        t_prof, _ = run(True)
-    finally:
-        timers.restore()
-    stages = {k: v for k, v in timers.total.items() if not k.startswith("_")}
-    stages["rest"] = max(t_prof - sum(stages.values()), 0.0)
-    return {"scenario": "mixed", "episodes": episodes, "repetitions": reps, "steps": steps,
-            "steps_per_s_without_logging": steps / t_plain, "steps_per_s_with_logging": steps / t_log,
-            "logging_share_of_step": statistics.median(shares), "logging_share_per_pair": shares,
-            "us_per_step_by_stage": {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}}
+    if obstacles:
+        timers.wrap(Crowd, "step", "obstacles")
+    return timers
 
 
 def _own_compute(episodes: int, first_seed: int = 0) -> float:

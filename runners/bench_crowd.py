@@ -1,5 +1,6 @@
 """Benchmark of crowds (part of ``python -m runners.bench``): steps/s of ``crowd_crossing`` with 20 pedestrians
-of each obstacle model, with laser perception and MCAP logging, and the obstacle model's share of a step.
+of each obstacle model, with laser perception and MCAP logging, the obstacle model's share of a step and the time
+per step by stage.
 
 The same seeds (so the same generated worlds) for every model; one process, one core.
 """
@@ -29,8 +30,9 @@ def _inputs(model: str, n: int) -> dict[str, Any]:
 
 def bench_crowd(episodes: int, n: int = 20, max_steps: int = 60) -> list[dict[str, Any]]:
     """For each model: steps/s with logging over ``episodes`` episodes (seeds 0..episodes-1, at most ``max_steps``
-    steps each, after a warm-up episode) and the µs per step spent in :meth:`fuzzynav.crowd.Crowd.step`."""
-    from fuzzynav.crowd import Crowd
+    steps each, after a warm-up episode), then, in a second timed pass, the µs per step by stage
+    (:func:`runners.bench.stage_timers`; ``obstacles`` is the model's :meth:`fuzzynav.crowd.Crowd.step`)."""
+    from runners.bench import stage_timers
     from runners.run import episode_config, load_evaluator, load_scenario, run_episode
 
     rows = []
@@ -39,29 +41,26 @@ def bench_crowd(episodes: int, n: int = 20, max_steps: int = 60) -> list[dict[st
         base["scenario"]["params"]["max_steps"] = max_steps
         evaluator, cfg = load_evaluator(base), episode_config(base)
         scenarios = [load_scenario(base, seed) for seed in range(episodes)]
-        spent = [0.0]
-        original = Crowd.step
 
-        def timed(self, robot, dt, _original=original, spent=spent):
-            t = time.perf_counter()
-            try:
-                return _original(self, robot, dt)
-            finally:
-                spent[0] += time.perf_counter() - t
+        def run(tmp: str, scenarios=scenarios, evaluator=evaluator, cfg=cfg) -> tuple[float, int]:
+            t, steps = time.perf_counter(), 0
+            for seed, scenario in enumerate(scenarios):
+                steps += run_episode(scenario, evaluator, cfg, seed, Path(tmp) / f"{seed}.mcap", "")["steps"]
+            return time.perf_counter() - t, steps
 
         with tempfile.TemporaryDirectory() as tmp:
             run_episode(scenarios[0], evaluator, cfg, 0, Path(tmp) / "warm.mcap", "")
-            Crowd.step = timed
+            seconds, steps = run(tmp)  # no timers: their own cost stays out of steps/s
+            timers = stage_timers(obstacles=True)
             try:
-                t, steps = time.perf_counter(), 0
-                for seed, scenario in enumerate(scenarios):
-                    steps += run_episode(scenario, evaluator, cfg, seed, Path(tmp) / f"{seed}.mcap", "")["steps"]
-                seconds = time.perf_counter() - t
+                t_prof, _ = run(tmp)
             finally:
-                Crowd.step = original
+                timers.restore()
+        stages = timers.us_per_step(t_prof, steps)
+        model_s = timers.total.get("obstacles", 0.0)
         rows.append({"model": model, "pedestrians": n, "episodes": episodes, "steps": steps,
-                     "steps_per_s_with_logging": steps / seconds, "model_us_per_step": spent[0] / steps * 1e6,
-                     "model_share_of_step": spent[0] / seconds})
+                     "steps_per_s_with_logging": steps / seconds, "model_us_per_step": stages.get("obstacles", 0.0),
+                     "model_share_of_step": model_s / t_prof, "us_per_step_by_stage": stages})
     return rows
 
 
@@ -72,6 +71,7 @@ def print_crowd(rows: list[dict[str, Any]]) -> None:
     for r in rows:
         print(f"  {r['model']:<13} {r['steps_per_s_with_logging']:8.0f} {r['model_us_per_step']:14.0f} "
               f"{r['model_share_of_step']:12.0%}")
+        print("    µs per step: " + ", ".join(f"{k} {v:.0f}" for k, v in r["us_per_step_by_stage"].items()))
 
 
 if __name__ == "__main__":

@@ -54,8 +54,12 @@ RUN_METADATA = "fuzzynav.run"
 FRAME = "world"
 LOG_INFO, LOG_WARNING, LOG_ERROR = 2, 3, 4
 CHUNK_BYTES = 32 * 1024  # small chunks: a killed run loses at most the last ~32 KB of messages
-# one thread: a sweep already runs one episode per core
-_WRITE_OPTIONS = MCAPWriteOptions(chunk_size=CHUNK_BYTES, compression=MCAPCompression.Zstd, compression_threads=0)
+# one thread: a sweep already runs one episode per core. zstd level 1, not the default 3: compressing the chunks
+# was most of the time of writing a log (a 20-pedestrian step writes ~30 KB), level 1 takes about half of it, and
+# on these JSON messages its files are the same size to within 0.1 % (the messages themselves do not change)
+ZSTD_LEVEL = 1
+_WRITE_OPTIONS = MCAPWriteOptions(chunk_size=CHUNK_BYTES, compression=MCAPCompression.Zstd, compression_threads=0,
+                                  compression_level=ZSTD_LEVEL)
 
 _BLUE = {"r": 0.15, "g": 0.4, "b": 0.95, "a": 1.0}
 _GREEN = {"r": 0.1, "g": 0.75, "b": 0.2, "a": 0.5}
@@ -183,15 +187,32 @@ def _entity(stamp: dict[str, int], eid: str, **primitives: list) -> dict:
 
 
 def _disc(x_cm: float, y_cm: float, r_cm: float, height_m: float, color: dict) -> dict:
-    diameter = _m(2 * r_cm)
-    return {"pose": _pose(x_cm, y_cm, 0.0, height_m / 2), "size": {"x": diameter, "y": diameter, "z": height_m},
+    return _cylinder(x_cm, y_cm, _m(2 * r_cm), height_m, color)
+
+
+def _cylinder(x_cm: float, y_cm: float, diameter_m: float, height_m: float, color: dict) -> dict:
+    """A ``foxglove.CylinderPrimitive`` standing at (x, y) cm: :func:`_disc` with its diameter (m) given (the
+    moving obstacles' are computed once per episode)."""
+    return {"pose": _pose(x_cm, y_cm, 0.0, height_m / 2), "size": {"x": diameter_m, "y": diameter_m, "z": height_m},
             "bottom_scale": 1.0, "top_scale": 1.0, "color": color}
 
 
 def _line(points_cm, color: dict, loop: bool = False, thickness_m: float = 0.02, z_m: float = 0.01) -> dict:
     """A ``foxglove.LinePrimitive`` through an (N, 2) array of cm points."""
+    return _line_m(_points_m(points_cm, z_m), color, loop, thickness_m)
+
+
+def _line_m(points_m: list[dict], color: dict, loop: bool = False, thickness_m: float = 0.02) -> dict:
+    """A ``foxglove.LinePrimitive`` through ``foxglove.Point3`` points (m, from :func:`_points_m`)."""
     return {"type": 1 if loop else 0, "pose": _ORIGIN, "thickness": thickness_m, "scale_invariant": False,
-            "points": _points_m(points_cm, z_m), "color": color, "colors": (), "indices": ()}
+            "points": points_m, "color": color, "colors": (), "indices": ()}
+
+
+def _columns_m(points_cm: np.ndarray, z_m: float) -> list[list[dict]]:
+    """:func:`_points_m` of every column j of a (T, J, 2) array of cm points (one rounding pass for all columns,
+    the same numbers as column by column)."""
+    xy = np.round(np.asarray(points_cm, dtype=np.float64) / 100.0, 4).transpose(1, 0, 2).tolist()
+    return [[{"x": x, "y": y, "z": z_m} for x, y in column] for column in xy]
 
 
 class EpisodeLogWriter:
@@ -218,6 +239,12 @@ class EpisodeLogWriter:
         self._last_time = 0.0
         self._plan_lines: list[dict] = []
         self._radii = [float(r) for r in episode.crowd.radii]  # moving obstacles' radii (cm)
+        # what the scene draws of each moving obstacle that stays the same all episode: entity id, diameter, arrow
+        # shaft and head lengths (m), whether it shows its heading (reactive models; scripted ones are drawn as they
+        # always were, so their logs stay byte for byte what they were before obstacle models)
+        self._obstacle_marks = [(f"obstacle/{oid}", _m(2 * rad), _m(rad), _m(rad * 0.6), model != DEFAULT_MODEL)
+                                for oid, rad, model in zip(episode.obstacle_ids, self._radii, episode.crowd.models_of,
+                                                           strict=True)]
         self.path = Path(destination) if isinstance(destination, str | Path) else None
         self._identity = (metadata.get("config"), metadata.get("seed"))
         self._partial = partial_path(self.path) if self.path is not None else None
@@ -384,22 +411,19 @@ class EpisodeLogWriter:
         arrow = {"pose": _pose(s.x, s.y, s.heading, 0.2), "shaft_length": _m(r), "shaft_diameter": 0.03,
                  "head_length": _m(r * 0.6), "head_diameter": 0.08, "color": _BLUE}
         entities = [_entity(stamp, "robot", cylinders=[_disc(s.x, s.y, r, 0.2, _BLUE)], arrows=[arrow])]
-        for oid, (x, y), (vx, vy), rad, model in zip(self.episode.obstacle_ids, rec.obstacle_positions.tolist(),
-                                                     rec.obstacle_velocities.tolist(), self._radii,
-                                                     self.episode.crowd.models_of, strict=True):
-            # a pedestrian of a reactive model shows where it is heading; scripted obstacles are drawn as they
-            # always were (their logs stay byte for byte what they were before obstacle models)
-            heading = [] if model == DEFAULT_MODEL or (vx == 0.0 and vy == 0.0) else [
-                {"pose": _pose(x, y, atan2_deg(vy, vx), 0.3), "shaft_length": _m(rad), "shaft_diameter": 0.03,
-                 "head_length": _m(rad * 0.6), "head_diameter": 0.08, "color": _RED}]
-            entities.append(_entity(stamp, f"obstacle/{oid}", cylinders=[_disc(x, y, rad, 0.3, _RED)],
-                                    arrows=heading))
+        for (x, y), (vx, vy), (eid, diameter, shaft, head, reactive) in zip(
+                rec.obstacle_positions.tolist(), rec.obstacle_velocities.tolist(), self._obstacle_marks, strict=True):
+            # a pedestrian of a reactive model shows where it is heading
+            heading = [] if not reactive or (vx == 0.0 and vy == 0.0) else [
+                {"pose": _pose(x, y, atan2_deg(vy, vx), 0.3), "shaft_length": shaft, "shaft_diameter": 0.03,
+                 "head_length": head, "head_diameter": 0.08, "color": _RED}]
+            entities.append(_entity(stamp, eid, cylinders=[_cylinder(x, y, diameter, 0.3, _RED)], arrows=heading))
         tpt_lines, hits = [], []
         if d.tpt is not None:
             tpt = d.tpt
             tpt_lines.append(_line(tpt.robot, _CYAN, z_m=0.02))
-            for j in range(len(tpt.obstacle_ids)):
-                tpt_lines.append(_line(tpt.obstacles[:, j, :], _ORANGE, z_m=0.02))
+            if len(tpt.obstacle_ids):
+                tpt_lines.extend(_line_m(points, _ORANGE) for points in _columns_m(tpt.obstacles, 0.02))
             for row in np.flatnonzero(tpt.collide[1:].any(axis=1)).tolist():
                 x, y = tpt.robot[row + 1].tolist()
                 hits.append(_disc(x, y, tpt.robot_radius, 0.05, _HIT))
