@@ -7,10 +7,10 @@ The sweep is the real command (``python -m runners.sweep scenario=<s> planner=<j
 episodes=<per job>``): each job runs its episodes one after the other in one worker process, so a per-episode leak
 grows that worker. Every 0.5 s the resident set of the sweep and of every process below it is read. Reported:
 
-* each worker: its RSS when 10 % of its life had passed and in its last sample, and the growth between the two;
-* the sweep's own process: at 10 % of the run phase (while workers run) and at its end, then its peak while it
-  writes the summary and the report (which hold one table row per episode: that part grows with the sweep by
-  design).
+* when 10 %, 50 % and 100 % of the episodes have their logs (files counted in the job directories): the RSS of
+  each worker and of the sweep's own process, and each worker's growth from 10 % to 100 %;
+* the sweep process's peak after that, while it writes the summary and the report (which hold one table row per
+  episode: that part grows with the sweep by design).
 
 Linux only (``/proc``). The logs go to a temporary directory, removed at the end.
 """
@@ -34,18 +34,12 @@ SAMPLE_S = 0.5
 
 
 @dataclass
-class Series:
-    """RSS samples (MB) of one process, with their times (s since the sweep started)."""
+class Sample:
+    """One look at the sweep: seconds since it started, logs written so far, RSS (MB) of each process by pid."""
 
-    pid: int
-    times: list[float] = field(default_factory=list)
-    rss_mb: list[float] = field(default_factory=list)
-
-    def at_fraction(self, fraction: float) -> float:
-        """The first sample at or after ``fraction`` of this process's sampled life."""
-        start, end = self.times[0], self.times[-1]
-        cut = start + fraction * (end - start)
-        return next(r for t, r in zip(self.times, self.rss_mb, strict=True) if t >= cut)
+    seconds: float
+    episodes_done: int
+    rss_mb: dict[int, float] = field(default_factory=dict)
 
 
 def _children() -> dict[int, list[int]]:
@@ -82,28 +76,36 @@ def _tree(root: int) -> list[int]:
     return out
 
 
+def _episodes_done(sweep_dir: Path) -> int:
+    """Logs in the sweep's job directories (the one being written counts: one per worker at most)."""
+    if not sweep_dir.is_dir():
+        return 0
+    return sum(1 for job in os.scandir(sweep_dir) if job.is_dir()
+               for entry in os.scandir(job.path) if entry.name.endswith(".mcap"))
+
+
 def measure(episodes: int, scenario: str, jobs: int) -> dict:
     """Run the sweep and sample its processes; the summary dict (see the module docstring)."""
     if not 1 <= jobs <= len(STRATEGIES):
         raise ValueError(f"--jobs: must be in [1, {len(STRATEGIES)}], got {jobs}")
     per_job = -(-episodes // jobs)
-    series: dict[int, Series] = {}
+    samples: list[Sample] = []
     with tempfile.TemporaryDirectory(prefix="fuzzynav-rss-") as tmp:
+        sweep_dir = Path(tmp, "sweep")
         cmd = [sys.executable, "-m", "runners.sweep", f"scenario={scenario}",
-               f"planner={','.join(STRATEGIES[:jobs])}", f"episodes={per_job}", f"hydra.sweep.dir={tmp}/sweep"]
+               f"planner={','.join(STRATEGIES[:jobs])}", f"episodes={per_job}", f"hydra.sweep.dir={sweep_dir}"]
         start = time.perf_counter()
         errors = Path(tmp, "sweep.stderr")  # a file, not a pipe: a long sweep's progress bar would fill a pipe
         with errors.open("w") as stderr:
             proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=stderr, text=True)
         try:
             while proc.poll() is None:
-                now = time.perf_counter() - start
+                sample = Sample(time.perf_counter() - start, _episodes_done(sweep_dir))
                 for pid in _tree(proc.pid):
                     rss = _rss_mb(pid)
                     if rss is not None:
-                        s = series.setdefault(pid, Series(pid))
-                        s.times.append(now)
-                        s.rss_mb.append(rss)
+                        sample.rss_mb[pid] = rss
+                samples.append(sample)
                 time.sleep(SAMPLE_S)
         finally:  # interrupted: stop the sweep before its directory is removed
             if proc.poll() is None:
@@ -113,27 +115,35 @@ def measure(episodes: int, scenario: str, jobs: int) -> dict:
         seconds = time.perf_counter() - start
     if proc.returncode != 0:
         raise RuntimeError(f"the sweep failed (exit {proc.returncode}): {err.strip().splitlines()[-1:]}")
-    return _summary(series, proc.pid, episodes=per_job * jobs, jobs=jobs, scenario=scenario,
-                    seconds=seconds)
+    return summary(samples, proc.pid, per_job * jobs, jobs=jobs, scenario=scenario, seconds=seconds)
 
 
 WORKER_MIN_MB = 50.0  # a process below the sweep this large runs episodes (multiprocessing's helpers are smaller)
+MARKS = (0.1, 0.5, 1.0)  # fractions of the episodes at which the RSS is reported
 
 
-def _summary(series: dict[int, Series], root: int, **facts) -> dict:
-    main = series[root]
-    workers = [s for pid, s in series.items() if pid != root and len(s.times) >= 10 and max(s.rss_mb) >= WORKER_MIN_MB]
-    out = dict(facts)
-    out["workers"] = [{"pid": s.pid, "life_s": s.times[-1] - s.times[0], "rss_mb_at_10pct": s.at_fraction(0.1),
-                       "rss_mb_at_end": s.rss_mb[-1], "growth": s.rss_mb[-1] / s.at_fraction(0.1) - 1.0}
-                      for s in workers]
-    run_end = max((s.times[-1] for s in workers), default=None)
-    if run_end is not None:
-        run = Series(root, [t for t in main.times if t <= run_end], [r for t, r in zip(main.times, main.rss_mb,
-                                                                                     strict=True) if t <= run_end])
-        out["sweep_rss_mb_at_10pct"], out["sweep_rss_mb_at_run_end"] = run.at_fraction(0.1), run.rss_mb[-1]
-        after = [r for t, r in zip(main.times, main.rss_mb, strict=True) if t > run_end]
-        out["sweep_rss_mb_peak_in_summary"] = max(after, default=None)
+def summary(samples: list[Sample], root: int, episodes: int, **facts) -> dict:
+    """RSS of the sweep's process and of each worker when 10 %, 50 % and all of the ``episodes`` had their logs,
+    and the sweep's peak after that (summary and report). A worker: a process below the sweep that reached
+    ``WORKER_MIN_MB`` while episodes ran."""
+    out: dict = {"episodes": episodes, **facts}
+    marks = {}
+    for fraction in MARKS:
+        at = next((s for s in samples if s.episodes_done >= fraction * episodes), None)
+        if at is not None:
+            marks[fraction] = at
+    running = [s for s in samples if s.episodes_done < episodes]
+    workers = sorted({pid for s in running for pid, mb in s.rss_mb.items() if pid != root and mb >= WORKER_MIN_MB})
+    out["marks"] = [{"fraction": f, "seconds": s.seconds, "sweep_rss_mb": s.rss_mb.get(root),
+                     "workers_rss_mb": [s.rss_mb.get(pid) for pid in workers]} for f, s in marks.items()]
+    done = marks.get(1.0)
+    after = [s.rss_mb[root] for s in samples if done is not None and s.seconds > done.seconds and root in s.rss_mb]
+    out["sweep_rss_mb_peak_after"] = max(after, default=None)
+    first, last = marks.get(MARKS[0]), done
+    if first is not None and last is not None:
+        growth = [(last.rss_mb[pid] / first.rss_mb[pid] - 1.0) for pid in workers
+                  if pid in first.rss_mb and pid in last.rss_mb]
+        out["worker_growth_10_to_100"] = growth
     return out
 
 
@@ -152,13 +162,15 @@ def main(argv: list[str] | None = None) -> int:
     except (RuntimeError, ValueError) as err:
         print(f"bench_sweep_rss: {err}", file=sys.stderr)
         return 1
-    for w in result["workers"]:
-        print(f"worker {w['pid']}: RSS {w['rss_mb_at_10pct']:.1f} MB at 10 % of its {w['life_s']:.0f} s, "
-              f"{w['rss_mb_at_end']:.1f} MB at its end ({w['growth']:+.1%})")
-    if "sweep_rss_mb_at_10pct" in result:
-        print(f"sweep process: {result['sweep_rss_mb_at_10pct']:.1f} MB at 10 % of the run, "
-              f"{result['sweep_rss_mb_at_run_end']:.1f} MB when the workers ended; peak while writing the summary "
-              f"and report of {result['episodes']} episodes: {result['sweep_rss_mb_peak_in_summary'] or 0:.1f} MB")
+    for mark in result["marks"]:
+        workers = ", ".join(f"{mb:.1f}" if mb is not None else "gone" for mb in mark["workers_rss_mb"])
+        print(f"{mark['fraction']:.0%} of the episodes logged ({mark['seconds']:.0f} s): sweep process "
+              f"{mark['sweep_rss_mb'] or 0:.1f} MB, workers {workers} MB")
+    if result.get("worker_growth_10_to_100"):
+        growth = ", ".join(f"{g:+.1%}" for g in result["worker_growth_10_to_100"])
+        print(f"workers' growth from 10 % to 100 %: {growth}")
+    if result["sweep_rss_mb_peak_after"] is not None:
+        print(f"sweep process peak while writing the summary and report: {result['sweep_rss_mb_peak_after']:.1f} MB")
     print(f"{result['episodes']} episodes of {result['scenario']} in {result['seconds']:.0f} s")
     if args.out:
         args.out.write_text(json.dumps(result, indent=2))

@@ -8,19 +8,20 @@ import sys
 
 import pytest
 
-from runners.bench_sweep_rss import Series, _summary
+from runners.bench_sweep_rss import Sample, summary
 from tests.conftest import ROOT
 
 
-def test_the_summary_reads_workers_and_the_sweep_apart():
-    root = Series(1, [0, 2, 4, 6, 8, 10, 12], [60, 61, 62, 63, 64, 150, 160])
-    worker = Series(2, list(range(10)), [50, 55, 80, 80, 80, 80, 80, 80, 80, 88])
-    helper = Series(3, list(range(10)), [15.0] * 10)  # multiprocessing's resource tracker: not a worker
-    out = _summary({1: root, 2: worker, 3: helper}, 1, episodes=10)
-    assert [w["pid"] for w in out["workers"]] == [2]
-    assert out["workers"][0]["rss_mb_at_10pct"] == 55 and out["workers"][0]["rss_mb_at_end"] == 88
-    assert out["workers"][0]["growth"] == pytest.approx(88 / 55 - 1)
-    assert out["sweep_rss_mb_at_run_end"] == 64 and out["sweep_rss_mb_peak_in_summary"] == 160  # workers: t <= 9
+def test_the_summary_reads_workers_and_the_sweep_apart_by_episodes_logged():
+    # pid 1: the sweep; 2: a worker; 3: multiprocessing's resource tracker (small: not a worker)
+    samples = [Sample(0, 0, {1: 60}), Sample(1, 5, {1: 61, 2: 50, 3: 15}), Sample(2, 10, {1: 62, 2: 55, 3: 15}),
+               Sample(3, 50, {1: 63, 2: 80, 3: 15}), Sample(4, 100, {1: 64, 2: 88, 3: 15}),
+               Sample(5, 100, {1: 150, 2: 88}), Sample(6, 100, {1: 160, 2: 88})]
+    out = summary(samples, 1, 100, jobs=1)
+    assert [(m["fraction"], m["sweep_rss_mb"], m["workers_rss_mb"]) for m in out["marks"]] == [
+        (0.1, 62, [55]), (0.5, 63, [80]), (1.0, 64, [88])]
+    assert out["worker_growth_10_to_100"] == [pytest.approx(88 / 55 - 1)]
+    assert out["sweep_rss_mb_peak_after"] == 160
 
 
 def test_the_command_runs_a_small_sweep_and_reports_every_worker(tmp_path):
@@ -29,8 +30,8 @@ def test_the_command_runs_a_small_sweep_and_reports_every_worker(tmp_path):
                           "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     result = json.loads(out.read_text())
-    assert result["episodes"] == 20 and len(result["workers"]) == 2
-    assert all(w["rss_mb_at_end"] > 0 for w in result["workers"])
+    assert result["episodes"] == 20 and [m["fraction"] for m in result["marks"]] == [0.1, 0.5, 1.0]
+    assert len(result["marks"][-1]["workers_rss_mb"]) == 2 and all(mb for mb in result["marks"][-1]["workers_rss_mb"])
     assert "20 episodes of head_on" in res.stdout
 
 
