@@ -20,7 +20,7 @@ from shapely.geometry import Point, Polygon, box
 
 from analysis.episode_check import check_episode
 from analysis.log_check import CheckError, check_message, check_metadata, messages_acceptable
-from analysis.logs import LogError, LogFile, decode
+from analysis.logs import LogError, LogFile, collector_paused, decode
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
 
@@ -207,7 +207,8 @@ def load_episode(path: str | Path, topics: Iterable[str] = METRIC_TOPICS) -> Epi
     log = EpisodeLog(path=path, meta=meta, config=config, complete=source.complete, dt=math.nan)
     times: dict[str, list[int]] = {topic: [] for topic in topics}
     try:
-        _read_messages(log, source.raw_messages(topics), times)
+        with collector_paused():
+            _read_messages(log, source.raw_messages(topics), times)
         check_episode(log, times, dt)
     except CheckError as err:
         raise LogError(f"{path}: {err}", "episode") from None  # the messages together (check_episode)

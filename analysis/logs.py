@@ -8,6 +8,8 @@ until someone writes to it). Every problem is a :class:`LogError` whose message 
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import os
 import stat
 from collections.abc import Callable, Iterable, Iterator
@@ -243,6 +245,21 @@ def read_metadata(path: Path) -> dict[str, str]:
 def iter_messages(path: Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, dict[str, Any]]]:
     """(topic, log time ns, decoded JSON message) in log-time order; a truncated log yields what it has."""
     yield from LogFile(path, topics).messages(topics)
+
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector while one log is read (nests: the outermost restores it). A log is
+    thousands of small containers (decoded JSON), all acyclic and freed by reference counting; while they are
+    being built the collector would otherwise scan them and everything else alive again and again (measured: a
+    fifth of the reading time)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def decode(path: Path, topic: str, data: bytes) -> Any:

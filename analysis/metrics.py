@@ -9,9 +9,7 @@ sweep's summary pool.
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import gc
 import json
 import math
 from collections.abc import Callable, Iterable
@@ -25,7 +23,7 @@ import pandas as pd
 import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
-from analysis.logs import SKIPPED_KINDS, LogError, find_logs, read_logs
+from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import MODEL_COLUMNS, model_columns, tpt_errors
 from fuzzynav.geometry import swept_distance, wrap_180
@@ -303,20 +301,6 @@ def _detour_extra(pos: np.ndarray, modes: list[str]) -> float:
     return extra
 
 
-@contextlib.contextmanager
-def _collector_paused():
-    """Pause Python's cyclic garbage collector while one log is read. A log is thousands of small containers
-    (decoded JSON), all acyclic and freed by reference counting; while they are being built the collector would
-    otherwise scan them and everything else alive again and again (measured: a fifth of the reading time)."""
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()
-
-
 def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:
     """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with their outcome (when
     unread: ``skipped`` on purpose — a copy, a conflict, not a regular file — else ``unreadable``), their ``kind``
@@ -337,7 +321,7 @@ def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[lis
             return None
 
     for path in paths:
-        with _collector_paused():
+        with collector_paused():
             row, left_out = _metrics_row(path, options, parameters, seed)
         if row is not None:
             rows.append(row)

@@ -151,3 +151,25 @@ def test_tpt_errors_are_the_per_table_definition_to_the_last_bit(log):
     assert by_model.keys() == r_by_model.keys()
     for model, (a, f) in by_model.items():
         assert same(a, r_by_model[model][0]) and same(f, r_by_model[model][1])
+
+
+def test_the_collector_pause_nests_and_restores_the_state_it_found():
+    import gc
+
+    from analysis.logs import collector_paused
+
+    assert gc.isenabled()
+    with pytest.raises(RuntimeError), collector_paused():
+        assert not gc.isenabled()
+        with collector_paused():
+            assert not gc.isenabled()
+        assert not gc.isenabled()  # the inner pause does not switch it back on
+        raise RuntimeError
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with collector_paused():
+            pass
+        assert not gc.isenabled()  # left as found
+    finally:
+        gc.enable()
