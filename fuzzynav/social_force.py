@@ -92,13 +92,14 @@ def agent_repulsion(rel: np.ndarray, other_vel: np.ndarray, strength: float, ran
     vectors cancel, and at its far end only the one from β remains)."""
     ahead = rel - other_vel * step_time_s  # r − v_β Δt
     r1, r2 = norm2(rel), norm2(ahead)
-    s = norm2(other_vel) * step_time_s
+    s = norm2(other_vel) * step_time_s  # (other_vel may be one row broadcast over α: computed once per β)
     u = r1 + r2
     b = 0.5 * np.sqrt(np.maximum(u * u - s * s, 0.0))
-    unit1 = np.where((r1 > 0.0)[..., None], rel / np.where(r1 > 0.0, r1, 1.0)[..., None], 0.0)
-    unit2 = np.where((r2 > 0.0)[..., None], ahead / np.where(r2 > 0.0, r2, 1.0)[..., None], 0.0)
+    apart1, apart2 = r1 > 0.0, r2 > 0.0
+    unit1 = np.where(apart1[..., None], rel / np.where(apart1, r1, 1.0)[..., None], 0.0)
+    unit2 = np.where(apart2[..., None], ahead / np.where(apart2, r2, 1.0)[..., None], 0.0)
     grad = (u / (4.0 * np.maximum(b, B_FLOOR_CM)))[..., None] * (unit1 + unit2)
-    magnitude = strength / range_cm * exp_array(-b / range_cm) * np.where(r1 > 0.0, 1.0, 0.0)
+    magnitude = strength / range_cm * exp_array(-b / range_cm) * np.where(apart1, 1.0, 0.0)
     return magnitude[..., None] * grad
 
 
@@ -149,8 +150,8 @@ class SocialForceModel:
             all_pos = np.vstack([x, o_pos0 + o_vel * tau]) if len(o_pos0) else x
             all_vel = np.vstack([v, o_vel]) if len(o_pos0) else v
             rel = x[:, None, :] - all_pos[None, :, :]
-            pair_f = agent_repulsion(rel, np.broadcast_to(all_vel[None, :, :], rel.shape), c.agent_strength_cm2_s2,
-                                     c.agent_range_cm, c.step_time_s)
+            pair_f = agent_repulsion(rel, all_vel[None, :, :], c.agent_strength_cm2_s2, c.agent_range_cm,
+                                     c.step_time_s)
             # Eq. 7: a repulsion whose source is outside the angle of sight around e counts c times
             speed = norm2(pref)
             e = pref / np.where(speed > 0.0, speed, 1.0)[:, None]

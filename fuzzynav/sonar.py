@@ -66,8 +66,9 @@ class Sonar:
             coords[..., 0] = tx * c - ty * s + x
             coords[..., 1] = tx * s + ty * c + y
             return shapely.polygons(coords)
-        return shapely.polygons([np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y], axis=1)
-                                 for t in self._templates])
+        # sectors of different widths: one polygon at a time (their outlines have different lengths)
+        return np.array([shapely.polygons(np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y],
+                                                   axis=1)) for t in self._templates], dtype=object)
 
     def read(self, x: float, y: float, heading_deg: float, solid: shapely.Geometry,
              discs: np.ndarray | None = None) -> tuple[float, float, float]:
