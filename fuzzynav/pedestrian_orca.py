@@ -95,47 +95,69 @@ class PedestrianOrcaModel:
             rad_all = np.concatenate([self.radii, o_rad])
             share = [0.5] * n + o_share
             gaps, away = away_from_static(x, view.world.segments, view.world.circles)
+            near = self._neighbours(x, pos_all)
+            # every pedestrian's inputs as Python floats at once (the same values): indexing numpy element by element
+            # inside the per-pedestrian loop would cost more than the loop's own arithmetic
+            reach = c.time_horizon_obst_s * max_speed + self.radii
+            close = ((gaps - self.radii[:, None]) < reach[:, None]).tolist()
+            rows = _Rows(pos_all[None, :, :] - x[:, None, :], vel_all, rad_all, gaps, away)
             new_v = np.empty_like(v)
-            for i in range(n):
-                new_v[i] = self._velocity(i, x[i], v[i], pref[i], float(max_speed[i]), pos_all, vel_all, rad_all,
-                                          share, gaps[i], away[i], h)
+            for i, (vi, pi, top) in enumerate(zip(v.tolist(), pref.tolist(), max_speed.tolist(), strict=True)):
+                statics = [k for k, ok in enumerate(close[i]) if ok]
+                new_v[i] = self._velocity(i, vi, pi, top, statics, near[i], rows, share, h)
             # the walls are hard constraints of the linear program, which a speed above what the horizon covers
             # can still overshoot in one substep: the walls are solid
             x, v = keep_inside(x + new_v * h, new_v, self.radii, view.world.bounds)
         self.x, self.v = x, v
         return x.copy(), v.copy()
 
-    def _velocity(self, i: int, xi: np.ndarray, vi: np.ndarray, pref: np.ndarray, max_speed: float,
-                  pos_all: np.ndarray, vel_all: np.ndarray, rad_all: np.ndarray, share: list[float],
-                  gaps: np.ndarray, away: np.ndarray, h: float) -> np.ndarray:
-        """The new velocity (cm/s) of own pedestrian ``i`` at ``xi`` moving at ``vi``."""
+    def _neighbours(self, x: np.ndarray, pos_all: np.ndarray) -> list[list[int]]:
+        """For each own pedestrian, the indices into ``pos_all`` of its ``max_neighbors`` nearest others within
+        ``neighbor_dist_cm``, nearest first (a stable sort: equal distances keep their order)."""
         c = self.config
-        velocity = (float(vi[0]), float(vi[1]))
-        r = float(self.radii[i])
+        n = len(x)
+        d = norm2(pos_all[None, :, :] - x[:, None, :])
+        d[np.arange(n), np.arange(n)] = math.inf  # not itself
+        order = np.argsort(d, axis=1, kind="stable")
+        within = (np.take_along_axis(d, order, axis=1) < c.neighbor_dist_cm).tolist()
+        return [[j for j, ok in zip(row, inside, strict=True) if ok][:c.max_neighbors]
+                for row, inside in zip(order.tolist(), within, strict=True)]
+
+    def _velocity(self, i: int, vi: list[float], pref: list[float], max_speed: float, statics: list[int],
+                  near: list[int], rows: _Rows, share: list[float], h: float) -> tuple[float, float]:
+        """The new velocity (cm/s) of own pedestrian ``i`` moving at ``vi``: ``statics`` are the walls, edges and
+        circles within its reach, ``near`` its neighbours (indices into ``rows``)."""
+        c = self.config
+        velocity = (vi[0], vi[1])
+        r = rows.radii[i]
         lines: list[Line] = []
-        reach = c.time_horizon_obst_s * max_speed + r
-        for k in np.nonzero(gaps - r < reach)[0].tolist():
+        gaps, away = rows.gaps[i], rows.away[i]
+        for k in statics:
             # the nearest point of the edge or rim, relative to the pedestrian (cm)
-            g = float(gaps[k])
-            rel = (-float(away[k][0]) * g, -float(away[k][1]) * g)
+            g = gaps[k]
+            rel = (-away[k][0] * g, -away[k][1] * g)
             line = static_point_line(rel, r, c.time_horizon_obst_s, h, velocity)
             if line is not None:
                 lines.append(line)
         hard = len(lines)
-        rel_all = pos_all - xi
-        d = norm2(rel_all)
-        d[i] = math.inf
-        order = np.argsort(d, kind="stable")
-        near = order[d[order] < c.neighbor_dist_cm][:c.max_neighbors].tolist()  # nearest first, within reach
-        # Python floats of the rows (the same values; indexing numpy element by element is what would cost)
-        rel_rows, vel_rows, rad_list = rel_all.tolist(), vel_all.tolist(), rad_all.tolist()
+        rel_row = rows.rel[i]
         for j in near:
-            rel = (rel_rows[j][0], rel_rows[j][1])
-            rel_vel = (velocity[0] - vel_rows[j][0], velocity[1] - vel_rows[j][1])
-            lines.append(orca_line(rel, rel_vel, r + rad_list[j], c.time_horizon_s, h, share[j], velocity))
-        preferred = (float(pref[0]), float(pref[1]))
+            rel = (rel_row[j][0], rel_row[j][1])
+            rel_vel = (velocity[0] - rows.vel[j][0], velocity[1] - rows.vel[j][1])
+            lines.append(orca_line(rel, rel_vel, r + rows.radii[j], c.time_horizon_s, h, share[j], velocity))
+        preferred = (pref[0], pref[1])
         speed = hypot(*preferred)
         if speed > max_speed:
             preferred = (preferred[0] * max_speed / speed, preferred[1] * max_speed / speed)
-        result = choose_velocity(lines, hard, max_speed, preferred)
-        return np.array(result.velocity)
+        return choose_velocity(lines, hard, max_speed, preferred).velocity
+
+
+class _Rows:
+    """One substep's inputs of :meth:`PedestrianOrcaModel._velocity` as Python floats: relative positions (n, m, 2)
+    of everyone from each own pedestrian (cm), velocities (m, 2) cm/s and radii (m,) cm of everyone (own
+    pedestrians first), and each own pedestrian's gaps (n, K) cm to the walls, edges and circles with the unit
+    vectors (n, K, 2) pointing away from them."""
+
+    def __init__(self, rel: np.ndarray, vel: np.ndarray, radii: np.ndarray, gaps: np.ndarray, away: np.ndarray) -> None:
+        self.rel, self.vel, self.radii = rel.tolist(), vel.tolist(), radii.tolist()
+        self.gaps, self.away = gaps.tolist(), away.tolist()
