@@ -18,8 +18,25 @@ def _result(report_s: float, read_s: float) -> dict:
 def test_budget_lines_say_what_is_measured_and_what_is_estimated():
     stage, whole = budget_lines(_result(7.4, 30.0))
     assert stage == "report stage, 10000 episodes: 7.4 s (measured) — within its 15 s share"
-    assert whole.startswith("whole report, 10000 episodes: ~37 s = read stage ~30 s (estimated: the 210 real logs'")
+    assert whole.startswith("whole report, 10000 episodes: ~37 s = read stage ~30 s (estimated: the 210 real logs' "
+                            "one-process time per log")
     assert "report stage 7.4 s (measured) — within the 60 s budget" in whole
     stage, whole = budget_lines(_result(16.0, 50.0))
     assert "OVER its 15 s share" in stage and "OVER the 60 s budget" in whole
     assert "(measured)" in summary_line(_result(7.4, 30.0)) and "(estimated" in summary_line(_result(7.4, 30.0))
+
+
+def test_the_whole_report_of_existing_logs_is_measured(tmp_path):
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+    out = tmp_path / "r.json"
+    res = subprocess.run([sys.executable, "-m", "runners.bench_report", "--logs", str(ROOT / "datasets" / "paper_fig5"
+                                                                                       / "logs"), "--out", str(out)],
+                         cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.startswith("whole report of 21 logged episodes (0 left out): ") and "(measured)" in res.stdout
+    missing = subprocess.run([sys.executable, "-m", "runners.bench_report", "--logs", str(tmp_path / "none")],
+                             cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert missing.returncode == 2 and "--logs: " in missing.stderr and "no such file" in missing.stderr
