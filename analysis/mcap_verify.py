@@ -38,7 +38,6 @@ _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _RECORD = struct.Struct("<BQ")  # opcode, body length
 _CHUNK_HEAD = struct.Struct("<QQQI")  # message start time, end time, uncompressed size, uncompressed CRC
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
-_CHANNEL_TIME = struct.Struct("<H4xQ")  # a message's channel id and log time
 _MESSAGE_START = struct.Struct("<BQH4xQ")  # a record's opcode and length, and if it is a message its channel and time
 
 
