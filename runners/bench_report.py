@@ -91,6 +91,10 @@ def repeated(analysis, episodes: int, link_dir: Path | None = None):
     return Analysis(table.drop(columns=["_run", "_rank"]), analysis.excluded, analysis.grouping, runs)
 
 
+MAX_EPISODES = 1_000_000  # rows of the large table: its report stage holds them in memory
+MAX_SEEDS = 10_000  # the sweep's own limit of episodes per job
+
+
 def bench_report(episodes: int = 10_000, seeds: int = 10) -> dict:
     """Time the report (see the module docstring): the real default sweep with ``seeds`` seeds per configuration,
     read and report stages; the report stage on ``episodes`` rows built from it; the read stage for ``episodes``
@@ -194,17 +198,27 @@ def main(argv: list[str] | None = None) -> int:
                         help="instead: time the whole report of these logs (e.g. a 10,000-episode sweep's directory)")
     parser.add_argument("--out", help="also write the result here (JSON)")
     args = parser.parse_args(argv)
-    if args.logs:
-        missing = [p for p in args.logs if not Path(p).exists()]
-        if missing:
-            parser.error(f"--logs: {missing[0]}: no such file or directory")
-        result = bench_logs(args.logs)
-        print(logs_line(result))
-    else:
-        result = bench_report(args.episodes, args.seeds)
-        print(summary_line(result))
-        for line in budget_lines(result):
-            print(line)
+    if not 1 <= args.episodes <= MAX_EPISODES:
+        parser.error(f"--episodes: must be in [1, {MAX_EPISODES:,}], got {args.episodes}")
+    if not 1 <= args.seeds <= MAX_SEEDS:
+        parser.error(f"--seeds: must be in [1, {MAX_SEEDS:,}], got {args.seeds}")
+    try:
+        if args.logs:
+            missing = [p for p in args.logs if not Path(p).exists()]
+            if missing:
+                parser.error(f"--logs: {missing[0]}: no such file or directory")
+            result = bench_logs(args.logs)
+            if result["episodes"] == 0:
+                raise RuntimeError(f"--logs: no usable episode among them ({result['left_out']} left out)")
+            print(logs_line(result))
+        else:
+            result = bench_report(args.episodes, args.seeds)
+            print(summary_line(result))
+            for line in budget_lines(result):
+                print(line)
+    except RuntimeError as err:
+        print(f"bench_report: {err}", file=sys.stderr)
+        return 1
     if args.out:
         Path(args.out).write_text(json.dumps(result, indent=2))
     return 0

@@ -154,6 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2, help="jobs (worker processes), one strategy each (default 2)")
     parser.add_argument("--out", type=Path, help="also write the result as JSON here")
     args = parser.parse_args(argv)
+    if not 1 <= args.jobs <= len(STRATEGIES):
+        parser.error(f"--jobs: must be in [1, {len(STRATEGIES)}], got {args.jobs}")
     if args.episodes < 10 * args.jobs:
         parser.error(f"--episodes: at least 10 per job, got {args.episodes} for {args.jobs} jobs")
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # unwinds: the sweep is stopped, its logs removed

@@ -40,3 +40,19 @@ def test_the_whole_report_of_existing_logs_is_measured(tmp_path):
     missing = subprocess.run([sys.executable, "-m", "runners.bench_report", "--logs", str(tmp_path / "none")],
                              cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert missing.returncode == 2 and "--logs: " in missing.stderr and "no such file" in missing.stderr
+
+
+def test_bad_arguments_are_one_line_errors(tmp_path):
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+    not_a_log = tmp_path / "x.mcap"
+    not_a_log.write_text("hello")
+    for args, code, text in ((["--episodes", "0"], 2, "--episodes: must be in [1, 1,000,000], got 0"),
+                             (["--seeds", "-3"], 2, "--seeds: must be in [1, 10,000], got -3"),
+                             (["--logs", str(not_a_log)], 1, "--logs: no usable episode among them (1 left out)")):
+        res = subprocess.run([sys.executable, "-m", "runners.bench_report", *args], cwd=ROOT, capture_output=True,
+                             text=True, timeout=120)
+        assert res.returncode == code and text in res.stderr and "Traceback" not in res.stderr, (args, res.stderr)
+        assert text in res.stderr.strip().splitlines()[-1]  # one line (after argparse's usage)

@@ -39,3 +39,6 @@ def test_bad_arguments_are_one_line_errors():
     res = subprocess.run([sys.executable, "-m", "runners.bench_sweep_rss", "--episodes", "5", "--jobs", "2"],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--episodes: at least 10 per job" in res.stderr
+    res = subprocess.run([sys.executable, "-m", "runners.bench_sweep_rss", "--jobs", "0"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "--jobs: must be in [1, 7], got 0" in res.stderr
