@@ -159,7 +159,7 @@ def test_sigint_then_a_killed_worker_then_resume_completes_every_episode_once(tm
     while running the long ones, loses a worker to SIGKILL (1, lost episodes and how to resume, no traceback); the
     next resume completes the sweep with every episode once."""
     sweep_dir = tmp_path / "s"
-    args = ["sweep=quick", SEARCH, "scenario=head_on,endless_corridor", "scenario.max_steps=1200", "planner=auto",
+    args = ["sweep=quick", SEARCH, "scenario=head_on,endless_corridor", "scenario.max_steps=4000", "planner=auto",
             "seed=0,1", "episodes=1", "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep_dir}"]
     long_running = "endless_corridor"
 
