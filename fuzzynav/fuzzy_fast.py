@@ -28,28 +28,23 @@ from __future__ import annotations
 import bisect
 import math
 import operator
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav import compiled
 from fuzzynav.fuzzy_spec import ControllerSpec, Variable, sample_membership
 from fuzzynav.portable_math import sequential_sum
 
-try:
-    from fuzzynav import _mamdani
-except ImportError:  # not built (no C compiler at install): the Python path gives the same bits
-    _mamdani = None
-
+_mamdani = compiled.load("_mamdani")  # None: not built (no C compiler at install); the Python path, same bits
 _CHUNK = 1024  # batch rows per block (bounds memory at ~ chunk x grid floats per array)
-KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use the compiled kernel
 
 
 def kernel_available() -> bool:
     """Whether single decisions go through the compiled kernel (built, and not switched off by the
     environment) for definitions it can take (see :meth:`FastEvaluator.uses_kernel`)."""
-    return _mamdani is not None and os.environ.get(KERNEL_ENV, "").strip().lower() != "python"
+    return _mamdani is not None and not compiled.switched_off()
 
 
 @dataclass(frozen=True)

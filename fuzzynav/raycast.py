@@ -4,14 +4,20 @@ Lengths in cm; rays are given by unit direction vectors in the world frame. Ever
 elementwise (one ray against one segment or circle at a time, always with the same operations), and the
 nearest hit per ray is a plain minimum, so the result does not depend on the CPU or on which other segments
 and circles are in the world.
+
+The per-ray part runs in C (``fuzzynav._raycast``, same operations in the same order: the same bits) when it
+was built at install; ``nearest_numpy`` is its numpy form, used without it or with ``FUZZYNAV_KERNEL=python``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from fuzzynav import compiled
 from fuzzynav.geometry import segment_point_distance
 from fuzzynav.portable_math import norm2
+
+_raycast = compiled.load("_raycast")
 
 
 def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, circles: np.ndarray,
@@ -33,16 +39,26 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     seg_gaps = segment_point_distance(segments[:, :2], segments[:, 2:], np.array([ox, oy]))
     seg_ids = np.flatnonzero(seg_gaps <= reach)
     circ_ids = np.flatnonzero(norm2(circles[:, :2] - (ox, oy)) - circles[:, 2] <= reach)
-    dx, dy = d[:, :1], d[:, 1:]  # (N, 1) columns, broadcast against the (M,) or (C,) rows below
     best = np.full(n, float(max_range))
-    hit = np.full(n, -1, dtype=np.intp)
-    if len(seg_ids):
-        t = _segment_distances(dx, dy, segments[seg_ids], ox, oy)
-        _keep_nearest(t, seg_ids, best, hit)
-    if len(circ_ids):
-        t = _circle_distances(dx, dy, circles[circ_ids], ox, oy)
-        _keep_nearest(t, len(segments) + circ_ids, best, hit)
+    hit = np.full(n, -1, dtype=np.int64)
+    if not len(seg_ids) and not len(circ_ids):
+        return best, hit
+    nearest = nearest_numpy if _raycast is None or compiled.switched_off() else _raycast.nearest
+    nearest(ox, oy, np.ascontiguousarray(d), np.ascontiguousarray(segments[seg_ids]), seg_ids.astype(np.int64),
+            np.ascontiguousarray(circles[circ_ids]), (len(segments) + circ_ids).astype(np.int64), best, hit)
     return best, hit
+
+
+def nearest_numpy(ox: float, oy: float, directions: np.ndarray, segments: np.ndarray, segment_ids: np.ndarray,
+                  circles: np.ndarray, circle_ids: np.ndarray, best: np.ndarray, hit: np.ndarray) -> None:
+    """Lower ``best`` (N,) to each ray's first nearest segment, then circle, strictly nearer, and set ``hit`` to
+    its id there (in place). ``directions`` (N, 2) unit vectors from (ox, oy) cm; ``segments`` (M, 4) and
+    ``circles`` (C, 3) the ones kept after culling, with their ``segment_ids`` and ``circle_ids``."""
+    dx, dy = directions[:, :1], directions[:, 1:]  # (N, 1) columns, broadcast against the (M,) or (C,) rows
+    if len(segments):
+        _keep_nearest(_segment_distances(dx, dy, segments, ox, oy), segment_ids, best, hit)
+    if len(circles):
+        _keep_nearest(_circle_distances(dx, dy, circles, ox, oy), circle_ids, best, hit)
 
 
 def _segment_distances(dx: np.ndarray, dy: np.ndarray, segments: np.ndarray, ox: float, oy: float) -> np.ndarray:

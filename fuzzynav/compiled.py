@@ -1,0 +1,27 @@
+"""The optional compiled kernels (C files built by the install when a C compiler is there).
+
+Each kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are the
+same bits with or without it (each has a test that compares them). ``FUZZYNAV_KERNEL=python`` in the
+environment switches every kernel off: the runs then take the Python paths (to check them, or to time them).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from types import ModuleType
+
+KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
+
+
+def switched_off() -> bool:
+    """Whether the environment asks for the Python paths."""
+    return os.environ.get(KERNEL_ENV, "").strip().lower() == "python"
+
+
+def load(name: str) -> ModuleType | None:
+    """The compiled module ``fuzzynav.<name>``, or None when it was not built (no C compiler at install)."""
+    try:
+        return importlib.import_module(f"fuzzynav.{name}")
+    except ImportError:
+        return None

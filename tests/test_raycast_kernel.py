@@ -1,0 +1,125 @@
+"""The compiled ray caster (fuzzynav._raycast) gives its numpy form's bits: ranges and hit indices.
+
+Worlds drawn at random (segments of any orientation, zero-length ones, segments through the origin and parallel
+to beams, circles around the origin or touching it, rays grazing a rim, coincident objects for ties), rays in
+random and in axis directions. In CI (CI=true) the kernel must have been built.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fuzzynav import raycast
+from fuzzynav.laser import LaserConfig, beam_directions
+from fuzzynav.raycast import cast_rays, nearest_numpy
+
+if raycast._raycast is None:
+    if os.environ.get("CI"):
+        pytest.fail("fuzzynav._raycast was not built (pip install -e . compiles it; a C compiler is needed)",
+                    pytrace=False)
+    pytest.skip("fuzzynav._raycast not built (no C compiler at install): the numpy form runs alone",
+                allow_module_level=True)
+
+coord = st.one_of(st.floats(-400, 400, allow_nan=False), st.integers(-300, 300).map(float))
+
+
+@st.composite
+def worlds(draw):
+    ox, oy = draw(coord), draw(coord)
+    segments = []
+    for _ in range(draw(st.integers(0, 12))):
+        kind = draw(st.sampled_from(["any", "point", "through_origin", "axis"]))
+        x1, y1 = draw(coord), draw(coord)
+        if kind == "point":
+            x2, y2 = x1, y1
+        elif kind == "through_origin":
+            x2, y2 = 2 * ox - x1, 2 * oy - y1
+        elif kind == "axis":
+            x2, y2 = (x1, draw(coord)) if draw(st.booleans()) else (draw(coord), y1)
+        else:
+            x2, y2 = draw(coord), draw(coord)
+        segments.append((x1, y1, x2, y2))
+    if segments and draw(st.booleans()):
+        segments.append(segments[0])  # a coincident copy: the lower index must win the tie
+    circles = []
+    for _ in range(draw(st.integers(0, 10))):
+        kind = draw(st.sampled_from(["any", "around_origin", "touching"]))
+        r = draw(st.floats(0.0, 150.0))
+        if kind == "around_origin":
+            circles.append((ox + draw(st.floats(-10, 10)), oy + draw(st.floats(-10, 10)), r + 10.0))
+        elif kind == "touching":
+            circles.append((ox + r, oy, r))
+        else:
+            circles.append((draw(coord), draw(coord), r))
+    return ox, oy, np.array(segments, float).reshape(-1, 4), np.array(circles, float).reshape(-1, 3)
+
+
+def _both(ox, oy, directions, segments, circles, max_range):
+    outs = []
+    for fn in (raycast._raycast.nearest, nearest_numpy):
+        best, hit = np.full(len(directions), float(max_range)), np.full(len(directions), -1, dtype=np.int64)
+        fn(ox, oy, np.ascontiguousarray(directions), segments, np.arange(len(segments), dtype=np.int64), circles,
+           len(segments) + np.arange(len(circles), dtype=np.int64), best, hit)
+        outs.append((best.tobytes(), hit.tobytes()))
+    return outs
+
+
+@given(worlds(), st.floats(0, 360), st.sampled_from([8, 360]), st.floats(1.0, 1000.0))
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_kernel_gives_the_numpy_forms_bits(world, heading, beams, max_range):
+    ox, oy, segments, circles = world
+    directions = beam_directions(LaserConfig(beams=beams), heading)
+    kernel, numpy_form = _both(ox, oy, directions, segments, circles, max_range)
+    assert kernel == numpy_form
+
+
+@given(worlds())
+@settings(max_examples=100, deadline=None)
+def test_axis_and_diagonal_rays_too(world):
+    ox, oy, segments, circles = world
+    s = np.sqrt(0.5)
+    directions = np.array([[1, 0], [0, 1], [-1, 0], [0, -1], [s, s], [-s, s], [s, -s], [-s, -s]], float)
+    kernel, numpy_form = _both(ox, oy, directions, segments, circles, 250.0)
+    assert kernel == numpy_form
+
+
+def test_cast_rays_is_the_same_with_the_kernel_switched_off(monkeypatch):
+    rng = np.random.default_rng(4)
+    segments = np.column_stack([rng.uniform(-300, 300, (30, 4))])
+    circles = np.column_stack([rng.uniform(-300, 300, (20, 2)), rng.uniform(1, 50, 20)])
+    d = beam_directions(LaserConfig(), 33.0)
+    on = cast_rays(np.array([5.0, -7.0]), d, segments, circles, 250.0)
+    monkeypatch.setenv("FUZZYNAV_KERNEL", "python")
+    off = cast_rays(np.array([5.0, -7.0]), d, segments, circles, 250.0)
+    assert on[0].tobytes() == off[0].tobytes() and on[1].tobytes() == off[1].tobytes()
+    assert (on[1] >= 0).sum() > 100  # the world is hit: the comparison means something
+
+
+@pytest.mark.parametrize(("which", "bad"), [
+    (0, np.zeros((4, 3))),  # directions with 3 columns
+    (0, np.zeros((4, 2), np.float32)),
+    (1, np.zeros((2, 4))[:, ::2].copy()),  # 2 columns, not 4
+    (2, np.zeros(3, np.int64)),  # ids of another length
+    (5, np.zeros(5)),  # best of another length
+    (6, np.zeros(4)),  # hit as floats
+    (0, np.zeros((8, 2))[::2]),  # not contiguous
+])
+def test_bad_buffers_are_refused(which, bad):
+    args = [np.zeros((4, 2)), np.zeros((2, 4)), np.zeros(2, np.int64), np.zeros((1, 3)), np.zeros(1, np.int64),
+            np.zeros(4), np.zeros(4, np.int64)]
+    args[which] = bad
+    with pytest.raises((ValueError, BufferError, TypeError)):
+        raycast._raycast.nearest(0.0, 0.0, *args)
+
+
+def test_read_only_outputs_are_refused():
+    best = np.zeros(4)
+    best.flags.writeable = False
+    with pytest.raises((ValueError, BufferError, TypeError)):
+        raycast._raycast.nearest(0.0, 0.0, np.zeros((4, 2)), np.zeros((0, 4)), np.zeros(0, np.int64),
+                                 np.zeros((0, 3)), np.zeros(0, np.int64), best, np.zeros(4, np.int64))
