@@ -1,6 +1,6 @@
 """Log content does not depend on the CPU: the recorded datasets verify in child processes that run other
 OpenBLAS kernels and numpy with its optional SIMD dispatch switched off (README "Numerics"), and the fuzzy
-controller without its compiled kernel.
+controller and the laser without their compiled kernels.
 
 The machine's own kernel is covered by tests/test_suite_and_datasets.py. Here every configuration verifies
 paper_fig5 seed 0 (all seven variants, compared message by message with the committed logs) and suite_v1
@@ -45,9 +45,9 @@ def _configurations() -> list[tuple[str, dict[str, str]]]:
         # glibc's libm picks FMA or non-FMA variants of exp, sin, atan2... by CPU, and their last bits differ
         # (the pedestrian libraries measured for #17 changed trajectories under this setting)
         configs.append((f"GLIBC_TUNABLES={NO_FMA_LIBM} (libm without FMA)", {"GLIBC_TUNABLES": NO_FMA_LIBM}))
-    # the fuzzy controller's Python path instead of its compiled kernel (fuzzynav._mamdani): a machine without a
-    # C compiler at install runs it, and its decisions must be the same bits
-    configs.append(("FUZZYNAV_KERNEL=python (the fuzzy controller without its compiled kernel)",
+    # the Python and numpy forms instead of the compiled kernels (fuzzynav/compiled.py): a machine without a
+    # C compiler at install runs them, and the logs must be the same bits
+    configs.append(("FUZZYNAV_KERNEL=python (without the compiled kernels)",
                     {"FUZZYNAV_KERNEL": "python"}))
     return configs
 
