@@ -198,7 +198,8 @@ def split_navigator_section(data: Mapping[str, Any] | None) -> tuple[str, dict[s
     if target is not None:
         if target == "???":  # Hydra's mark of a mandatory value (conf/navigator/custom.yaml)
             raise ValueError("navigator._target_: not given (navigator=custom needs "
-                             "navigator._target_=package.module.Factory)")
+                             "navigator._target_=package.module.Factory; a sweep over every navigator leaves the "
+                             "template out with navigator='glob(*,exclude=custom)')")
         if not isinstance(target, str) or not IMPORT_PATH.fullmatch(target):
             raise ValueError(f"navigator._target_: expected an import path such as my_package.MyPolicy (at most 200 "
                              f"characters), got {str(target)[:60]!r}")

@@ -80,7 +80,9 @@ def test_the_default_is_the_papers_method_with_the_defaults_of_the_library():
     ({"_target_": "no_such_module_xyz.Policy"}, "navigator._target_: cannot import 'no_such_module_xyz'"),
     ({"_target_": "fuzzynav.policy.NoSuchFactory"}, "navigator._target_: 'fuzzynav.policy' has no callable"),
     ({"_target_": "../etc/passwd"}, "navigator._target_: expected an import path"),
-    ({"_target_": "???"}, "navigator._target_: not given"),
+    ({"_target_": "???"}, "navigator._target_: not given (navigator=custom needs navigator._target_=package.module."
+                          "Factory; a sweep over every navigator leaves the template out with "
+                          "navigator='glob(*,exclude=custom)')"),
     ({"policy": 3}, "navigator.policy: expected a policy name"),
     ({"policy": None}, "navigator.policy: null (give a policy name)"),
     ({"_target_": None}, "navigator._target_: null (give an import path)"),
