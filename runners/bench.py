@@ -469,14 +469,20 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     warnings.filterwarnings("ignore", category=DeprecationWarning)
     n_single, n_ref, reps = (200, 20, 3) if args.quick else (1000, 200, 7)
+    from fuzzynav import compiled
+
+    kernels = {name: compiled.load(name) is not None and not compiled.switched_off()
+               for name in ("_mamdani", "_raycast")}
     results = {"machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),
-                           "system": platform.platform()},
+                           "system": platform.platform(), "compiled_kernels": kernels},
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 2_000 if args.quick else 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 7)
     results["sweep"] = bench_sweep(100, rounds=1) if args.quick else bench_sweep(1000)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
+    print("compiled kernels (fuzzynav/compiled.py): " + ", ".join(
+        f"{name} {'in use' if on else 'not in use (Python/numpy form)'}" for name, on in kernels.items()))
     print_fuzzy(results["fuzzy"])
     sim = results["simulation"]
     print(f"\nsimulation ({sim['scenario']}, laser perception, {sim['steps']} steps, median of "
