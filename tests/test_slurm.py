@@ -404,26 +404,51 @@ def test_scancel_of_one_array_task_then_resume_runs_every_episode_once(slurm: Cl
     print(f"{what}: {' | '.join([*lines, ended])}; resume: {len(before)} episode(s) kept, {4 - len(before)} run")
 
 
+# the time-limit test: Submitit asks Slurm for its warning (SIGUSR2) SIGNAL_DELAY_S before the limit (sbatch
+# --signal=USR2@<signal_delay_s>), and Slurm "may send it up to 60 seconds earlier than specified" (man sbatch,
+# --signal). With a 1-minute limit and the warning 40 s before it, it came 0.1 s after the job started, before
+# Python had installed a handler: the job died by signal 12 and left no log. Here it comes 60 to 120 s into the job,
+# long after the job's Python started, and 60 s before the limit, long before Slurm would end the job itself.
+TIME_LIMIT_MIN, SIGNAL_DELAY_S, SLURM_SIGNAL_SLACK_S = 3, 60, 60
+# an episode of the corridor with planner=auto reaches the goal after about 80,000 steps (about 80 s on a 2-CPU CI
+# machine): the first episode may end before the warning, so the job has more seeds than it can run in the time
+# limit even on a machine several times faster; whichever episode is in flight is the one interrupted
+TIME_LIMIT_EPISODES = 10
+
+
 def test_a_job_over_its_time_limit_is_reported_with_the_resume_command(slurm: Cluster, tmp_path: Path) -> None:
-    """``timeout_min=1`` with Submitit's warning 40 s before it (SIGUSR2): the episode in flight ends as interrupted
-    with the reason, the job's second seed is not run, and the sweep says so in one line, prints the summary of
-    what completed and the resume command, and exits 1. (Submitit used to raise its own exception inside the
-    episode: the log said ``error`` and the sweep exited 0 as if complete.)"""
+    """``timeout_min=3`` with Submitit's warning 60 s before it (SIGUSR2; Slurm sends it 60 to 120 s into the job):
+    the episode in flight ends as interrupted with the reason, the episodes before it are complete, the job's later
+    seeds are not run, and the sweep says so in one line, prints the summary of what completed and the resume
+    command, and exits 1. (Submitit used to raise its own exception inside the episode: the log said ``error`` and
+    the sweep exited 0 as if complete.)"""
+    assert SIGNAL_DELAY_S + SLURM_SIGNAL_SLACK_S + 30 <= TIME_LIMIT_MIN * 60  # >= 30 s for the job to start Python
     sweep_dir = tmp_path / "s"
+    n = TIME_LIMIT_EPISODES
     args = ["sweep=quick", SEARCH, "scenario=endless_corridor", "scenario.max_steps=100000", "planner=auto",
-            "episodes=2", "hydra.launcher.timeout_min=1", "hydra.launcher.signal_delay_s=40"]
+            f"episodes={n}", f"hydra.launcher.timeout_min={TIME_LIMIT_MIN}",
+            f"hydra.launcher.signal_delay_s={SIGNAL_DELAY_S}"]
     tic = time.monotonic()
     res = run_sweep(slurm, args, sweep_dir)
     took = time.monotonic() - tic
     lines = problem_lines(res.stderr)
-    assert res.returncode == 1 and "Traceback" not in res.stderr and len(lines) == 1, res.stderr[-3000:]
-    assert re.fullmatch(r"error: 1 episode\(s\) stopped before they finished \(the Slurm job reached its time limit "
-                        r"\(hydra\.launcher\.timeout_min\)\), e\.g\. \S+__s0\.mcap; their jobs did not run their "
-                        r"later seeds", lines[0]), lines
-    assert "incomplete: 0 episode(s) finished, 1 interrupted, 0 lost, 1 not run (of 2)" in res.stdout, res.stdout
+    assert res.returncode == 1 and "Traceback" not in res.stderr and len(lines) == 1, \
+        f"{res.stderr[-3000:]}\n{slurm.logs()}"
+    stopped = re.fullmatch(r"error: 1 episode\(s\) stopped before they finished \(the Slurm job reached its time "
+                           r"limit \(hydra\.launcher\.timeout_min\)\), e\.g\. (\S+__s(\d+)\.mcap); their jobs did not "
+                           r"run their later seeds", lines[0])
+    assert stopped, lines
+    seed = int(stopped.group(2))  # the episode in flight at the warning: seeds 0 .. seed-1 ran to their end
+    assert seed < n - 1, f"the job ran out of seeds before the warning: {lines[0]}"  # later seeds were left
+    assert f"incomplete: {seed} episode(s) finished, 1 interrupted, 0 lost, {n - 1 - seed} not run (of {n})" \
+        in res.stdout, res.stdout[-3000:]
     hint = [line for line in res.stdout.splitlines() if line.startswith("to complete the sweep: ")]
     assert len(hint) == 1 and "resume=true" in hint[0] and "hydra/launcher=slurm" in hint[0], res.stdout[-3000:]
-    (log,) = logs(sweep_dir)
+    found = sorted(logs(sweep_dir), key=lambda p: int(episode_summary(p)["seed"]))
+    assert [episode_summary(p)["seed"] for p in found] == list(range(seed + 1)) and not partials(sweep_dir), found
+    *finished, log = found
+    assert log.resolve() == Path(stopped.group(1)).resolve(), (log, lines[0])
+    assert all(is_complete(p) and episode_summary(p)["outcome"] == "goal" for p in finished), finished
     ((_topic, _t, ended),) = LogFile(log, ["/episode"]).messages(["/episode"])
     assert ended["outcome"] == "interrupted" and ended["reason"] == stop.TIME_LIMIT_REASON, ended
     assert not (sweep_dir / "report" / "report.html").exists()  # the report is for the complete sweep
