@@ -148,10 +148,14 @@ static int Kernel_init(Kernel *k, PyObject *args, PyObject *kwds) {
         PyErr_SetString(PyExc_ValueError, "kernel tables: wrong header size");
         return -1;
     }
+    /* made once: a second __init__ could run from Python code that decide calls (a key's __eq__, a value's
+     * __float__) and free the tables, names and sizes that call is using */
+    if (k->names != NULL) {
+        PyErr_SetString(PyExc_TypeError, "fuzzynav._mamdani.Kernel: already initialised");
+        return -1;
+    }
     memcpy(sizes, PyBytes_AS_STRING(sizes_b), sizeof(sizes));
     memcpy(scalars, PyBytes_AS_STRING(scalars_b), sizeof(scalars));
-    Kernel_free_arrays(k);
-    Py_XDECREF(k->names);
     Py_INCREF(names);
     k->names = names;
     k->n_in = (Py_ssize_t)sizes[0];
@@ -174,7 +178,8 @@ static int Kernel_init(Kernel *k, PyObject *args, PyObject *kwds) {
     ok = ok && PyTuple_GET_SIZE(names) == k->n_in && k->n_in > 0 && k->n_mu > 0 && k->n_rules > 0 &&
              k->n_rules <= 64 && k->width > 0 && k->n_out > k->n_dtheta && k->n_dtheta > 0 && k->block1 > 1 &&
              k->g > k->block1 + 1 && n_seg >= 0 && n_live >= 0 && n_crisp >= 0 && n_cons >= 0 && n_rise >= 0 &&
-             n_fall >= 0 && k->n_mu <= 1 + n_live + n_crisp;  /* every input term is live somewhere */
+             n_fall >= 0 && k->n_mu <= 1 + n_live + n_crisp &&  /* every input term is live somewhere */
+             k->n_out <= ((int64_t)1 << 40) / k->g;  /* n_out x g (mfs) stays far from overflowing */
     for (Py_ssize_t i = 0; ok && i < k->n_in; i++) ok = PyUnicode_Check(PyTuple_GET_ITEM(names, i));
     if (!ok) {
         PyErr_SetString(PyExc_ValueError, "kernel tables: inconsistent sizes");
@@ -203,18 +208,19 @@ static int Kernel_init(Kernel *k, PyObject *args, PyObject *kwds) {
     for (int i = 0; i < N_TABLES; i++)
         if (!(*spec[i].dst = copy_bytes(PyTuple_GET_ITEM(tables, i), spec[i].count, spec[i].size, spec[i].what)))
             return -1;
-    /* every index the evaluation follows stays inside its array */
+    /* every index the evaluation follows stays inside its array (no sum of two table entries is formed before
+     * both are known to be in [0, 2^40]: entries are any int64) */
     for (Py_ssize_t i = 0; i < k->n_in; i++) {
         int64_t crisp = k->in_i[3 * i], count = k->in_i[3 * i + 1], off = k->in_i[3 * i + 2];
         int64_t rows = crisp ? n_crisp : n_seg;
-        if (count < 1 || off < 0 || off + count > rows) {
+        if (count < 1 || off < 0 || count > rows || off > rows - count) {
             PyErr_SetString(PyExc_ValueError, "kernel table in_i: index out of range");
             return -1;
         }
     }
     for (Py_ssize_t s = 0; s < n_seg; s++) {
         int64_t off = k->seg_i[3 * s], cnt = k->seg_i[3 * s + 1];
-        if (off < 0 || cnt < 0 || off + cnt > n_live) {
+        if (off < 0 || cnt < 0 || cnt > n_live || off > n_live - cnt) {
             PyErr_SetString(PyExc_ValueError, "kernel table seg_i: index out of range");
             return -1;
         }
@@ -234,8 +240,9 @@ static int Kernel_init(Kernel *k, PyObject *args, PyObject *kwds) {
         const int64_t *ti = k->term_i + 8 * t;
         int64_t own = t < k->n_dtheta ? k->block1 : k->g - k->block1;  /* the term's own grid length */
         if (ti[0] < 0 || ti[1] > k->g || ti[0] > ti[1] || ti[2] < 0 || ti[3] > k->g || ti[2] > ti[3] ||
-            ti[4] < 0 || ti[5] < 0 || ti[4] + ti[5] > n_rise || ti[5] > own || ti[6] < 0 || ti[7] < 0 ||
-            ti[6] + ti[7] > n_fall || k->fall_start[t] < 0 || k->fall_start[t] + ti[7] > own) {
+            ti[4] < 0 || ti[5] < 0 || ti[5] > n_rise || ti[4] > n_rise - ti[5] || ti[5] > own || ti[6] < 0 ||
+            ti[7] < 0 || ti[7] > n_fall || ti[6] > n_fall - ti[7] || ti[7] > own || k->fall_start[t] < 0 ||
+            k->fall_start[t] > own - ti[7]) {
             PyErr_SetString(PyExc_ValueError, "kernel table term_i: index out of range");
             return -1;
         }
@@ -350,18 +357,36 @@ static double centroid(Kernel *k, int b, double area, double moment) {
     return area > 0 ? moment / area : k->fallback[b];
 }
 
-/* FastEvaluator._evaluate_scalar on inputs x (the definition's input order): 0, or -1 with an exception */
+/* input i's value clipped to its universe: Python's min(max(x, lo), hi) (a NaN stays NaN) */
+static double clip_input(const Kernel *k, Py_ssize_t i, double x) {
+    double lo = k->in_f[3 * i], hi = k->in_f[3 * i + 1];
+    if (lo > x) x = lo;
+    if (hi < x) x = hi;
+    return x;
+}
+
+/* the grid position of fuzzy input i at its clipped value x */
+static double input_position(const Kernel *k, Py_ssize_t i, double x) {
+    return (x - k->in_f[3 * i]) / k->in_f[3 * i + 2];
+}
+
+/* whether decide raises at input i (a fuzzy input whose position is NaN or infinite), as the Python path
+ * does before it reads the inputs after it */
+static int input_raises(const Kernel *k, Py_ssize_t i, double x) {
+    return !k->in_i[3 * i] && !isfinite(input_position(k, i, clip_input(k, i, x)));
+}
+
+/* FastEvaluator._evaluate_scalar on inputs x (the definition's input order): 0, or -1 with an exception.
+ * It reads x[i] only after inputs 0..i-1 were taken without error. */
 static int decide(Kernel *k, const double *x_in, double *out) {
     double *mu = k->mu, *cuts = k->cuts, *y = k->y;
     for (Py_ssize_t i = 0; i < k->n_mu - 1; i++) mu[i] = 0.0;
     mu[k->n_mu - 1] = 1.0;
     uint64_t alive = k->all_rules;
     for (Py_ssize_t i = 0; i < k->n_in; i++) {
-        double lo = k->in_f[3 * i], hi = k->in_f[3 * i + 1], step = k->in_f[3 * i + 2];
+        double hi = k->in_f[3 * i + 1];
         int64_t crisp = k->in_i[3 * i], count = k->in_i[3 * i + 1], off = k->in_i[3 * i + 2];
-        double x = x_in[i];
-        if (lo > x) x = lo;  /* Python's min(max(x, lo), hi); a NaN stays NaN */
-        if (hi < x) x = hi;
+        double x = clip_input(k, i, x_in[i]);
         if (crisp) {
             uint64_t inside = 0;
             for (int64_t c = off; c < off + count; c++) {
@@ -374,7 +399,7 @@ static int decide(Kernel *k, const double *x_in, double *out) {
             alive &= inside;
             continue;
         }
-        double pos = (x - lo) / step;
+        double pos = input_position(k, i, x);
         if (isnan(pos)) {
             PyErr_SetString(PyExc_ValueError, "cannot convert float NaN to integer");
             return -1;
@@ -397,6 +422,10 @@ static int decide(Kernel *k, const double *x_in, double *out) {
         double act = mu[ant[0]];
         for (Py_ssize_t j = 1; j < k->width; j++)
             if (mu[ant[j]] < act) act = mu[ant[j]];  /* Python's min() */
+        /* the Python path's antecedents are at least two wide: a one-wide table is padded with the constant
+         * 1.0, which caps a membership interpolated a hair above 1 (an input at the top of a universe whose
+         * width is a hair over a whole number of steps) */
+        if (k->width == 1 && mu[k->n_mu - 1] < act) act = mu[k->n_mu - 1];
         for (int64_t c = k->cons_off[r]; c < k->cons_off[r + 1]; c++)
             if (act > cuts[k->cons[c]]) cuts[k->cons[c]] = act;
     }
@@ -450,7 +479,11 @@ static int decide(Kernel *k, const double *x_in, double *out) {
 }
 
 /* the inputs of one decision from a dict, or 1 (no error) when the Python path must take them: a mapping
- * that is not a dict, or a value that is not a float or an int (arrays go to the batch) */
+ * that is not a dict, or a value that is not a float or an int (arrays go to the batch).
+ * As the Python path: each value is float(inputs[name]) (a subclass's __float__ included), read in the
+ * definition's order, and the reading stops at the first input the decision raises at (so a NaN before a
+ * missing key is the NaN's ValueError, not a KeyError). Python code can run here (a key's __eq__, a value's
+ * __float__): the kernel cannot be re-initialised, and each value is held while it is converted. */
 static int gather(Kernel *k, PyObject *inputs, double *x) {
     if (!PyDict_CheckExact(inputs)) return 1;
     Py_ssize_t pos = 0;
@@ -464,8 +497,20 @@ static int gather(Kernel *k, PyObject *inputs, double *x) {
             if (!PyErr_Occurred()) PyErr_SetObject(PyExc_KeyError, name);
             return -1;
         }
-        x[i] = PyFloat_Check(value) ? PyFloat_AS_DOUBLE(value) : PyLong_AsDouble(value);
-        if (x[i] == -1.0 && PyErr_Occurred()) return -1;
+        if (PyFloat_CheckExact(value)) {
+            x[i] = PyFloat_AS_DOUBLE(value);
+        } else if (PyLong_CheckExact(value)) {
+            x[i] = PyLong_AsDouble(value);
+            if (x[i] == -1.0 && PyErr_Occurred()) return -1;
+        } else {  /* float(value): a subclass (bool, numpy.float64, ...) may convert in its own way */
+            Py_INCREF(value);
+            PyObject *number = PyNumber_Float(value);
+            Py_DECREF(value);
+            if (number == NULL) return -1;
+            x[i] = PyFloat_AS_DOUBLE(number);
+            Py_DECREF(number);
+        }
+        if (input_raises(k, i, x[i])) return 0;  /* decide raises at input i, reading no later one */
     }
     return 0;
 }
