@@ -44,8 +44,11 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     if not len(seg_ids) and not len(circ_ids):
         return best, hit
     nearest = nearest_numpy if _raycast is None or compiled.switched_off() else _raycast.nearest
-    nearest(ox, oy, np.ascontiguousarray(d), np.ascontiguousarray(segments[seg_ids]), seg_ids.astype(np.int64),
-            np.ascontiguousarray(circles[circ_ids]), (len(segments) + circ_ids).astype(np.int64), best, hit)
+    # float64 and contiguous whatever the caller passed (the numpy form computes in float64 as well)
+    nearest(ox, oy, np.ascontiguousarray(d, dtype=np.float64),
+            np.ascontiguousarray(segments[seg_ids], dtype=np.float64), seg_ids.astype(np.int64),
+            np.ascontiguousarray(circles[circ_ids], dtype=np.float64), (len(segments) + circ_ids).astype(np.int64),
+            best, hit)
     return best, hit
 
 

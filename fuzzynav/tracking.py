@@ -188,7 +188,9 @@ def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
     (``fuzzynav._tracking``: the same bits) when it was built, else in :func:`detect_python`."""
     if _tracking is not None and not compiled.switched_off():
         beams = np.empty(len(scan.ranges), dtype=np.int64)
-        found = _tracking.discs(scan.xy, scan.ranges, scan.returned, float(config.cluster_gap_cm),
+        found = _tracking.discs(np.ascontiguousarray(scan.xy, dtype=np.float64),
+                                np.ascontiguousarray(scan.ranges, dtype=np.float64),
+                                np.ascontiguousarray(scan.returned, dtype=bool), float(config.cluster_gap_cm),
                                 int(config.min_points), 2.0 * config.max_radius_cm, float(config.max_radius_cm),
                                 float(config.max_fit_rms_cm), beams)
         if found is not None:  # None: something the Python form treats specially (a non-finite point)

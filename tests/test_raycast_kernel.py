@@ -123,3 +123,13 @@ def test_read_only_outputs_are_refused():
     with pytest.raises((ValueError, BufferError, TypeError)):
         raycast._raycast.nearest(0.0, 0.0, np.zeros((4, 2)), np.zeros((0, 4)), np.zeros(0, np.int64),
                                  np.zeros((0, 3)), np.zeros(0, np.int64), best, np.zeros(4, np.int64))
+
+
+def test_integer_and_strided_worlds_are_cast_as_the_numpy_form_casts_them(monkeypatch):
+    segments = np.array([[-100, -100, 100, -100], [100, -100, 100, 100]])  # ints
+    circles = np.array([[0.0, 50.0, 10.0, 0.0, 40.0, 5.0]]).reshape(2, 3)[::-1]  # a reversed view
+    d = beam_directions(LaserConfig(), 0.0)[::-1]
+    on = cast_rays(np.array([0.0, 0.0]), d, segments, circles, 250.0)
+    monkeypatch.setenv("FUZZYNAV_KERNEL", "python")
+    off = cast_rays(np.array([0.0, 0.0]), d, segments, circles, 250.0)
+    assert on[0].tobytes() == off[0].tobytes() and on[1].tobytes() == off[1].tobytes() and (on[1] >= 0).any()

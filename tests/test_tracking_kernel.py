@@ -127,3 +127,16 @@ def test_bad_buffers_are_refused(which):
     args[which] = [np.zeros((8, 3)), np.zeros(8, np.float32), np.zeros(8, np.int8), np.zeros(8)][which]
     with pytest.raises((ValueError, BufferError, TypeError)):
         tracking._tracking.discs(args[0], args[1], args[2], 15.0, 3, 120.0, 60.0, 3.0, args[3])
+
+
+def test_views_and_other_dtypes_are_taken_as_the_python_form_takes_them():
+    """A scan whose arrays are views (every other beam of a finer scan) or float32: the same detections."""
+    rng = np.random.default_rng(3)
+    fine = _scan(200.0, 200.0, 10.0, 720, np.zeros((0, 4)), np.array([[260.0, 200.0, 20.0], [140.0, 230.0, 15.0]]),
+                 0.0, rng)
+    for ranges, directions in ((fine.ranges[::2], fine.directions[::2]),
+                               (fine.ranges[::2].astype(np.float32), fine.directions[::2])):
+        scan = LaserScan(ranges=ranges, directions=directions, labels=fine.labels[::2], origin=fine.origin,
+                         range_cm=fine.range_cm)
+        found = detect(scan, TrackerConfig())
+        assert found and _key(found) == _key(detect_python(scan, TrackerConfig()))
