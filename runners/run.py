@@ -185,7 +185,7 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
         version = provenance()["fuzzynav_version"]
         source = policy_source_digest(ep_cfg.policy)  # a _target_ policy's code is part of its episodes' identity
         for seed in seeds:
-            stop.check()
+            stop.check_between_episodes()
             scenario = inputs.scenarios[seed]
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)

@@ -192,11 +192,12 @@ def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
     return restore
 
 
-def check() -> None:
-    """Raise :class:`Interrupted` if a stop was requested: a signal, or (looked at every ``STOP_POLL_S``) the
-    sweep's stop file. Called after every step and before every episode."""
+def check(time_limit: bool = True) -> None:
+    """Raise :class:`Interrupted` if a stop was requested: a signal, the Slurm time-limit warning (unless
+    ``time_limit`` is False), or (looked at every ``STOP_POLL_S``) the sweep's stop file. Called after every step
+    and, through :func:`check_between_episodes`, before every episode."""
     global _next_look
-    if _TIME_LIMIT:
+    if _TIME_LIMIT and time_limit:
         raise Interrupted(signal.SIGUSR2, TIME_LIMIT_REASON)
     if _PENDING:
         if _WATCHED:  # a signal to one job of a sweep stops the sweep (a terminal's Ctrl-C reaches them all)
@@ -207,6 +208,13 @@ def check() -> None:
         request = read_sweep_stop(stop_file(_WATCHED[0]))
         if request is not None:
             raise Interrupted(*request)
+
+
+def check_between_episodes() -> None:
+    """:func:`check` before a job's next episode. The Slurm time-limit warning is left to the episode's first
+    step, which ends it as interrupted with the reason: a job that returned early without a log would leave the
+    sweep looking complete, its later seeds silently missing (the sweep names the time limit from that log)."""
+    check(time_limit=False)
 
 
 # -- the sweep's stop file -----------------------------------------------------------------------------------------

@@ -300,3 +300,27 @@ def test_a_sweep_that_wrote_no_log_does_not_report_success(tmp_path):
     sweep_end.end_of_sweep(OmegaConf.create({}), run, None)
     assert run.errors == [f"no logs found in {tmp_path}: the sweep ran no episode"]
     assert not (tmp_path / "report").exists() and not (tmp_path / "summary.csv").exists()
+
+
+def test_a_time_limit_warning_between_two_episodes_ends_the_next_one_as_interrupted(tmp_path):
+    """Submitit's time-limit warning (SIGUSR2) that arrives between two episodes of a Slurm job: the check before
+    the next episode lets it start, and its first step ends it as interrupted with the time limit as the reason,
+    so the sweep names the time limit (a job that returned without that log looked complete: its later seeds
+    were silently missing)."""
+    stop._TIME_LIMIT.append(True)
+    try:
+        stop.check_between_episodes()  # does not raise for the time limit ...
+        with pytest.raises(KeyboardInterrupt):
+            stop.check()  # ... which every step's check does
+        log = tmp_path / "ep.mcap"
+        with pytest.raises(stop.Interrupted) as err:
+            episode(log)
+        assert err.value.reason == stop.TIME_LIMIT_REASON
+        summary = episode_summary(log)
+        assert summary["outcome"] == "interrupted" and summary["steps"] == 1, summary
+        stop._PENDING.append(signal.SIGTERM)
+        with pytest.raises(stop.Interrupted):
+            stop.check_between_episodes()  # a signal still stops before the next episode
+    finally:
+        stop._TIME_LIMIT.clear()
+        stop._PENDING.clear()
