@@ -472,7 +472,7 @@ def main(argv: list[str] | None = None) -> int:
     from fuzzynav import compiled
 
     kernels = {name: compiled.load(name) is not None and not compiled.switched_off()
-               for name in ("_mamdani", "_raycast", "_tracking")}
+               for name in compiled.KERNELS}
     results = {"machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),
                            "system": platform.platform(), "compiled_kernels": kernels},
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 2_000 if args.quick else 10_000, reps)

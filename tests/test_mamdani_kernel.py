@@ -26,13 +26,9 @@ from hypothesis import strategies as st
 from fuzzynav import fuzzy_fast
 from fuzzynav.fuzzy_fast import FastEvaluator, kernel_available
 from fuzzynav.fuzzy_spec import SOURCES, ControllerSpec, ControllerSpecError
+from tests.conftest import require_compiled
 
-if fuzzy_fast._mamdani is None:
-    if os.environ.get("CI"):
-        pytest.fail("fuzzynav._mamdani was not built (pip install -e . compiles it; a C compiler is needed)",
-                    pytrace=False)
-    pytest.skip("fuzzynav._mamdani not built (no C compiler at install): the Python path runs alone",
-                allow_module_level=True)
+require_compiled(fuzzy_fast._mamdani, "_mamdani")
 
 
 def _bits(result) -> bytes:

@@ -7,8 +7,6 @@ random and in axis directions. In CI (CI=true) the kernel must have been built.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -17,13 +15,9 @@ from hypothesis import strategies as st
 from fuzzynav import raycast
 from fuzzynav.laser import LaserConfig, beam_directions
 from fuzzynav.raycast import cast_rays, nearest_numpy
+from tests.conftest import require_compiled
 
-if raycast._raycast is None:
-    if os.environ.get("CI"):
-        pytest.fail("fuzzynav._raycast was not built (pip install -e . compiles it; a C compiler is needed)",
-                    pytrace=False)
-    pytest.skip("fuzzynav._raycast not built (no C compiler at install): the numpy form runs alone",
-                allow_module_level=True)
+require_compiled(raycast._raycast, "_raycast")
 
 coord = st.one_of(st.floats(-400, 400, allow_nan=False), st.integers(-300, 300).map(float))
 

@@ -8,7 +8,6 @@ and fsum's hard cases (points whose sums cancel). In CI (CI=true) the kernel mus
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
@@ -19,13 +18,9 @@ from fuzzynav import tracking
 from fuzzynav.laser import LaserConfig, LaserScan, beam_directions
 from fuzzynav.raycast import cast_rays
 from fuzzynav.tracking import TrackerConfig, detect, detect_python
+from tests.conftest import require_compiled
 
-if tracking._tracking is None:
-    if os.environ.get("CI"):
-        pytest.fail("fuzzynav._tracking was not built (pip install -e . compiles it; a C compiler is needed)",
-                    pytrace=False)
-    pytest.skip("fuzzynav._tracking not built (no C compiler at install): the Python form runs alone",
-                allow_module_level=True)
+require_compiled(tracking._tracking, "_tracking")
 
 
 def _key(dets) -> list[tuple]:
