@@ -328,8 +328,9 @@ def _decompress(payload: memoryview, compression: str, size: int, at: int) -> by
 
             with lz4.frame.LZ4FrameDecompressor() as decompressor:
                 out = decompressor.decompress(bytes(payload), max_length=size)
-            if not decompressor.eof:
-                raise McapError(f"chunk at byte {at}: the lz4 frame holds more than the {size} bytes declared")
+                # inside the block: leaving it resets the decompressor, and with it ``eof``
+                if not decompressor.eof:
+                    raise McapError(f"chunk at byte {at}: the lz4 frame holds more than the {size} bytes declared")
             return out
     except McapError:
         raise
