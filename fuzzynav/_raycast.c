@@ -1,5 +1,6 @@
 /*
- * fuzzynav._raycast: the nearest hit of each laser beam in C (fuzzynav.raycast.cast_rays's inner part).
+ * fuzzynav._raycast: the nearest hit of each laser beam in C (fuzzynav.raycast.cast_rays: `cast` whole, with the
+ * culling; `nearest` its per-ray part alone).
  *
  * The numpy path computes, for every ray and every segment or circle kept after culling, the same elementwise
  * IEEE operations as below (subtractions, products, one division, one square root, each correctly rounded on
@@ -33,13 +34,70 @@ static int get(PyObject *obj, Py_buffer *view, int writable, const char *formats
     const char *fmt = view->format ? view->format : "B";
     if (view->itemsize != 8 || strlen(fmt) != 1 || strchr(formats, fmt[0]) == NULL ||
         view->len % (8 * width) != 0) {
-        PyErr_Format(PyExc_ValueError, "nearest: %s must be a C-contiguous %s array with rows of %zd", what,
+        PyErr_Format(PyExc_ValueError, "raycast: %s must be a C-contiguous %s array with rows of %zd", what,
                      formats[0] == 'd' ? "float64" : "int64", width);
         PyBuffer_Release(view);
         return -1;
     }
     *rows = view->len / (8 * width);
     return 0;
+}
+
+/* the per-object values of the numpy path's (M,) and (C,) arrays: per segment ax, ay, ex, ey and
+ * ax * ey - ay * ex; per circle cx, cy and cx * cx + cy * cy - r * r (positions relative to the origin) */
+static void prepare_segment(const double *s, double ox, double oy, double *p) {
+    double ax = s[0] - ox, ay = s[1] - oy, ex = s[2] - s[0], ey = s[3] - s[1];
+    p[0] = ax;
+    p[1] = ay;
+    p[2] = ex;
+    p[3] = ey;
+    p[4] = ax * ey - ay * ex;
+}
+
+static void prepare_circle(const double *q, double ox, double oy, double *p) {
+    double cx = q[0] - ox, cy = q[1] - oy, r2 = q[2] * q[2];
+    p[0] = cx;
+    p[1] = cy;
+    p[2] = cx * cx + cy * cy - r2;
+}
+
+/* each ray's first nearest segment, then circle, strictly nearer than best[i]: best and hit updated */
+static void nearest_core(const double *d, Py_ssize_t n, const double *seg_pre, const int64_t *seg_ids, Py_ssize_t m,
+                         const double *circ_pre, const int64_t *circ_ids, Py_ssize_t c, double *best, int64_t *hit) {
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double dx = d[2 * i], dy = d[2 * i + 1], b_i = best[i];
+        int64_t h_i = hit[i];
+        for (Py_ssize_t k = 0; k < m; k++) {
+            const double *p = seg_pre + 5 * k;
+            double denom = dx * p[3] - dy * p[2];
+            double t = p[4] / denom;
+            double u = (p[0] * dy - p[1] * dx) / denom;
+            if (fabs(denom) <= 1e-12 || !(t >= 0.0) || !(u >= 0.0) || !(u <= 1.0)) continue;  /* a miss: inf */
+            if (t < b_i) {
+                b_i = t;
+                h_i = seg_ids[k];
+            }
+        }
+        for (Py_ssize_t k = 0; k < c; k++) {
+            const double *p = circ_pre + 3 * k;
+            double t;
+            if (p[2] <= 0.0) {
+                t = 0.0;  /* the origin is inside: range 0 for every ray */
+            } else {
+                double b = dx * p[0] + dy * p[1];
+                double disc = b * b - p[2];
+                if (!(disc >= 0.0)) continue;
+                t = b - sqrt(disc);
+                if (!(t >= 0.0)) continue;
+            }
+            if (t < b_i) {
+                b_i = t;
+                h_i = circ_ids[k];
+            }
+        }
+        best[i] = b_i;
+        hit[i] = h_i;
+    }
 }
 
 /* nearest(ox, oy, directions (N, 2), segments (M, 4), segment_ids (M,), circles (C, 3), circle_ids (C,),
@@ -80,58 +138,9 @@ static PyObject *nearest(PyObject *self, PyObject *args) {
         goto done;
     }
     double *circ_pre = seg_pre + 5 * m;
-    for (Py_ssize_t k = 0; k < m; k++) {
-        const double *s = seg + 4 * k;
-        double ax = s[0] - ox, ay = s[1] - oy, ex = s[2] - s[0], ey = s[3] - s[1];
-        double *p = seg_pre + 5 * k;
-        p[0] = ax;
-        p[1] = ay;
-        p[2] = ex;
-        p[3] = ey;
-        p[4] = ax * ey - ay * ex;
-    }
-    for (Py_ssize_t k = 0; k < c; k++) {
-        const double *q = circ + 3 * k;
-        double cx = q[0] - ox, cy = q[1] - oy, r2 = q[2] * q[2];
-        double *p = circ_pre + 3 * k;
-        p[0] = cx;
-        p[1] = cy;
-        p[2] = cx * cx + cy * cy - r2;
-    }
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double dx = d[2 * i], dy = d[2 * i + 1], b_i = best[i];
-        int64_t h_i = hit[i];
-        for (Py_ssize_t k = 0; k < m; k++) {
-            const double *p = seg_pre + 5 * k;
-            double denom = dx * p[3] - dy * p[2];
-            double t = p[4] / denom;
-            double u = (p[0] * dy - p[1] * dx) / denom;
-            if (fabs(denom) <= 1e-12 || !(t >= 0.0) || !(u >= 0.0) || !(u <= 1.0)) continue;  /* a miss: inf */
-            if (t < b_i) {
-                b_i = t;
-                h_i = seg_ids[k];
-            }
-        }
-        for (Py_ssize_t k = 0; k < c; k++) {
-            const double *p = circ_pre + 3 * k;
-            double t;
-            if (p[2] <= 0.0) {
-                t = 0.0;  /* the origin is inside: range 0 for every ray */
-            } else {
-                double b = dx * p[0] + dy * p[1];
-                double disc = b * b - p[2];
-                if (!(disc >= 0.0)) continue;
-                t = b - sqrt(disc);
-                if (!(t >= 0.0)) continue;
-            }
-            if (t < b_i) {
-                b_i = t;
-                h_i = circ_ids[k];
-            }
-        }
-        best[i] = b_i;
-        hit[i] = h_i;
-    }
+    for (Py_ssize_t k = 0; k < m; k++) prepare_segment(seg + 4 * k, ox, oy, seg_pre + 5 * k);
+    for (Py_ssize_t k = 0; k < c; k++) prepare_circle(circ + 3 * k, ox, oy, circ_pre + 3 * k);
+    nearest_core(d, n, seg_pre, seg_ids, m, circ_pre, circ_ids, c, best, hit);
     result = Py_None;
     Py_INCREF(result);
 done:
@@ -140,10 +149,87 @@ done:
     return result;
 }
 
+/* cast(ox, oy, max_range, reach, directions (N, 2), segments (M, 4), circles (C, 3), best (N,) out, hit (N,) out)
+ * fuzzynav.raycast.cast_rays whole: best = max_range and hit = -1, the segments and circles within `reach` of the
+ * origin kept (the numpy path's culling, with its formulas: the distance from the origin to a segment as
+ * fuzzynav.geometry.segment_point_distance computes it, and |centre - origin| - r for a circle; NaN is dropped),
+ * then nearest_core with their indices (segments 0..M-1, circles M..M+C-1). */
+static PyObject *cast(PyObject *self, PyObject *args) {
+    (void)self;
+    double ox, oy, max_range, reach;
+    PyObject *objs[5];
+    if (!PyArg_ParseTuple(args, "ddddOOOOO", &ox, &oy, &max_range, &reach, &objs[0], &objs[1], &objs[2], &objs[3],
+                          &objs[4]))
+        return NULL;
+    static const char *what[5] = {"directions", "segments", "circles", "best", "hit"};
+    static const char *formats[5] = {"d", "d", "d", "d", "lq"};
+    static const Py_ssize_t widths[5] = {2, 4, 3, 1, 1};
+    Py_buffer v[5];
+    Py_ssize_t rows[5];
+    int got = 0;
+    PyObject *result = NULL;
+    double *pre = NULL;
+    for (; got < 5; got++)
+        if (get(objs[got], &v[got], got >= 3, formats[got], widths[got], &rows[got], what[got]) < 0) goto done;
+    Py_ssize_t n = rows[0], m = rows[1], c = rows[2];
+    if (rows[3] != n || rows[4] != n) {
+        PyErr_SetString(PyExc_ValueError, "cast: best and hit must match the directions");
+        goto done;
+    }
+    const double *d = v[0].buf, *seg = v[1].buf, *circ = v[2].buf;
+    double *best = v[3].buf;
+    int64_t *hit = v[4].buf;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        best[i] = max_range;
+        hit[i] = -1;
+    }
+    /* the kept objects' values and their indices (stored as doubles' neighbours: one allocation) */
+    pre = PyMem_Malloc((size_t)(5 * m + 3 * c + 1) * sizeof(double) + (size_t)(m + c + 1) * sizeof(int64_t));
+    if (pre == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    int64_t *ids = (int64_t *)(pre + 5 * m + 3 * c + 1);
+    Py_ssize_t kept_m = 0, kept_c = 0;
+    for (Py_ssize_t k = 0; k < m; k++) {
+        /* segment_point_distance(a, b, origin) = closest_approach(a - o, b - a): s = clip(-(r . e) / dd, 0, 1)
+         * with dd = e . e (1 when 0), then |r + s e| */
+        const double *q = seg + 4 * k;
+        double rx = q[0] - ox, ry = q[1] - oy, ex = q[2] - q[0], ey = q[3] - q[1];
+        double dd = ex * ex + ey * ey;
+        double f = -(rx * ex + ry * ey) / (dd > 0 ? dd : 1.0);
+        f = isnan(f) ? f : (f > 0.0 ? f : 0.0);
+        f = isnan(f) ? f : (f < 1.0 ? f : 1.0);
+        double gx = rx + f * ex, gy = ry + f * ey;
+        if (!(sqrt(gx * gx + gy * gy) <= reach)) continue;
+        prepare_segment(q, ox, oy, pre + 5 * kept_m);
+        ids[kept_m++] = k;
+    }
+    double *circ_pre = pre + 5 * kept_m;
+    int64_t *circ_ids = ids + kept_m;
+    for (Py_ssize_t k = 0; k < c; k++) {
+        const double *q = circ + 3 * k;
+        double cx = q[0] - ox, cy = q[1] - oy;
+        if (!(sqrt(cx * cx + cy * cy) - q[2] <= reach)) continue;
+        prepare_circle(q, ox, oy, circ_pre + 3 * kept_c);
+        circ_ids[kept_c++] = m + k;
+    }
+    nearest_core(d, n, pre, ids, kept_m, circ_pre, circ_ids, kept_c, best, hit);
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    PyMem_Free(pre);
+    for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"nearest", nearest, METH_VARARGS,
      "nearest(ox, oy, directions, segments, segment_ids, circles, circle_ids, best, hit): each ray's first "
      "nearest hit, in place"},
+    {"cast", cast, METH_VARARGS,
+     "cast(ox, oy, max_range, reach, directions, segments, circles, best, hit): cast_rays whole (culling "
+     "included), into best and hit"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -5,8 +5,9 @@ elementwise (one ray against one segment or circle at a time, always with the sa
 nearest hit per ray is a plain minimum, so the result does not depend on the CPU or on which other segments
 and circles are in the world.
 
-The per-ray part runs in C (``fuzzynav._raycast``, same operations in the same order: the same bits) when it
-was built at install; ``nearest_numpy`` is its numpy form, used without it or with ``FUZZYNAV_KERNEL=python``.
+It runs in C (``fuzzynav._raycast``'s ``cast``, the culling and the casting; same operations in the same order: the
+same bits) when that was built at install; the numpy form below (culling, then ``nearest_numpy``) runs without it
+or with ``FUZZYNAV_KERNEL=python``.
 """
 
 from __future__ import annotations
@@ -36,6 +37,14 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     ox, oy = float(origin[0]), float(origin[1])
     segments, circles = segments.reshape(-1, 4), circles.reshape(-1, 3)
     reach = max_range * (1.0 + 1e-9) + 1e-9  # a hair of slack: culling must never drop a hit at the range
+    if _raycast is not None and not compiled.switched_off():
+        # culling and casting in one call (the numpy culling's fancy indexing cost as much as the casting);
+        # float64 and contiguous whatever the caller passed (the numpy form computes in float64 as well)
+        best, hit = np.empty(n), np.empty(n, dtype=np.int64)
+        _raycast.cast(ox, oy, float(max_range), reach, np.ascontiguousarray(d, dtype=np.float64),
+                      np.ascontiguousarray(segments, dtype=np.float64),
+                      np.ascontiguousarray(circles, dtype=np.float64), best, hit)
+        return best, hit
     seg_gaps = segment_point_distance(segments[:, :2], segments[:, 2:], np.array([ox, oy]))
     seg_ids = np.flatnonzero(seg_gaps <= reach)
     circ_ids = np.flatnonzero(norm2(circles[:, :2] - (ox, oy)) - circles[:, 2] <= reach)
@@ -43,12 +52,8 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     hit = np.full(n, -1, dtype=np.int64)
     if not len(seg_ids) and not len(circ_ids):
         return best, hit
-    nearest = nearest_numpy if _raycast is None or compiled.switched_off() else _raycast.nearest
-    # float64 and contiguous whatever the caller passed (the numpy form computes in float64 as well)
-    nearest(ox, oy, np.ascontiguousarray(d, dtype=np.float64),
-            np.ascontiguousarray(segments[seg_ids], dtype=np.float64), seg_ids.astype(np.int64),
-            np.ascontiguousarray(circles[circ_ids], dtype=np.float64), (len(segments) + circ_ids).astype(np.int64),
-            best, hit)
+    nearest_numpy(ox, oy, d, segments[seg_ids].astype(float), seg_ids, circles[circ_ids].astype(float),
+                  len(segments) + circ_ids, best, hit)
     return best, hit
 
 

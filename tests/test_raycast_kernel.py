@@ -82,6 +82,37 @@ def test_axis_and_diagonal_rays_too(world):
     assert kernel == numpy_form
 
 
+def _cast_both(monkeypatch, origin, directions, segments, circles, max_range):
+    on = cast_rays(origin, directions, segments, circles, max_range)
+    with monkeypatch.context() as m:
+        m.setenv("FUZZYNAV_KERNEL", "python")
+        off = cast_rays(origin, directions, segments, circles, max_range)
+    return (on[0].tobytes(), on[1].tobytes()), (off[0].tobytes(), off[1].tobytes())
+
+
+@given(worlds(), st.floats(0, 360), st.sampled_from([8, 360]), st.floats(1.0, 400.0), st.data())
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                   HealthCheck.function_scoped_fixture])
+def test_cast_rays_whole_with_its_culling_gives_the_numpy_forms_bits(monkeypatch, world, heading, beams, max_range,
+                                                                     data):
+    """The kernel's ``cast`` culls as the numpy form does: objects just inside and just beyond the range, far
+    away, and with NaN coordinates (never hit) are added to the drawn world."""
+    ox, oy, segments, circles = world
+    edge = max_range * data.draw(st.sampled_from([1 - 1e-9, 1.0, 1 + 1e-9, 1 + 2e-9, 3.0]))
+    angle = np.deg2rad(data.draw(st.floats(0, 360)))
+    px, py = ox + edge * np.cos(angle), oy + edge * np.sin(angle)
+    extra_segments = [(px - 50 * np.sin(angle), py + 50 * np.cos(angle), px + 50 * np.sin(angle),
+                       py - 50 * np.cos(angle)), (px, py, px, py), (np.nan, 0.0, 1.0, 1.0)]
+    extra_circles = [(px + 5 * np.cos(angle), py + 5 * np.sin(angle), 5.0), (ox + 1e6, oy, 10.0),
+                     (np.nan, oy, 1.0)]
+    order = data.draw(st.permutations(range(len(segments) + 3)))
+    segments = np.vstack([segments, extra_segments])[list(order)]
+    circles = np.vstack([circles, extra_circles])
+    directions = beam_directions(LaserConfig(beams=beams), heading)
+    on, off = _cast_both(monkeypatch, np.array([ox, oy]), directions, segments, circles, max_range)
+    assert on == off
+
+
 def test_cast_rays_is_the_same_with_the_kernel_switched_off(monkeypatch):
     rng = np.random.default_rng(4)
     segments = np.column_stack([rng.uniform(-300, 300, (30, 4))])
@@ -109,6 +140,21 @@ def test_bad_buffers_are_refused(which, bad):
     args[which] = bad
     with pytest.raises((ValueError, BufferError, TypeError)):
         raycast._raycast.nearest(0.0, 0.0, *args)
+
+
+@pytest.mark.parametrize(("which", "bad"), [
+    (0, np.zeros((4, 3))),  # directions with 3 columns
+    (1, np.zeros((2, 3))),  # segments with 3 columns
+    (2, np.zeros((2, 4))),  # circles with 4 columns
+    (3, np.zeros(5)),  # best of another length
+    (4, np.zeros(4)),  # hit as floats
+    (2, np.zeros((8, 3))[::2]),  # not contiguous
+])
+def test_cast_refuses_bad_buffers(which, bad):
+    args = [np.zeros((4, 2)), np.zeros((2, 4)), np.zeros((1, 3)), np.zeros(4), np.zeros(4, np.int64)]
+    args[which] = bad
+    with pytest.raises((ValueError, BufferError, TypeError)):
+        raycast._raycast.cast(0.0, 0.0, 250.0, 250.0, *args)
 
 
 def test_read_only_outputs_are_refused():
