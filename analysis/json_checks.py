@@ -18,7 +18,16 @@ from itertools import chain
 from operator import itemgetter
 from typing import Any
 
+from fuzzynav import compiled
+
 MAX_CM = 1e9  # the scenario files' limit on coordinates (cm): the default magnitude bound of a number
+
+# the one-pass C forms of the array tests below (same answers; None when not built at install)
+_kernel = compiled.load("_json_checks")
+
+
+def _kernel_on() -> bool:
+    return _kernel is not None and not compiled.switched_off()
 
 
 class CheckError(ValueError):
@@ -67,7 +76,16 @@ def _types_within(values: Any, allowed: frozenset) -> bool:
 
 def _numbers_within(values: list[Any], lo: float, hi: float) -> bool:
     """All ``values`` are JSON numbers (not booleans) in [lo, hi] (JSON has no NaN: orjson refuses it)."""
+    if _kernel_on():
+        return _kernel.numbers_within(values, float(lo), float(hi))
     return not values or (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi)
+
+
+def are_booleans(values: list[Any]) -> bool:
+    """All ``values`` (a list) are booleans."""
+    if _kernel_on():
+        return _kernel.all_booleans(values)
+    return set(map(type, values)) <= BOOL_TYPES
 
 
 def _integers_within(values: list[Any], lo: int, hi: int) -> bool:
@@ -201,8 +219,7 @@ def obj(**fields: Check) -> Check:
             raise CheckError("", f"expected an object, got {kind_of(v)}")
         try:
             for get, lo, hi in groups:
-                values = get(v)
-                if not (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi):
+                if not _numbers_within(get(v), lo, hi):
                     raise _Slow
             for name, field_check in others:
                 field_check(v[name])
@@ -245,7 +262,7 @@ def numbers(lo: float = -MAX_CM, hi: float = MAX_CM, min_items: int = 0, length:
     def accept(v: Any) -> bool:
         if type(v) is not list or len(v) < min_items or (length is not None and len(v) != length):
             return False
-        return not v or (set(map(type, v)) <= NUMBER_TYPES and lo <= min(v) and max(v) <= hi)
+        return _numbers_within(v, lo, hi)
     return with_batch(_fast(accept, array(number(lo, hi), min_items, length)),
                        lambda vs: _lists(vs, min_items, length) and _numbers_within(list(chain.from_iterable(vs)),
                                                                                     lo, hi))
@@ -257,6 +274,8 @@ def are_points(v: Any) -> bool:
         return False
     if not v:
         return True
+    if _kernel_on():
+        return _kernel.points_within(v, -MAX_CM, MAX_CM)
     if not set(map(type, v)) <= LIST_TYPES or set(map(len, v)) != {2}:
         return False
     coords = list(chain.from_iterable(v))
@@ -285,10 +304,10 @@ def boolean_rows(min_items: int = 0) -> Check:
     """An array of arrays of booleans (the TPT's collision matrix)."""
     def accept(v: Any) -> bool:
         return type(v) is list and len(v) >= min_items and set(map(type, v)) <= LIST_TYPES \
-            and set(map(type, chain.from_iterable(v))) <= BOOL_TYPES
+            and are_booleans(list(chain.from_iterable(v)))
     def batch(vs: list[Any]) -> bool:
         rows = list(chain.from_iterable(vs)) if _lists(vs, min_items) else None
-        return rows is not None and _lists(rows) and _types_within(chain.from_iterable(rows), BOOL_TYPES)
+        return rows is not None and _lists(rows) and are_booleans(list(chain.from_iterable(rows)))
     return with_batch(_fast(accept, array(array(boolean), min_items)), batch)
 
 

@@ -29,13 +29,13 @@ from typing import Any
 import yaml
 
 from analysis.json_checks import (
-    BOOL_TYPES,
     DICT_TYPES,
     LIST_TYPES,
     MAX_CM,
     Check,
     CheckError,
     accepts_all,
+    are_booleans,
     are_points,
     array,
     boolean,
@@ -99,7 +99,7 @@ def check_tpt(v: Any) -> None:
             and type(obstacles) is list and len(obstacles) == rows and set(map(type, obstacles)) <= LIST_TYPES
             and set(map(len, obstacles)) <= {k} and are_points(list(chain.from_iterable(obstacles)))
             and type(collide) is list and len(collide) == rows and set(map(type, collide)) <= LIST_TYPES
-            and set(map(len, collide)) <= {k} and set(map(type, chain.from_iterable(collide))) <= BOOL_TYPES
+            and set(map(len, collide)) <= {k} and are_booleans(list(chain.from_iterable(collide)))
             and len(v["obstacle_radii_cm"]) == k):
         return
     _TPT_TABLES(v)
@@ -137,7 +137,7 @@ def _tpts_acceptable(vs: list[Any]) -> bool:
         if not (_all_lists(table_rows) and list(map(len, table_rows)) == per_row):
             return False
         cells = list(chain.from_iterable(table_rows))
-        if not (are_points(cells) if name == "obstacles_cm" else set(map(type, cells)) <= BOOL_TYPES):
+        if not (are_points(cells) if name == "obstacles_cm" else are_booleans(cells)):
             return False
     return True
 

@@ -12,7 +12,7 @@ import os
 from types import ModuleType
 
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
-KERNELS = ("_mamdani", "_raycast", "_tracking")  # the modules pyproject.toml's ext-modules build
+KERNELS = ("_mamdani", "_raycast", "_tracking", "_json_checks")  # the modules pyproject.toml's ext-modules build
 
 
 def switched_off() -> bool:
