@@ -154,40 +154,19 @@ done:
  * origin kept (the numpy path's culling, with its formulas: the distance from the origin to a segment as
  * fuzzynav.geometry.segment_point_distance computes it, and |centre - origin| - r for a circle; NaN is dropped),
  * then nearest_core with their indices (segments 0..M-1, circles M..M+C-1). */
-static PyObject *cast(PyObject *self, PyObject *args) {
-    (void)self;
-    double ox, oy, max_range, reach;
-    PyObject *objs[5];
-    if (!PyArg_ParseTuple(args, "ddddOOOOO", &ox, &oy, &max_range, &reach, &objs[0], &objs[1], &objs[2], &objs[3],
-                          &objs[4]))
-        return NULL;
-    static const char *what[5] = {"directions", "segments", "circles", "best", "hit"};
-    static const char *formats[5] = {"d", "d", "d", "d", "lq"};
-    static const Py_ssize_t widths[5] = {2, 4, 3, 1, 1};
-    Py_buffer v[5];
-    Py_ssize_t rows[5];
-    int got = 0;
-    PyObject *result = NULL;
-    double *pre = NULL;
-    for (; got < 5; got++)
-        if (get(objs[got], &v[got], got >= 3, formats[got], widths[got], &rows[got], what[got]) < 0) goto done;
-    Py_ssize_t n = rows[0], m = rows[1], c = rows[2];
-    if (rows[3] != n || rows[4] != n) {
-        PyErr_SetString(PyExc_ValueError, "cast: best and hit must match the directions");
-        goto done;
-    }
-    const double *d = v[0].buf, *seg = v[1].buf, *circ = v[2].buf;
-    double *best = v[3].buf;
-    int64_t *hit = v[4].buf;
+/* cast_rays whole: best = max_range and hit = -1, then the kept objects' nearest hits; -1 (MemoryError set) when
+ * the work arrays cannot be allocated */
+static int cast_core(double ox, double oy, double max_range, double reach, const double *d, Py_ssize_t n,
+                     const double *seg, Py_ssize_t m, const double *circ, Py_ssize_t c, double *best, int64_t *hit) {
     for (Py_ssize_t i = 0; i < n; i++) {
         best[i] = max_range;
         hit[i] = -1;
     }
-    /* the kept objects' values and their indices (stored as doubles' neighbours: one allocation) */
-    pre = PyMem_Malloc((size_t)(5 * m + 3 * c + 1) * sizeof(double) + (size_t)(m + c + 1) * sizeof(int64_t));
+    /* the kept objects' values and their indices (stored after the doubles: one allocation) */
+    double *pre = PyMem_Malloc((size_t)(5 * m + 3 * c + 1) * sizeof(double) + (size_t)(m + c + 1) * sizeof(int64_t));
     if (pre == NULL) {
         PyErr_NoMemory();
-        goto done;
+        return -1;
     }
     int64_t *ids = (int64_t *)(pre + 5 * m + 3 * c + 1);
     Py_ssize_t kept_m = 0, kept_c = 0;
@@ -215,11 +194,113 @@ static PyObject *cast(PyObject *self, PyObject *args) {
         circ_ids[kept_c++] = m + k;
     }
     nearest_core(d, n, pre, ids, kept_m, circ_pre, circ_ids, kept_c, best, hit);
+    PyMem_Free(pre);
+    return 0;
+}
+
+/* cast(ox, oy, max_range, reach, directions (N, 2), segments (M, 4), circles (C, 3), best (N,) out, hit (N,) out)
+ * fuzzynav.raycast.cast_rays whole: the segments and circles within `reach` of the origin kept (the numpy path's
+ * culling, with its formulas: the distance from the origin to a segment as fuzzynav.geometry.segment_point_distance
+ * computes it, and |centre - origin| - r for a circle; NaN is dropped), then nearest_core with their indices
+ * (segments 0..M-1, circles M..M+C-1). */
+static PyObject *cast(PyObject *self, PyObject *args) {
+    (void)self;
+    double ox, oy, max_range, reach;
+    PyObject *objs[5];
+    if (!PyArg_ParseTuple(args, "ddddOOOOO", &ox, &oy, &max_range, &reach, &objs[0], &objs[1], &objs[2], &objs[3],
+                          &objs[4]))
+        return NULL;
+    static const char *what[5] = {"directions", "segments", "circles", "best", "hit"};
+    static const char *formats[5] = {"d", "d", "d", "d", "lq"};
+    static const Py_ssize_t widths[5] = {2, 4, 3, 1, 1};
+    Py_buffer v[5];
+    Py_ssize_t rows[5];
+    int got = 0;
+    PyObject *result = NULL;
+    for (; got < 5; got++)
+        if (get(objs[got], &v[got], got >= 3, formats[got], widths[got], &rows[got], what[got]) < 0) goto done;
+    if (rows[3] != rows[0] || rows[4] != rows[0]) {
+        PyErr_SetString(PyExc_ValueError, "cast: best and hit must match the directions");
+        goto done;
+    }
+    if (cast_core(ox, oy, max_range, reach, v[0].buf, rows[0], v[1].buf, rows[1], v[2].buf, rows[2], v[3].buf,
+                  v[4].buf) < 0)
+        goto done;
     result = Py_None;
     Py_INCREF(result);
 done:
-    PyMem_Free(pre);
     for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+    return result;
+}
+
+/* laser_frame(ox, oy, sin_h, cos_h, max_range, reach, n_static, clip_hi, rel_sin (N,), rel_cos (N,),
+ *             segments (M, 4), circles (C, 3), draws (N,) or None, ranges (N,) out, directions (N, 2) out,
+ *             labels (N,) out, xy (N, 2) out)
+ * fuzzynav.laser.scan after its sin/cos and noise draws, in its numpy operations' order: the beam directions
+ * (cos_h * rel_cos - sin_h * rel_sin, sin_h * rel_cos + cos_h * rel_sin), cast_rays, with draws the noisy range
+ * min(max(range + draw, 0), clip_hi) of every beam that hit something, the labels (-1 nothing, 0 static: an
+ * index below n_static, k + 1 moving obstacle k) and the end points (origin + range * direction). */
+static PyObject *laser_frame(PyObject *self, PyObject *args) {
+    (void)self;
+    double ox, oy, sin_h, cos_h, max_range, reach, clip_hi;
+    Py_ssize_t n_static;
+    PyObject *objs[9];
+    if (!PyArg_ParseTuple(args, "ddddddndOOOOOOOOO", &ox, &oy, &sin_h, &cos_h, &max_range, &reach, &n_static,
+                          &clip_hi, &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5], &objs[6], &objs[7],
+                          &objs[8]))
+        return NULL;
+    static const char *what[9] = {"rel_sin", "rel_cos", "segments", "circles", "draws", "ranges", "directions",
+                                  "labels", "xy"};
+    static const char *formats[9] = {"d", "d", "d", "d", "d", "d", "d", "lq", "d"};
+    static const Py_ssize_t widths[9] = {1, 1, 4, 3, 1, 1, 2, 1, 2};
+    Py_buffer v[9];
+    Py_ssize_t rows[9];
+    int got = 0, have[9] = {0};
+    PyObject *result = NULL;
+    for (; got < 9; got++) {
+        if (got == 4 && objs[got] == Py_None) {
+            rows[got] = -1;
+            continue;
+        }
+        if (get(objs[got], &v[got], got >= 5, formats[got], widths[got], &rows[got], what[got]) < 0) goto done;
+        have[got] = 1;
+    }
+    Py_ssize_t n = rows[0];
+    if (rows[1] != n || (have[4] && rows[4] != n) || rows[5] != n || rows[6] != n || rows[7] != n || rows[8] != n) {
+        PyErr_SetString(PyExc_ValueError, "laser_frame: every per-beam array must have the beams' length");
+        goto done;
+    }
+    const double *rel_sin = v[0].buf, *rel_cos = v[1].buf;
+    double *ranges = v[5].buf, *d = v[6].buf, *xy = v[8].buf;
+    int64_t *labels = v[7].buf;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        d[2 * i] = cos_h * rel_cos[i] - sin_h * rel_sin[i];
+        d[2 * i + 1] = sin_h * rel_cos[i] + cos_h * rel_sin[i];
+    }
+    if (cast_core(ox, oy, max_range, reach, d, n, v[2].buf, rows[2], v[3].buf, rows[3], ranges, labels) < 0)
+        goto done;
+    if (have[4]) {
+        /* numpy's clip: max, then min, each keeping its first operand only when strictly beyond (the sums are
+         * finite here) */
+        const double *draws = v[4].buf;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            if (labels[i] < 0) continue;
+            double r = ranges[i] + draws[i];
+            r = r > 0.0 ? r : 0.0;
+            ranges[i] = r < clip_hi ? r : clip_hi;
+        }
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t h = labels[i];
+        labels[i] = h < 0 ? -1 : (h < n_static ? 0 : h - n_static + 1);
+        xy[2 * i] = ox + ranges[i] * d[2 * i];
+        xy[2 * i + 1] = oy + ranges[i] * d[2 * i + 1];
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < got; i++)
+        if (have[i]) PyBuffer_Release(&v[i]);
     return result;
 }
 
@@ -230,6 +311,9 @@ static PyMethodDef methods[] = {
     {"cast", cast, METH_VARARGS,
      "cast(ox, oy, max_range, reach, directions, segments, circles, best, hit): cast_rays whole (culling "
      "included), into best and hit"},
+    {"laser_frame", laser_frame, METH_VARARGS,
+     "laser_frame(ox, oy, sin_h, cos_h, max_range, reach, n_static, clip_hi, rel_sin, rel_cos, segments, circles, "
+     "draws, ranges, directions, labels, xy): fuzzynav.laser.scan's frame, into the four output arrays"},
     {NULL, NULL, 0, NULL},
 };
 

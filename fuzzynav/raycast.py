@@ -36,8 +36,8 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     n = len(d)
     ox, oy = float(origin[0]), float(origin[1])
     segments, circles = segments.reshape(-1, 4), circles.reshape(-1, 3)
-    reach = max_range * (1.0 + 1e-9) + 1e-9  # a hair of slack: culling must never drop a hit at the range
-    if _raycast is not None and not compiled.switched_off():
+    reach = cull_reach(max_range)
+    if kernel_on():
         # culling and casting in one call (the numpy culling's fancy indexing cost as much as the casting);
         # float64 and contiguous whatever the caller passed (the numpy form computes in float64 as well)
         best, hit = np.empty(n), np.empty(n, dtype=np.int64)
@@ -55,6 +55,22 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     nearest_numpy(ox, oy, d, segments[seg_ids].astype(float), seg_ids, circles[circ_ids].astype(float),
                   len(segments) + circ_ids, best, hit)
     return best, hit
+
+
+def kernel_on() -> bool:
+    """Whether the compiled ray caster runs (built at install, and not switched off)."""
+    return _raycast is not None and not compiled.switched_off()
+
+
+def cull_reach(max_range: float) -> float:
+    """How far (cm) an object may be and still be cast against: a hair beyond the range (culling must never drop
+    a hit at the range)."""
+    return max_range * (1.0 + 1e-9) + 1e-9
+
+
+def laser_frame(*args) -> None:
+    """``fuzzynav._raycast.laser_frame`` (see :func:`fuzzynav.laser.scan`)."""
+    _raycast.laser_frame(*args)
 
 
 def nearest_numpy(ox: float, oy: float, directions: np.ndarray, segments: np.ndarray, segment_ids: np.ndarray,

@@ -113,6 +113,35 @@ def test_cast_rays_whole_with_its_culling_gives_the_numpy_forms_bits(monkeypatch
     assert on == off
 
 
+@given(worlds(), st.floats(-720, 720), st.sampled_from([8, 90, 360]), st.floats(1.0, 400.0),
+       st.sampled_from([0.0, 1.0, 30.0]), st.integers(0, 3), st.integers(0, 2**32 - 1))
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                   HealthCheck.function_scoped_fixture])
+def test_a_whole_laser_frame_gives_the_numpy_forms_bits(monkeypatch, world, heading, beams, range_cm, noise_std,
+                                                        n_static_circles, seed):
+    """laser.scan with the kernel (``laser_frame``: directions, ranges, noise, labels, end points) and without:
+    every array the same bits, and the noise stream left at the same place."""
+    from fuzzynav.laser import scan
+    from fuzzynav.portable_random import NormalStream
+
+    ox, oy, segments, circles = world
+    static_circles, discs = circles[:n_static_circles], circles[n_static_circles:]
+    config = LaserConfig(range_cm=range_cm, beams=beams, noise_std_cm=noise_std)
+    frames, nexts = [], []
+    for off in (False, True):
+        with monkeypatch.context() as m:
+            if off:
+                m.setenv("FUZZYNAV_KERNEL", "python")
+            noise = NormalStream(np.random.default_rng(seed))
+            frames.append(scan(config, ox, oy, heading, segments, static_circles, discs, noise))
+            nexts.append(noise.draw(0.0, 1.0, 3).tobytes())
+    a, b = frames
+    for name in ("ranges", "directions", "labels", "xy"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+        assert getattr(a, name).dtype == getattr(b, name).dtype and getattr(a, name).shape == getattr(b, name).shape
+    assert a.origin == b.origin and nexts[0] == nexts[1]
+
+
 def test_cast_rays_is_the_same_with_the_kernel_switched_off(monkeypatch):
     rng = np.random.default_rng(4)
     segments = np.column_stack([rng.uniform(-300, 300, (30, 4))])
@@ -155,6 +184,18 @@ def test_cast_refuses_bad_buffers(which, bad):
     args[which] = bad
     with pytest.raises((ValueError, BufferError, TypeError)):
         raycast._raycast.cast(0.0, 0.0, 250.0, 250.0, *args)
+
+
+def test_laser_frame_refuses_bad_buffers():
+    n = 8
+    good = [np.zeros(n), np.zeros(n), np.zeros((1, 4)), np.zeros((0, 3)), None, np.zeros(n), np.zeros((n, 2)),
+            np.zeros(n, np.int64), np.zeros((n, 2))]
+    for which, bad in [(0, np.zeros(n + 1)), (4, np.zeros(n - 1)), (6, np.zeros((n, 3))), (7, np.zeros(n)),
+                       (8, np.zeros((n, 2))[::-1]), (2, np.zeros((1, 4), np.float32))]:
+        args = list(good)
+        args[which] = bad
+        with pytest.raises((ValueError, BufferError, TypeError)):
+            raycast._raycast.laser_frame(0.0, 0.0, 0.0, 1.0, 250.0, 250.0, 4, 249.0, *args)
 
 
 def test_read_only_outputs_are_refused():
