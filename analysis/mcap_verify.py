@@ -22,6 +22,8 @@ from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import Any, BinaryIO
 
+from fuzzynav import compiled
+
 MAGIC = b"\x89MCAP0\r\n"
 MAX_FILE_BYTES = 256 * 2**20  # a 10,000-step episode's log is ~20 MB: anything larger is not a fuzzynav log
 MAX_CHUNK_BYTES = 64 * 2**20  # the writer's chunks are ~32 KB uncompressed: a bound against bogus size fields
@@ -39,6 +41,13 @@ _RECORD = struct.Struct("<BQ")  # opcode, body length
 _CHUNK_HEAD = struct.Struct("<QQQI")  # message start time, end time, uncompressed size, uncompressed CRC
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 _MESSAGE_START = struct.Struct("<BQH4xQ")  # a record's opcode and length, and if it is a message its channel and time
+
+# The chunk record loop in C (fuzzynav/_mcap_chunk.c; None when not built): the same messages and errors as
+# _Reader._scan_python. Tests set this to None to force the Python loop.
+_mcap_chunk = compiled.load("_mcap_chunk")
+# what the loop stops at: the end, a schema or channel record for Python to file, or one of the errors below
+# (the numbers are fuzzynav/_mcap_chunk.c's codes)
+_DONE, _INNER, _CUT, _PAST_END, _TOO_SHORT, _UNDECLARED, _NOT_IN_CHUNK = range(7)
 
 
 class McapError(ValueError):
@@ -207,6 +216,8 @@ class _Reader:
         self.header_seen = False
         self.data_end_seen = False
         self.zstd: Any = None  # one decompressor for the file's chunks (making one costs about a third of a chunk)
+        # the chunk loop in C unless it was not built or the environment asks for the Python paths (per file)
+        self.scan = None if _mcap_chunk is None or compiled.switched_off() else _mcap_chunk.scan
 
     def record(self, opcode: int, at: int, body: int, end: int) -> None:
         first = not self.header_seen
@@ -256,6 +267,30 @@ class _Reader:
             raise McapError(f"chunk at byte {at}: {len(records)} bytes decompressed, {size} declared")
         if crc and zlib.crc32(records) != crc:
             raise McapError(f"chunk at byte {at}: CRC mismatch (the chunk's content is damaged)")
+        if self.scan is not None and type(records) is bytes:
+            self._scan_compiled(records, at)
+        else:
+            self._scan_python(records, at)
+
+    def _scan_compiled(self, records: bytes, at: int) -> None:
+        """:meth:`_scan_python` with its loop over messages in C (``fuzzynav._mcap_chunk``), which hands each
+        schema and channel record back here in file order (a channel record changes ``keep`` for the messages
+        after it)."""
+        scan, keep, messages = self.scan, self.keep, self.out.messages
+        pos = 0
+        while True:
+            code, pos, value, stop = scan(records, pos, keep, messages)
+            if code == _DONE:
+                return
+            if code != _INNER:
+                raise _chunk_fault(at, code, value)
+            self._inner(value, records, at, pos + _RECORD.size, stop)
+            pos = stop
+
+    def _scan_python(self, records: bytes, at: int) -> None:
+        """The records of the chunk at byte ``at`` (``records``: its decompressed bytes): the wanted messages
+        go to ``out.messages``, schemas and channels to :meth:`_inner`."""
+        size = len(records)
         keep_of, append = self.keep.get, self.out.messages.append
         pos = 0
         start, head = _MESSAGE_START.unpack_from, _RECORD.size + _MESSAGE_HEAD.size
@@ -265,22 +300,22 @@ class _Reader:
             elif pos + _RECORD.size <= size:
                 (opcode, length), channel, log_time = _RECORD.unpack_from(records, pos), -1, 0
             else:
-                raise McapError(f"chunk at byte {at}: a record header is cut at the chunk's end")
+                raise _chunk_fault(at, _CUT)
             stop = pos + _RECORD.size + length
             if stop > size:
-                raise McapError(f"chunk at byte {at}: a record runs past the chunk's end")
+                raise _chunk_fault(at, _PAST_END)
             if opcode == MESSAGE:  # inline: most records are messages
                 if length < _MESSAGE_HEAD.size:
-                    raise McapError(f"chunk at byte {at}: a message record is too short")
+                    raise _chunk_fault(at, _TOO_SHORT)
                 keep = keep_of(channel)
                 if keep:
                     append((channel, log_time, records[pos + head:stop]))
                 elif keep is None:
-                    raise McapError(f"chunk at byte {at}: message on undeclared channel {channel}")
+                    raise _chunk_fault(at, _UNDECLARED, channel)
             elif opcode in _IN_CHUNK:
                 self._inner(opcode, records, at, pos + _RECORD.size, stop)
             else:
-                raise McapError(f"chunk at byte {at}: record type 0x{opcode:02x} cannot be in a chunk")
+                raise _chunk_fault(at, _NOT_IN_CHUNK, opcode)
             pos = stop
 
     def _inner(self, opcode: int, data: bytes, at: int, body: int, end: int) -> None:
@@ -314,6 +349,15 @@ class _Reader:
     def _declare(table: dict, key: int, value: tuple, what: str, at: int) -> None:
         if table.setdefault(key, value) != value:
             raise McapError(f"{what} {key} declared twice with different content (record at byte {at})")
+
+
+def _chunk_fault(at: int, code: int, value: int = 0) -> McapError:
+    """The error of the record loop over the chunk at byte ``at`` (both loops' messages are made here, so they
+    are the same text): ``code`` one of _CUT ... _NOT_IN_CHUNK, ``value`` the channel id or opcode it names."""
+    what = {_CUT: "a record header is cut at the chunk's end", _PAST_END: "a record runs past the chunk's end",
+            _TOO_SHORT: "a message record is too short", _UNDECLARED: f"message on undeclared channel {value}",
+            _NOT_IN_CHUNK: f"record type 0x{value:02x} cannot be in a chunk"}[code]
+    return McapError(f"chunk at byte {at}: {what}")
 
 
 def _decompress(payload: memoryview, compression: str, size: int, at: int, zstd: Any = None) -> bytes:

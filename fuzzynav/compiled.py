@@ -12,7 +12,8 @@ import os
 from types import ModuleType
 
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
-KERNELS = ("_mamdani", "_raycast", "_tracking", "_json_checks")  # the modules pyproject.toml's ext-modules build
+# the modules pyproject.toml's ext-modules build
+KERNELS = ("_mamdani", "_raycast", "_tracking", "_mcap_chunk", "_json_checks")
 
 
 def switched_off() -> bool:
