@@ -1,7 +1,8 @@
 """The optional compiled kernels (C files built by the install when a C compiler is there).
 
-Each kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are the
-same bits with or without it (each has a test that compares them). ``FUZZYNAV_KERNEL=python`` in the
+Each numeric kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are
+the same bits with or without it; the analysis's (``_mcap_chunk``, ``_json_checks``) give the same answers and
+the same errors as their Python forms (each kernel has a test that compares it with its counterpart). ``FUZZYNAV_KERNEL=python`` in the
 environment switches every kernel off: the runs then take the Python paths (to check them, or to time them).
 """
 
