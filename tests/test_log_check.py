@@ -150,6 +150,30 @@ def test_a_log_with_other_chunk_compression_reads_the_same_and_damage_is_still_r
             read_mcap(damaged)
 
 
+def test_the_data_section_crc_stands_in_for_the_chunk_crcs_only_where_it_matches(recorded_logs):  # noqa: F811
+    """A closed log whose data-section CRC matches has its chunks' bytes as written: their own CRCs are not
+    computed again. A changed byte in a chunk breaks the data-section CRC, and the chunk's error names it, as
+    when every chunk CRC is checked."""
+    from analysis import mcap_verify
+
+    data = recorded_logs[0].read_bytes()
+    at = mcap_verify._intact_data_section(data)
+    assert at > 0 and data[at] == 0x0F  # the DataEnd record
+    assert read_mcap(data).messages == read_mcap(data[:-1]).messages  # not closed: every chunk CRC checked
+    chunk_at, chunk_length = next((o, n) for op, o, n in record_offsets(data) if op == 0x06)
+    name_length = int.from_bytes(data[chunk_at + 9 + 28:chunk_at + 9 + 32], "little")
+    first = chunk_at + 9 + 32 + name_length + 8
+    inside = (first + chunk_at + 9 + chunk_length) // 2  # a byte in the middle of the compressed records
+    damaged = data[:inside] + bytes([data[inside] ^ 0x10]) + data[inside + 1:]
+    assert mcap_verify._intact_data_section(damaged) == 0
+    with pytest.raises(McapError, match=f"chunk at byte {chunk_at}"):
+        read_mcap(damaged)
+    for summary_start in (0, 1, 9, at, len(data), 2**64 - 1):  # a footer pointing anywhere: no shortcut, no error
+        footer = len(data) - 8 - 29
+        bent = data[:footer + 9] + summary_start.to_bytes(8, "little") + data[footer + 17:]
+        assert mcap_verify._intact_data_section(bent) in (0, at)
+
+
 BAD_LOGS = ROOT / "tests" / "bad_inputs" / "logs"
 BAD_LOG_KINDS = {"empty.mcap": "not-mcap", "random_bytes.mcap": "not-mcap", "no_run_metadata.mcap": "metadata",
                  "message_off_schema.mcap": "schema", "x_cm_null.mcap": "schema", "outcome_unknown.mcap": "schema",
