@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav import compiled
 from fuzzynav.geometry import away_from_static, keep_inside
 from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model, substeps
 from fuzzynav.pedestrian_intent import Intent
@@ -47,6 +48,10 @@ from fuzzynav.scenario import DynamicObstacle
 #: floor of b (cm) in the gradient's 1/b (see :func:`agent_repulsion`): 1 cm bounds the factor u/(4b) to a
 #: quarter of the pedestrians' distance in cm
 B_FLOOR_CM = 1.0
+
+# One substep's forces in C (fuzzynav/_social_force.c; None when not built): the same bits as
+# _substep_force_numpy, ~100 small numpy calls per substep replaced by one call
+_kernel = compiled.load("_social_force")
 
 
 @dataclass(frozen=True)
@@ -114,6 +119,53 @@ def wall_repulsion(positions: np.ndarray, radii: np.ndarray, segments: np.ndarra
     return np.stack([sequential_sum(force[..., 0]), sequential_sum(force[..., 1])], axis=-1)
 
 
+def _substep_force_numpy(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0: np.ndarray, o_vel: np.ndarray,
+                         tau: float, radii: np.ndarray, segments: np.ndarray, circles: np.ndarray,
+                         c: SocialForceConfig, cos_fov: float) -> np.ndarray:
+    """The force (n, 2) cm/s² on each of a group's pedestrians at positions ``x`` (n, 2) cm with velocities ``v``
+    (n, 2) cm/s, preferred velocities ``pref`` (n, 2) cm/s and disc radii ``radii`` (n,) cm, for the substep
+    starting ``tau`` s after the step's: the driving force, plus the sum of the field-of-view-weighted
+    repulsions from the group itself and from the other obstacles (at ``o_pos0`` + ``o_vel`` · tau, (k, 2) cm
+    and cm/s), plus the sum of the repulsions of the walls ``segments`` (M, 4) cm and circles ``circles``
+    (C, 3) cm. ``cos_fov``: cos φ. The reference form (numpy), which :func:`_substep_force_kernel` reproduces
+    bit for bit."""
+    force = (pref - v) / c.relaxation_s
+    # the group's pedestrians and every other obstacle at this substep; a pedestrian's pair with itself (r = 0)
+    # has no direction and gives no force
+    all_pos = np.vstack([x, o_pos0 + o_vel * tau]) if len(o_pos0) else x
+    all_vel = np.vstack([v, o_vel]) if len(o_pos0) else v
+    if len(all_pos):  # (always, but for an empty group with no others: sequential_sum needs a term)
+        rel = x[:, None, :] - all_pos[None, :, :]
+        pair_f = agent_repulsion(rel, all_vel[None, :, :], c.agent_strength_cm2_s2, c.agent_range_cm,
+                                 c.step_time_s)
+        # Eq. 7: a repulsion whose source is outside the angle of sight around e counts c times
+        speed = norm2(pref)
+        e = pref / np.where(speed > 0.0, speed, 1.0)[:, None]
+        towards = -(e[:, None, 0] * pair_f[..., 0] + e[:, None, 1] * pair_f[..., 1])
+        seen = towards >= norm2(pair_f) * cos_fov
+        pair_f = pair_f * np.where(seen, 1.0, c.fov_weight)[..., None]
+        force = force + np.stack([sequential_sum(pair_f[..., 0]), sequential_sum(pair_f[..., 1])], axis=-1)
+    if len(segments) + len(circles):  # (a world without walls or circles: nothing to sum)
+        force = force + wall_repulsion(x, radii, segments, circles, c.wall_strength_cm2_s2, c.wall_range_cm)
+    return force
+
+
+def _substep_force_kernel(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0: np.ndarray, o_vel: np.ndarray,
+                          tau: float, radii: np.ndarray, segments: np.ndarray, circles: np.ndarray,
+                          c: SocialForceConfig, cos_fov: float) -> np.ndarray:
+    """:func:`_substep_force_numpy` (same arguments and units, same bits) by the compiled kernel: one call
+    instead of ~100 small numpy calls."""
+    f64 = np.float64
+    out = np.empty((len(x), 2))
+    _kernel.forces(np.ascontiguousarray(x, dtype=f64), np.ascontiguousarray(v, dtype=f64),
+                   np.ascontiguousarray(pref, dtype=f64), np.ascontiguousarray(o_pos0, dtype=f64),
+                   np.ascontiguousarray(o_vel, dtype=f64), tau, np.ascontiguousarray(radii, dtype=f64),
+                   np.ascontiguousarray(segments, dtype=f64), np.ascontiguousarray(circles, dtype=f64),
+                   c.relaxation_s, c.agent_strength_cm2_s2, c.agent_range_cm, c.step_time_s,
+                   c.wall_strength_cm2_s2, c.wall_range_cm, cos_fov, c.fov_weight, out)
+    return out
+
+
 @register_obstacle_model("social_force")
 class SocialForceModel:
     """The pedestrians of one ``social_force`` group (module docstring)."""
@@ -139,28 +191,14 @@ class SocialForceModel:
         n_sub, h = substeps(dt, c.substep_s)
         o_pos0, o_vel, _ = view.others(indices, c.sees_robot)
         segments, circles = view.world.segments, view.world.circles
+        # the compiled kernel unless it was not built or FUZZYNAV_KERNEL=python: the same bits either way
+        substep_force = _substep_force_numpy if _kernel is None or compiled.switched_off() else _substep_force_kernel
         v_max = c.max_speed_factor * self.intent.speeds
         x, v = self.x, self.v
         for k in range(n_sub):
             tau = k * h
             pref = self.intent.preferred(x)
-            force = (pref - v) / c.relaxation_s
-            # the group's pedestrians and every other obstacle at this substep; a pedestrian's pair with itself
-            # (r = 0) has no direction and gives no force
-            all_pos = np.vstack([x, o_pos0 + o_vel * tau]) if len(o_pos0) else x
-            all_vel = np.vstack([v, o_vel]) if len(o_pos0) else v
-            rel = x[:, None, :] - all_pos[None, :, :]
-            pair_f = agent_repulsion(rel, all_vel[None, :, :], c.agent_strength_cm2_s2, c.agent_range_cm,
-                                     c.step_time_s)
-            # Eq. 7: a repulsion whose source is outside the angle of sight around e counts c times
-            speed = norm2(pref)
-            e = pref / np.where(speed > 0.0, speed, 1.0)[:, None]
-            towards = -(e[:, None, 0] * pair_f[..., 0] + e[:, None, 1] * pair_f[..., 1])
-            seen = towards >= norm2(pair_f) * self.cos_fov
-            pair_f = pair_f * np.where(seen, 1.0, c.fov_weight)[..., None]
-            force = force + np.stack([sequential_sum(pair_f[..., 0]), sequential_sum(pair_f[..., 1])], axis=-1)
-            force = force + wall_repulsion(x, self.radii, segments, circles, c.wall_strength_cm2_s2,
-                                           c.wall_range_cm)
+            force = substep_force(x, v, pref, o_pos0, o_vel, tau, self.radii, segments, circles, c, self.cos_fov)
             v = v + force * h
             length = norm2(v)
             over = length > v_max
