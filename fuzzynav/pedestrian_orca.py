@@ -16,7 +16,9 @@ Per pedestrian and substep (RVO2's ``Agent::computeNeighbors`` / ``computeNewVel
 
 All pedestrians of a substep choose from the same state (as RVO2: compute all, then update all). Integration:
 substeps of at most ``substep_s`` (RVO2's time step); positions advance with the chosen velocity.
-Units: cm, s, cm/s. Pure Python arithmetic in a fixed order: the same on every CPU.
+Units: cm, s, cm/s. Pure Python arithmetic in a fixed order: the same on every CPU. With the optional compiled
+kernel (``fuzzynav._orca``, off with ``FUZZYNAV_KERNEL=python``) one C call per substep computes every
+pedestrian's velocity with the same operations in the same order: the same bits.
 """
 
 from __future__ import annotations
@@ -27,12 +29,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav import compiled, orca
 from fuzzynav.geometry import away_from_static, keep_inside
 from fuzzynav.obstacle_model import CrowdView, in_range, register_obstacle_model, substeps
 from fuzzynav.orca import Line, choose_velocity, orca_line, static_point_line
 from fuzzynav.pedestrian_intent import Intent
 from fuzzynav.portable_math import hypot, norm2
 from fuzzynav.scenario import DynamicObstacle
+from fuzzynav.world import World
+
+_kernel = compiled.load("_orca")
+if _kernel is not None:
+    # the linear program's tolerances have one definition, fuzzynav.orca's
+    _kernel.set_constants(orca._PARALLEL, orca._SLACK_REL, orca._SLACK_ABS)
 
 
 @dataclass(frozen=True)
@@ -88,28 +97,117 @@ class PedestrianOrcaModel:
         max_speed = c.max_speed_factor * self.intent.speeds
         x, v = self.x, self.v
         n = len(x)
+        use_kernel = _kernel is not None and not compiled.switched_off()
         for k in range(n_sub):
             pref = self.intent.preferred(x)
             pos_all = np.vstack([x, o_pos0 + o_vel * (k * h)])
             vel_all = np.vstack([v, o_vel])
             rad_all = np.concatenate([self.radii, o_rad])
             share = [0.5] * n + o_share
-            gaps, away = away_from_static(x, view.world.segments, view.world.circles)
-            near = self._neighbours(x, pos_all)
-            # every pedestrian's inputs as Python floats at once (the same values): indexing numpy element by element
-            # inside the per-pedestrian loop would cost more than the loop's own arithmetic
-            reach = c.time_horizon_obst_s * max_speed + self.radii
-            close = ((gaps - self.radii[:, None]) < reach[:, None]).tolist()
-            rows = _Rows(pos_all[None, :, :] - x[:, None, :], vel_all, rad_all, gaps, away)
-            new_v = np.empty_like(v)
-            for i, (vi, pi, top) in enumerate(zip(v.tolist(), pref.tolist(), max_speed.tolist(), strict=True)):
-                statics = [k for k, ok in enumerate(close[i]) if ok]
-                new_v[i] = self._velocity(i, vi, pi, top, statics, near[i], rows, share, h)
+            if use_kernel:
+                new_v = self._substep_compiled(x, pos_all, vel_all, rad_all, share, v, pref, max_speed, view.world,
+                                               h)
+            else:
+                new_v = self._substep_python(x, pos_all, vel_all, rad_all, share, v, pref, max_speed, view.world, h)
             # the walls are hard constraints of the linear program, which a speed above what the horizon covers
             # can still overshoot in one substep: the walls are solid
             x, v = keep_inside(x + new_v * h, new_v, self.radii, view.world.bounds)
         self.x, self.v = x, v
         return x.copy(), v.copy()
+
+    def _substep_python(self, x: np.ndarray, pos_all: np.ndarray, vel_all: np.ndarray, rad_all: np.ndarray,
+                        share: list[float], v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray, world: World,
+                        h: float, only: Sequence[int] | None = None, out: np.ndarray | None = None) -> np.ndarray:
+        """The new velocities (n, 2) cm/s of the own pedestrians at ``x`` (n, 2) cm moving at ``v`` (n, 2) cm/s
+        (the reference path): everyone's positions ``pos_all`` (m, 2) cm, velocities ``vel_all`` (m, 2) cm/s,
+        radii ``rad_all`` (m,) cm and shares of the avoidance ``share`` (m,), own pedestrians first; preferred
+        velocities ``pref`` (n, 2) and speed limits ``max_speed`` (n,) cm/s; the walls, edges and circles of
+        ``world``; the substep ``h`` (s). With ``only``, just those pedestrians, into ``out``."""
+        c = self.config
+        gaps, away = away_from_static(x, world.segments, world.circles)
+        near = self._neighbours(x, pos_all)
+        reach = c.time_horizon_obst_s * max_speed + self.radii
+        close = (gaps - self.radii[:, None]) < reach[:, None]
+        rel = pos_all[None, :, :] - x[:, None, :]
+        return self._velocities_python(v, pref, max_speed, rel, vel_all, rad_all, share, gaps, away, close, near, h,
+                                       only, out)
+
+    def _substep_compiled(self, x: np.ndarray, pos_all: np.ndarray, vel_all: np.ndarray, rad_all: np.ndarray,
+                          share: list[float], v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray,
+                          world: World, h: float) -> np.ndarray:
+        """:meth:`_substep_python` (same arguments and units) in one call of the compiled kernel — the neighbours,
+        the walls', edges' and circles' gaps and directions, the statics within reach and every pedestrian's
+        velocity, with the same operations in the same order: the same bits. A pedestrian for which the Python
+        path would raise (a division by zero) is flagged by the kernel and recomputed by the Python path, which
+        raises the same error."""
+        c = self.config
+        f64 = np.float64
+        new_v = np.empty((len(x), 2), dtype=f64)
+        bad = np.zeros(len(x), dtype=bool)
+        n_bad = _kernel.substep(
+            float(c.neighbor_dist_cm), c.max_neighbors, float(c.time_horizon_obst_s), float(c.time_horizon_s),
+            float(h), np.ascontiguousarray(x, dtype=f64), np.ascontiguousarray(pos_all, dtype=f64),
+            np.ascontiguousarray(vel_all, dtype=f64), np.ascontiguousarray(rad_all, dtype=f64),
+            np.asarray(share, dtype=f64), np.ascontiguousarray(v, dtype=f64), np.ascontiguousarray(pref, dtype=f64),
+            np.ascontiguousarray(max_speed, dtype=f64),
+            np.ascontiguousarray(world.segments, dtype=f64).reshape(-1, 4),
+            np.ascontiguousarray(world.circles, dtype=f64).reshape(-1, 3), new_v, bad)
+        if n_bad:
+            self._substep_python(x, pos_all, vel_all, rad_all, share, v, pref, max_speed, world, h,
+                                 only=np.flatnonzero(bad).tolist(), out=new_v)
+        return new_v
+
+    def _velocities_python(self, v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray, rel: np.ndarray,
+                           vel_all: np.ndarray, rad_all: np.ndarray, share: list[float], gaps: np.ndarray,
+                           away: np.ndarray, close: np.ndarray, near: list[list[int]], h: float,
+                           only: Sequence[int] | None = None, out: np.ndarray | None = None) -> np.ndarray:
+        """The new velocities (n, 2) cm/s of the own pedestrians moving at ``v`` (n, 2) cm/s, by :meth:`_velocity`
+        (the reference): ``pref`` (n, 2) cm/s preferred velocities, ``max_speed`` (n,) cm/s, ``rel`` (n, m, 2) cm
+        everyone's positions relative to each own pedestrian, ``vel_all`` (m, 2) cm/s, ``rad_all`` (m,) cm,
+        ``share`` (m,) the responsibilities, ``gaps`` (n, K) cm and ``away`` (n, K, 2) the walls', edges' and
+        circles' distances and unit directions away from them, ``close`` (n, K) the ones within reach, ``near``
+        the neighbours' indices, ``h`` the substep (s). With ``only``, just those pedestrians, into ``out``."""
+        # every pedestrian's inputs as Python floats at once (the same values): indexing numpy element by element
+        # inside the per-pedestrian loop would cost more than the loop's own arithmetic
+        rows = _Rows(rel, vel_all, rad_all, gaps, away)
+        close_rows = close.tolist()
+        new_v = np.empty_like(v) if out is None else out
+        v_rows, pref_rows, top_rows = v.tolist(), pref.tolist(), max_speed.tolist()
+        for i in range(len(v_rows)) if only is None else only:
+            statics = [k for k, ok in enumerate(close_rows[i]) if ok]
+            new_v[i] = self._velocity(i, v_rows[i], pref_rows[i], top_rows[i], statics, near[i], rows, share, h)
+        return new_v
+
+    def _velocities_compiled(self, v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray, rel: np.ndarray,
+                             vel_all: np.ndarray, rad_all: np.ndarray, share: list[float], gaps: np.ndarray,
+                             away: np.ndarray, close: np.ndarray, near: list[list[int]], h: float) -> np.ndarray:
+        """:meth:`_velocities_python` (same arguments and units) in one call of the compiled kernel: the same
+        bits. The kernel's velocity part alone, for given statics and neighbour lists (:meth:`_substep_compiled`
+        computes those too, and is what :meth:`step` uses): the tests drive it with arbitrary ones. A
+        pedestrian for which the Python path would raise (a division by zero) is flagged by the kernel and
+        recomputed by the Python path, which raises the same error."""
+        c = self.config
+        n = len(v)
+        # the neighbour lists padded to one (n, max_neighbors) array, with their lengths
+        near_arr = np.zeros((n, c.max_neighbors), dtype=np.int64)
+        counts = np.zeros(n, dtype=np.int64)
+        for i, row in enumerate(near):
+            near_arr[i, :len(row)] = row
+            counts[i] = len(row)
+        f64 = np.float64
+        new_v = np.empty((n, 2), dtype=f64)
+        bad = np.zeros(n, dtype=bool)
+        n_bad = _kernel.velocities(
+            float(c.time_horizon_obst_s), float(c.time_horizon_s), float(h),
+            np.ascontiguousarray(v, dtype=f64), np.ascontiguousarray(pref, dtype=f64),
+            np.ascontiguousarray(max_speed, dtype=f64), np.ascontiguousarray(rel, dtype=f64),
+            np.ascontiguousarray(vel_all, dtype=f64), np.ascontiguousarray(rad_all, dtype=f64),
+            np.asarray(share, dtype=f64), np.ascontiguousarray(gaps, dtype=f64), np.ascontiguousarray(away, dtype=f64),
+            np.ascontiguousarray(close, dtype=bool), near_arr, counts, new_v, bad)
+        if n_bad:
+            self._velocities_python(v, pref, max_speed, rel, vel_all, rad_all, share, gaps, away, close, near, h,
+                                    only=np.flatnonzero(bad).tolist(), out=new_v)
+        return new_v
 
     def _neighbours(self, x: np.ndarray, pos_all: np.ndarray) -> list[list[int]]:
         """For each own pedestrian, the indices into ``pos_all`` of its ``max_neighbors`` nearest others within
