@@ -2,8 +2,9 @@
 
 Each numeric kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are
 the same bits with or without it; the analysis's (``_mcap_chunk``, ``_json_checks``) give the same answers and
-the same errors as their Python forms (each kernel has a test that compares it with its counterpart). ``FUZZYNAV_KERNEL=python`` in the
-environment switches every kernel off: the runs then take the Python paths (to check them, or to time them).
+the same errors as their Python forms (each kernel has a test that compares it with its counterpart).
+``FUZZYNAV_KERNEL=python`` in the environment switches every kernel off: the runs then take the Python paths (to
+check them, or to time them).
 """
 
 from __future__ import annotations
