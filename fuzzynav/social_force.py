@@ -202,7 +202,8 @@ class SocialForceModel:
             v = v + force * h
             length = norm2(v)
             over = length > v_max
-            v = np.where(over[:, None], v * (v_max / np.where(over, length, 1.0))[:, None], v)
+            if over.any():  # (usually none is: then v is already the result)
+                v = np.where(over[:, None], v * (v_max / np.where(over, length, 1.0))[:, None], v)
             x, v = keep_inside(x + v * h, v, self.radii, view.world.bounds)
         self.x, self.v = x, v
         return x.copy(), v.copy()

@@ -140,7 +140,7 @@ def substep_inputs(draw: st.DrawFn) -> tuple:
     return x, v, pref, o_pos0, o_vel, tau, radii, segments, circles, config, cos_fov
 
 
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(substep_inputs())
 def test_substep_force_same_bits(args: tuple) -> None:
     """The kernel's forces equal the numpy path's bit for bit."""
