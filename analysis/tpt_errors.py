@@ -108,7 +108,7 @@ def _score(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int, m
 
 
 def _pairs(rows: list[list[Any]], k: int) -> np.ndarray:
-    """(len(rows), k, 2) float array of rows of ``k`` [x, y] pairs each (checked by the log check): the same
+    """(len(rows), k, 2) float array (cm) of rows of ``k`` [x, y] pairs each (checked by the log check): the same
     values as ``np.array(rows, dtype=float)``, read flat (numpy's discovery of a nested list's shape cost half of
     the TPT scoring)."""
     if set(map(len, rows)) - {k}:

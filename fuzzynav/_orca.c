@@ -358,6 +358,18 @@ static int get(PyObject *obj, Py_buffer *view, int writable, char format, int nd
     return 0;
 }
 
+/* get() with the expected sizes given as pointers to shared size variables (n, m, ...; NULL: the 2 of (x, y)): a
+ * size still unknown (< 0) is read from this buffer and written back, so the later arrays must match it */
+static int get_shaped(PyObject *obj, Py_buffer *view, int writable, char format, int ndim, Py_ssize_t *const *shape,
+                      const char *what) {
+    Py_ssize_t dims[3];
+    for (int k = 0; k < ndim; k++) dims[k] = shape[k] != NULL ? *shape[k] : 2;
+    if (get(obj, view, writable, format, ndim, dims, what) < 0) return -1;
+    for (int k = 0; k < ndim; k++)
+        if (shape[k] != NULL) *shape[k] = dims[k];
+    return 0;
+}
+
 /* set_constants(parallel, slack_rel, slack_abs): fuzzynav.orca's _PARALLEL, _SLACK_REL, _SLACK_ABS */
 static PyObject *set_constants(PyObject *self, PyObject *args) {
     (void)self;
@@ -400,17 +412,9 @@ static PyObject *velocities(PyObject *self, PyObject *args) {
     int got = 0;
     PyObject *result = NULL;
     Line *work = NULL;
-    for (; got < N_ARRAYS; got++) {
-        Py_ssize_t dims[3];
-        int nd = ndims[got];
-        for (int k = 0; k < nd; k++) {
-            Py_ssize_t *size = shapes[got][k];
-            dims[k] = size != NULL ? *size : 2;  /* the unnamed trailing dimensions are the 2 of (x, y) */
-        }
-        if (get(objs[got], &b[got], got >= NEW_V, formats[got], nd, dims, what[got]) < 0) goto done;
-        for (int k = 0; k < nd; k++)
-            if (shapes[got][k] != NULL) *shapes[got][k] = dims[k];
-    }
+    for (; got < N_ARRAYS; got++)
+        if (get_shaped(objs[got], &b[got], got >= NEW_V, formats[got], ndims[got], shapes[got], what[got]) < 0)
+            goto done;
     if (n > m) {
         PyErr_SetString(PyExc_ValueError, "orca velocities: the own pedestrians must be the first of everyone");
         goto done;
@@ -546,14 +550,9 @@ static PyObject *substep(PyObject *self, PyObject *args) {
     int got = 0;
     PyObject *result = NULL;
     void *work = NULL;
-    for (; got < S_N; got++) {
-        Py_ssize_t dims[2];
-        int nd = ndims[got];
-        for (int k = 0; k < nd; k++) dims[k] = shapes[got][k] != NULL ? *shapes[got][k] : 2;
-        if (get(objs[got], &b[got], got >= S_NEW_V, formats[got], nd, dims, what[got]) < 0) goto done;
-        for (int k = 0; k < nd; k++)
-            if (shapes[got][k] != NULL) *shapes[got][k] = dims[k];
-    }
+    for (; got < S_N; got++)
+        if (get_shaped(objs[got], &b[got], got >= S_NEW_V, formats[got], ndims[got], shapes[got], what[got]) < 0)
+            goto done;
     if (n > m) {
         PyErr_SetString(PyExc_ValueError, "orca substep: the own pedestrians must be the first of everyone");
         goto done;

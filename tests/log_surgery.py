@@ -88,6 +88,17 @@ def record_offsets(data: bytes) -> list[tuple[int, int, int]]:
     return out
 
 
+def chunk_payloads(data: bytes) -> list[tuple[int, int, int]]:
+    """(chunk record offset, first byte, end) of each top-level chunk's compressed records in an intact MCAP file
+    (after the chunk's start and end times, uncompressed size, CRC, compression name and records length)."""
+    out = []
+    for opcode, offset, length in record_offsets(data):
+        if opcode == 0x06:
+            name_length = int.from_bytes(data[offset + 9 + 28:offset + 9 + 32], "little")
+            out.append((offset, offset + 9 + 32 + name_length + 8, offset + 9 + length))
+    return out
+
+
 def message_paths(node: Any, last_item: bool = False, prefix: tuple = ()) -> list[tuple]:
     """Paths (keys and list indices) to every value in a JSON message; of each list, its first item and, with
     ``last_item``, its last."""

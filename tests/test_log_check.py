@@ -19,7 +19,7 @@ from analysis.mcap_verify import McapError, read_mcap
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.conftest import ROOT
-from tests.log_surgery import message_paths, record_offsets
+from tests.log_surgery import chunk_payloads, message_paths, record_offsets
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
 SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
@@ -140,12 +140,7 @@ def test_a_log_with_other_chunk_compression_reads_the_same_and_damage_is_still_r
     # decompresses to the very same records (an lz4 match can point at another copy of the same bytes: the chunk's
     # CRC then holds), never to other messages
     expected = read_mcap(data).messages
-    payload = []
-    for opcode, offset, length in record_offsets(data):
-        if opcode == 0x06:
-            name_length = int.from_bytes(data[offset + 9 + 28:offset + 9 + 32], "little")
-            first = offset + 9 + 32 + name_length + 8
-            payload.extend(range(first, offset + 9 + length))
+    payload = [at for _chunk, first, end in chunk_payloads(data) for at in range(first, end)]
     assert payload
     refused = 0
     for at in payload[::max(1, len(payload) // 199)]:
@@ -170,10 +165,8 @@ def test_the_data_section_crc_stands_in_for_the_chunk_crcs_only_where_it_matches
     at = mcap_verify._intact_data_section(data)
     assert at > 0 and data[at] == 0x0F  # the DataEnd record
     assert read_mcap(data).messages == read_mcap(data[:-1]).messages  # not closed: every chunk CRC checked
-    chunk_at, chunk_length = next((o, n) for op, o, n in record_offsets(data) if op == 0x06)
-    name_length = int.from_bytes(data[chunk_at + 9 + 28:chunk_at + 9 + 32], "little")
-    first = chunk_at + 9 + 32 + name_length + 8
-    inside = (first + chunk_at + 9 + chunk_length) // 2  # a byte in the middle of the compressed records
+    chunk_at, first, end = chunk_payloads(data)[0]
+    inside = (first + end) // 2  # a byte in the middle of the compressed records
     damaged = data[:inside] + bytes([data[inside] ^ 0x10]) + data[inside + 1:]
     assert mcap_verify._intact_data_section(damaged) == 0
     with pytest.raises(McapError, match=f"chunk at byte {chunk_at}"):
