@@ -8,6 +8,7 @@ parameters from the ``fuzzynav.run`` metadata.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -15,12 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import orjson
 import shapely
 from shapely.geometry import Point, Polygon, box
 
 from analysis.episode_check import check_episode
 from analysis.log_check import CheckError, check_message, check_metadata, messages_acceptable
-from analysis.logs import LogError, LogFile, collector_paused, decode
+from analysis.logs import LogError, LogFile, collector_paused, not_json
 
 METRIC_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode")
 
@@ -77,14 +79,34 @@ class EpisodeLog:
         return self.episode["outcome"] if self.episode else "incomplete"
 
     def static_geometry(self) -> shapely.Geometry:
-        """Static obstacles plus the solid frame outside the walls (cm), as the simulator sees them."""
-        parts = list(self.static_polygons)
-        if self.bounds is not None:
-            xmin, ymin, xmax, ymax = self.bounds
-            frame = box(xmin - 1e4, ymin - 1e4, xmax + 1e4, ymax + 1e4).difference(box(xmin, ymin, xmax, ymax))
-            parts.append(frame)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return shapely.union_all(parts) if parts else shapely.GeometryCollection()
+        """Static obstacles plus the solid frame outside the walls (cm), as the simulator sees them; prepared, and
+        one shared (immutable) object for every log of the same world."""
+        return _world_geometry(self.bounds, _wkbs(self.static_polygons), True)
+
+    def static_obstacles(self) -> shapely.Geometry:
+        """The union of the static obstacles (cm), walls excluded; prepared and shared as :meth:`static_geometry`."""
+        return _world_geometry(None, _wkbs(self.static_polygons), False)
+
+
+def _wkbs(polygons: list[Polygon]) -> tuple[bytes, ...]:
+    """The polygons as WKB: their exact coordinates, the key of :func:`_world_geometry`."""
+    return tuple(shapely.to_wkb(polygons).tolist()) if polygons else ()
+
+
+@functools.lru_cache(maxsize=64)
+def _world_geometry(bounds: tuple[float, float, float, float] | None, polygons: tuple[bytes, ...],
+                    frame: bool) -> shapely.Geometry:
+    """The union of the polygons (WKB, which keeps every coordinate exactly) and, with ``frame`` and ``bounds``,
+    the solid frame outside the walls; made once per world: a sweep's logs of one scenario share it (building and
+    preparing it was a twentieth of reading a log)."""
+    parts = list(shapely.from_wkb(list(polygons))) if polygons else []
+    if frame and bounds is not None:
+        xmin, ymin, xmax, ymax = bounds
+        parts.append(box(xmin - 1e4, ymin - 1e4, xmax + 1e4, ymax + 1e4).difference(box(xmin, ymin, xmax, ymax)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        geometry = shapely.union_all(parts) if parts else shapely.GeometryCollection()
+    shapely.prepare(geometry)
+    return geometry
 
 
 def _cm(points: Iterable[dict[str, float]]) -> list[tuple[float, float]]:
@@ -133,17 +155,19 @@ def _read_messages(log: EpisodeLog, messages: Iterable[tuple[str, int, bytes]], 
     says no are the messages checked one by one, in file order, so that the error names the first bad message
     and field exactly as a message-by-message reading would."""
     decoded: list[tuple[str, int, Any]] = []
+    append, loads = decoded.append, orjson.loads  # decode()'s work without a call per message (a log has ~500)
     scene_seen = False
+    topic = ""
     try:
         for topic, t, data in messages:
             if topic == "/scene":
                 if scene_seen:
                     continue  # only the first scene (the static world) is read; the later ones are for Foxglove
                 scene_seen = True
-            decoded.append((topic, t, decode(log.path, topic, data)))
-    except LogError:
+            append((topic, t, loads(data)))
+    except orjson.JSONDecodeError as err:
         _check_each_and_file(log, decoded, times)  # a bad message before the undecodable one is named first
-        raise
+        raise not_json(log.path, topic, err) from None
     by_topic: dict[str, list[Any]] = {}
     for topic, _t, msg in decoded:
         by_topic.setdefault(topic, []).append(msg)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from itertools import chain
+from itertools import chain, repeat
 from operator import itemgetter
 from typing import Any
 
@@ -117,6 +117,7 @@ def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo:g}, {hi:g}]")
     check.bounds = (lo, hi)  # type: ignore[attr-defined]  # lets obj() check such fields together
+    check.scalar = (0, float(lo), float(hi))  # type: ignore[attr-defined]  # and its kernel form
     return with_batch(check, lambda vs: _numbers_within(vs, lo, hi))
 
 
@@ -126,6 +127,8 @@ def integer(lo: int = 0, hi: int = 2**63 - 1) -> Check:
             raise CheckError("", f"expected an integer, got {kind_of(v)}")
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo}, {hi}]")
+    if type(lo) is int and type(hi) is int:  # lets obj()'s kernel form check such fields together
+        check.scalar = (1, lo, hi)  # type: ignore[attr-defined]
     return with_batch(check, lambda vs: _integers_within(vs, lo, hi))
 
 
@@ -135,6 +138,7 @@ def boolean(v: Any) -> None:
 
 
 boolean.batch = lambda vs: _types_within(vs, BOOL_TYPES)  # type: ignore[attr-defined]
+boolean.scalar = (2, None, None)  # type: ignore[attr-defined]
 
 
 def string(v: Any) -> None:
@@ -143,6 +147,7 @@ def string(v: Any) -> None:
 
 
 string.batch = lambda vs: _types_within(vs, STR_TYPES)  # type: ignore[attr-defined]
+string.scalar = (3, None, None)  # type: ignore[attr-defined]
 
 
 def one_of(*values: str) -> Check:
@@ -203,6 +208,14 @@ def obj(**fields: Check) -> Check:
     groups = tuple((itemgetter(*names), lo, hi) for (lo, hi), names in by_range.items() if len(names) > 1)
     grouped = {name for (_lo, _hi), names in by_range.items() if len(names) > 1 for name in names}
     others = tuple((name, c) for name, c in items if name not in grouped)
+    # the kernel's form: every number, integer, boolean and string field, by kind and range, in one pass each
+    by_kind: dict[tuple[int, Any, Any], list[str]] = {}
+    for name, field_check in items:
+        scalar = getattr(field_check, "scalar", None)
+        if scalar is not None:
+            by_kind.setdefault(scalar, []).append(name)
+    scalars = tuple((tuple(names), *kind) for kind, names in by_kind.items())
+    non_scalars = tuple((name, c) for name, c in items if getattr(c, "scalar", None) is None)
 
     def field_by_field(v: Any) -> None:
         name = ""
@@ -232,6 +245,11 @@ def obj(**fields: Check) -> Check:
             return True
         if not set(map(type, vs)) <= DICT_TYPES:
             return False
+        if type(vs) is list and _kernel_on():
+            for names, kind, lo, hi in scalars:
+                if not _kernel.fields_within(vs, names, kind, lo, hi):
+                    return False
+            return all(accepts_all(field_check, list(map(itemgetter(name), vs))) for name, field_check in non_scalars)
         for get, lo, hi in groups:
             if not _numbers_within(list(chain.from_iterable(map(get, vs))), lo, hi):
                 return False
@@ -280,6 +298,26 @@ def are_points(v: Any) -> bool:
         return False
     coords = list(chain.from_iterable(v))
     return set(map(type, coords)) <= NUMBER_TYPES and min(coords) >= -MAX_CM and max(coords) <= MAX_CM
+
+
+def are_tables(tables: list[Any], rows: list[Any], ks: list[int], booleans: bool = False) -> bool:
+    """Every ``tables[i]`` is a list of ``rows[i]`` lists of ``ks[i]`` cells each: [x, y] number pairs within
+    ±MAX_CM (a TPT's ``obstacles_cm``), or booleans (its ``collide``). ``rows``: exact ints, as a TPT's
+    ``n_traj + 1`` are (another row count is refused)."""
+    if _kernel_on():
+        if booleans:
+            return _kernel.tables_booleans(tables, rows, ks)
+        return _kernel.tables_within(tables, rows, ks, -MAX_CM, MAX_CM)
+    if not (set(map(type, tables)) <= LIST_TYPES and list(map(len, tables)) == rows):
+        return False
+    if not set(map(type, rows)) <= INT_TYPES:  # as the kernel: a row count must be an int
+        return False
+    table_rows = list(chain.from_iterable(tables))
+    if not (set(map(type, table_rows)) <= LIST_TYPES
+            and list(map(len, table_rows)) == list(chain.from_iterable(map(repeat, ks, rows)))):
+        return False
+    cells = list(chain.from_iterable(table_rows))
+    return are_booleans(cells) if booleans else are_points(cells)
 
 
 def points(min_items: int = 0) -> Check:

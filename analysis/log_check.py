@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from itertools import chain, repeat
+from itertools import chain
 from typing import Any
 
 import yaml
@@ -37,6 +37,7 @@ from analysis.json_checks import (
     accepts_all,
     are_booleans,
     are_points,
+    are_tables,
     array,
     boolean,
     boolean_rows,
@@ -126,20 +127,8 @@ def _tpts_acceptable(vs: list[Any]) -> bool:
     robot = [v.get("robot_cm") for v in vs]
     if not (_all_lists(robot) and list(map(len, robot)) == rows and are_points(list(chain.from_iterable(robot)))):
         return False
-    per_row = None
-    for name in ("obstacles_cm", "collide"):
-        tables = [v.get(name) for v in vs]
-        if not (_all_lists(tables) and list(map(len, tables)) == rows):  # the rows exist before k per row is built
-            return False
-        table_rows = list(chain.from_iterable(tables))
-        if per_row is None:
-            per_row = list(chain.from_iterable(map(repeat, ks, rows)))
-        if not (_all_lists(table_rows) and list(map(len, table_rows)) == per_row):
-            return False
-        cells = list(chain.from_iterable(table_rows))
-        if not (are_points(cells) if name == "obstacles_cm" else are_booleans(cells)):
-            return False
-    return True
+    return (are_tables([v.get("obstacles_cm") for v in vs], rows, ks)
+            and are_tables([v.get("collide") for v in vs], rows, ks, booleans=True))
 
 
 def _all_lists(values: list[Any]) -> bool:

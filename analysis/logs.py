@@ -137,7 +137,12 @@ def read_log_bytes(path: Path) -> bytes:
             raise LogError(f"{path}: {st.st_size / 2**20:.0f} MB, larger than any episode log "
                            f"({MAX_FILE_BYTES // 2**20} MB)", "too-large")
         try:
-            return f.read(MAX_FILE_BYTES + 1)
+            # the size first: a read of MAX_FILE_BYTES + 1 allocates that much up front (7x the time of reading
+            # a 200 KB log); a file that has grown since fstat is read on, to the same limit
+            data = f.read(st.st_size + 1)
+            if len(data) > st.st_size:
+                data += f.read(MAX_FILE_BYTES + 1 - len(data))
+            return data
         except OSError as err:
             raise LogError(f"{path}: cannot read: {err.strerror or err}", "cannot-read") from None
 
@@ -267,7 +272,12 @@ def decode(path: Path, topic: str, data: bytes) -> Any:
     try:
         return orjson.loads(data)
     except orjson.JSONDecodeError as err:
-        raise LogError(f"{path}: a {topic} message is not valid JSON ({err})", "schema") from None
+        raise not_json(path, topic, err) from None
+
+
+def not_json(path: Path, topic: str, err: orjson.JSONDecodeError) -> LogError:
+    """The error of a message that is not JSON (:func:`decode`'s, for a loop that calls ``orjson.loads`` itself)."""
+    return LogError(f"{path}: a {topic} message is not valid JSON ({err})", "schema")
 
 
 PARALLEL_MIN_LOGS = 200  # fewer logs are read in this process: starting worker processes costs about a second

@@ -15,6 +15,7 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from itertools import chain
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -106,50 +107,72 @@ def _wall_gaps(bounds: tuple[float, float, float, float] | None, pos: np.ndarray
     return inside.min(axis=0)
 
 
-def _dynamic_gaps(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, steps: int
+_TRUTH = itemgetter("x_cm", "y_cm", "next_x_cm", "next_y_cm", "vx_cm_s", "vy_cm_s", "radius_cm")
+
+
+@dataclass(frozen=True)
+class MovingPairs:
+    """Every (step, moving obstacle) pair of an episode's first ``steps`` truth messages, read once for the
+    contact, clearance and time-to-collision metrics: ``step`` (pairs,) step indices; ``xy``, ``next_xy`` (pairs, 2)
+    positions at the step and after it (cm); ``velocity`` (pairs, 2) cm/s; ``radius`` (pairs,) cm; ``ids``."""
+
+    step: np.ndarray
+    xy: np.ndarray
+    next_xy: np.ndarray
+    velocity: np.ndarray
+    radius: np.ndarray
+    ids: list[str]
+
+
+def moving_pairs(truth: list[dict[str, Any]], steps: int) -> MovingPairs:
+    """:class:`MovingPairs` of the first ``steps`` messages of ``truth`` (``/obstacles/truth``, checked)."""
+    obstacles = [(k, o) for k in range(min(steps, len(truth))) for o in truth[k]["obstacles"]]
+    values = np.array([_TRUTH(o) for _, o in obstacles], dtype=float).reshape(-1, 7)
+    return MovingPairs(step=np.array([k for k, _ in obstacles], dtype=np.intp),
+                       xy=np.ascontiguousarray(values[:, 0:2]), next_xy=np.ascontiguousarray(values[:, 2:4]),
+                       velocity=np.ascontiguousarray(values[:, 4:6]), radius=np.ascontiguousarray(values[:, 6]),
+                       ids=[o["id"] for _, o in obstacles])
+
+
+def _dynamic_gaps(moving: MovingPairs, pos: np.ndarray, radius: float, steps: int
                   ) -> tuple[float, list[set[str]], np.ndarray]:
     """Smallest surface gap (cm) to any moving obstacle over the episode, per step the ids of the obstacles
     touched while both moved straight over the step (all (step, obstacle) pairs at once), and per step the
     smallest such gap (cm; inf on a step without moving obstacles)."""
-    pairs = [(k, o) for k in range(min(steps, len(truth))) for o in truth[k]["obstacles"]]
     touching: list[set[str]] = [set() for _ in range(steps)]
     per_step = np.full(steps, math.inf)
-    if not pairs:
+    if not moving.ids:
         return math.inf, touching, per_step
-    k = np.array([p[0] for p in pairs])
-    o0 = np.array([(o["x_cm"], o["y_cm"]) for _, o in pairs])
-    o1 = np.array([(o["next_x_cm"], o["next_y_cm"]) for _, o in pairs])
-    radii = np.array([o["radius_cm"] for _, o in pairs])
-    gaps = swept_distance(pos[k], pos[k + 1], o0, o1) - radius - radii
+    k = moving.step
+    gaps = swept_distance(pos[k], pos[k + 1], moving.xy, moving.next_xy) - radius - moving.radius
     for i in np.nonzero(gaps < -1e-9)[0]:
-        touching[k[i]].add(pairs[i][1]["id"])
+        touching[k[i]].add(moving.ids[i])
     np.minimum.at(per_step, k, gaps)
     return float(gaps.min()), touching, per_step
 
 
-def min_time_to_collision(truth: list[dict[str, Any]], pos: np.ndarray, radius: float, dt: float) -> float:
-    """Smallest constant-velocity time to collision (s) with a moving obstacle over the episode.
+def min_time_to_collision(moving: MovingPairs, pos: np.ndarray, radius: float, dt: float) -> float:
+    """Smallest constant-velocity time to collision (s) with a moving obstacle over the episode (``moving``: its
+    pairs over the steps that have a next position, ``min(len(pos) - 1, len(truth))``).
 
     At each step k, the robot at ``pos[k]`` keeps the velocity of its move over the step,
     (``pos[k + 1]`` − ``pos[k]``) / dt, and each obstacle its logged true velocity (``vx_cm_s``, ``vy_cm_s``);
     the TTC is the first time t >= 0 at which the centres are ``radius`` + the obstacle's radius apart:
     0 when they already overlap, inf when they never meet (moving apart or passing). NaN when the episode has
     no moving obstacle at all (nothing to measure), inf when it has some but never on a collision course."""
-    steps = min(len(pos) - 1, len(truth))
-    pairs = [(k, o) for k in range(steps) for o in truth[k]["obstacles"]]
-    if not pairs:
+    if not moving.ids:
         return math.nan
-    k = np.array([p[0] for p in pairs])
-    rel = np.array([(o["x_cm"], o["y_cm"]) for _, o in pairs]) - pos[k]
+    k = moving.step
+    rel = moving.xy - pos[k]
     robot_v = (pos[k + 1] - pos[k]) / dt
-    w = np.array([(o["vx_cm_s"], o["vy_cm_s"]) for _, o in pairs]) - robot_v  # obstacle relative to the robot
-    reach = radius + np.array([o["radius_cm"] for _, o in pairs])
+    w = moving.velocity - robot_v  # obstacle relative to the robot
+    reach = radius + moving.radius
     # |rel + w t| = reach: a t^2 + b t + c = 0; the first root when approaching (b < 0) and the lines meet
     a = np.einsum("ij,ij->i", w, w)
     b = 2.0 * np.einsum("ij,ij->i", rel, w)
     c = np.einsum("ij,ij->i", rel, rel) - reach * reach
     disc = b * b - 4.0 * a * c
-    ttc = np.full(len(pairs), math.inf)
+    ttc = np.full(len(k), math.inf)
     meets = (a > 0) & (b < 0) & (disc >= 0)
     ttc[meets] = (-b[meets] - np.sqrt(disc[meets])) / (2.0 * a[meets])
     ttc[c <= 0] = 0.0  # overlapping now
@@ -193,7 +216,8 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row.update(log=str(log.path), outcome=log.outcome, steps=log.steps)
     seg = norm2(np.diff(pos, axis=0)) if len(pos) > 1 else np.zeros(0)
     row["path_length_cm"] = math.fsum(seg.tolist())
-    dh = wrap_180(np.diff(log.headings)) if len(pos) > 1 else np.zeros(0)
+    headings = log.headings
+    dh = wrap_180(np.diff(headings)) if len(pos) > 1 else np.zeros(0)
     row["turn_count"] = turn_count(dh, opt.turn_threshold_deg)
     row["heading_change_deg_total"] = math.fsum(np.abs(dh).tolist())
 
@@ -201,7 +225,8 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     steps = len(log.states)
     gap_static = _static_gaps(log.static_geometry(), pos, steps) - r
     touching_static = [{"static"} if g < -1e-9 else set() for g in gap_static]
-    gap_dynamic, touching_dynamic, gap_dynamic_steps = _dynamic_gaps(log.truth, pos, r, steps)
+    moving = moving_pairs(log.truth, steps)  # steps <= len(pos) - 1: every pair has a next position
+    gap_dynamic, touching_dynamic, gap_dynamic_steps = _dynamic_gaps(moving, pos, r, steps)
     flags_static = [{"static"} if st["contact_static"] else set() for st in log.states]
     flags_dynamic = [set(st["contact_dynamic"]) for st in log.states]
     row["collisions_static"] = _contacts(touching_static)
@@ -224,7 +249,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     straight = dist(log.goal, pos[0]) if log.goal is not None and len(pos) else math.nan
     row["path_efficiency"] = straight / row["path_length_cm"] if row["success"] and row["path_length_cm"] > 0 \
         else math.nan
-    row.update(_standard_metrics(log, opt, row, gap_dynamic_steps))
+    row.update(_standard_metrics(log, opt, row, gap_dynamic_steps, pos, headings, moving))
 
     # planner
     modes = [d["mode"] for d in log.decisions]
@@ -238,17 +263,37 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     ade, fde, by_model = tpt_errors(log)
     row["tpt_ade_cm"], row["tpt_fde_cm"] = ade, fde
     row.update(model_columns(by_model))
-    times = np.array([d["compute_time_us"] for d in log.decisions]) if log.decisions else np.zeros(0)
-    row["compute_time_us_median"] = float(np.median(times)) if len(times) else math.nan
-    row["compute_time_us_p99"] = float(np.percentile(times, 99)) if len(times) else math.nan
+    row["compute_time_us_median"], row["compute_time_us_p99"] = median_and_p99(
+        [d["compute_time_us"] for d in log.decisions])
     return row
 
 
-def _standard_metrics(log: EpisodeLog, opt: MetricOptions, row: dict[str, Any], gap_dynamic_steps: np.ndarray
-                      ) -> dict[str, Any]:
+def median_and_p99(values: list[float]) -> tuple[float, float]:
+    """``np.median`` and ``np.percentile(values, 99)`` (linear) of finite numbers, computed as numpy computes them
+    — the same order statistics, the mean of the middle two, the same interpolation steps — without numpy's
+    per-call cost (it was a twentieth of an episode's metrics); NaN for no values (or a NaN among them)."""
+    ordered = sorted(map(float, values))
+    n = len(ordered)
+    if n == 0 or any(map(math.isnan, ordered)):
+        return math.nan, math.nan
+    half = n // 2
+    median = ordered[half] if n % 2 else (ordered[half - 1] + ordered[half]) / 2
+    virtual = (n - 1) * (99 / 100)  # numpy's virtual index of the linear method
+    if virtual >= n - 1:
+        return median, ordered[-1]
+    below = math.floor(virtual)
+    a, b, gamma = ordered[below], ordered[below + 1], virtual - below
+    diff = b - a
+    return median, (b - diff * (1 - gamma) if gamma >= 0.5 else a + diff * gamma)  # numpy's _lerp
+
+
+def _standard_metrics(log: EpisodeLog, opt: MetricOptions, row: dict[str, Any], gap_dynamic_steps: np.ndarray,
+                      pos: np.ndarray, headings: np.ndarray, moving: MovingPairs) -> dict[str, Any]:
     """The standard navigation metrics (README metric table, with sources), from the log and the columns of
-    ``row`` computed before (path length, success, heading change). Distances cm, times s, angles degrees."""
-    pos, r, dt, steps = log.positions, log.robot_radius, log.dt, len(log.states)
+    ``row`` computed before (path length, success, heading change); ``pos``, ``headings`` and ``moving``: the log's
+    positions, headings and (step, moving obstacle) pairs, read once per episode. Distances cm, times s, angles
+    degrees."""
+    r, dt, steps = log.robot_radius, log.dt, len(log.states)
     out: dict[str, Any] = {}
     path = row["path_length_cm"]
     # SPL (Anderson et al. 2018): the shortest path is bounded below by the straight line to the goal's
@@ -262,15 +307,15 @@ def _standard_metrics(log: EpisodeLog, opt: MetricOptions, row: dict[str, Any], 
         out["spl"] = math.nan
     # path irregularity (Guzzi et al. 2013, SocNavBench): rotation beyond the one turn to face the goal, per metre
     if path > 0 and log.goal is not None:
-        needed = abs(float(wrap_180(bearing_deg(pos[0][0], pos[0][1], *log.goal) - log.headings[0])))
+        needed = abs(float(wrap_180(bearing_deg(pos[0][0], pos[0][1], *log.goal) - headings[0])))
         out["path_irregularity_deg_per_m"] = max(0.0, row["heading_change_deg_total"] - needed) / (path / 100.0)
     else:
         out["path_irregularity_deg_per_m"] = math.nan
     (out["accel_mean_cm_s2"], out["accel_max_cm_s2"], out["jerk_mean_cm_s3"],
      out["jerk_max_cm_s3"]) = motion_smoothness(pos, dt)
-    out["min_ttc_s"] = min_time_to_collision(log.truth, pos, r, dt)
+    out["min_ttc_s"] = min_time_to_collision(moving, pos, r, dt)
     # clearance to obstacles, walls excluded (in a corridor every step would be a near miss), swept over each step
-    gap_obstacles = _static_gaps(shapely.union_all(log.static_polygons), pos, steps) - r if log.static_polygons \
+    gap_obstacles = _static_gaps(log.static_obstacles(), pos, steps) - r if log.static_polygons \
         else np.full(steps, math.inf)
     clearance = np.minimum(gap_obstacles, gap_dynamic_steps)
     out["near_miss_steps"] = int(np.count_nonzero((clearance >= 0) & (clearance < opt.near_miss_cm)))

@@ -20,6 +20,7 @@ import numpy as np
 
 from analysis.episode_check import parse_world
 from analysis.episode_log import EpisodeLog
+from fuzzynav import compiled
 from fuzzynav.obstacle_model import DEFAULT_MODEL
 from fuzzynav.portable_math import norm2
 
@@ -27,6 +28,7 @@ from fuzzynav.portable_math import norm2
 #: built-ins; an obstacle of another model counts in ``tpt_ade_cm`` only
 MODEL_COLUMNS = ("scripted", "social_force", "orca", "random_walk")
 _XY = itemgetter("x_cm", "y_cm")
+_kernel = compiled.load("_json_checks")  # its table_pairs reads the tables' coordinates (None when not built)
 
 
 def obstacle_models(meta: Mapping[str, str]) -> dict[str, str]:
@@ -87,7 +89,7 @@ def _score(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int, m
         return
     n_steps = len(truth)
     step = np.array([t["step"] for t in tables])
-    predicted = _pairs([cell for t in tables for cell in t["obstacles_cm"]], k).reshape(len(tables), rows, k, 2)
+    predicted = _table_pairs([t["obstacles_cm"] for t in tables], k).reshape(len(tables), rows, k, 2)
     radius = np.array([t["obstacle_radii_cm"] for t in tables], dtype=float)  # (tables, k)
     now = truth[step]  # (tables, obstacles, 2)
     d0 = norm2(now[:, None, :, :] - predicted[:, 0, :, None, :])  # (tables, k, obstacles)
@@ -115,6 +117,14 @@ def _pairs(rows: list[list[Any]], k: int) -> np.ndarray:
         raise ValueError(f"rows of {sorted(set(map(len, rows)))} pairs, expected {k}")
     flat = chain.from_iterable(chain.from_iterable(rows))
     return np.fromiter(flat, dtype=float, count=2 * k * len(rows)).reshape(len(rows), k, 2)
+
+
+def _table_pairs(tables: list[list[Any]], k: int) -> np.ndarray:
+    """The (rows of all ``tables``, k, 2) float array (cm) of tables of rows of ``k`` [x, y] pairs (checked by the
+    log check), read-only: :func:`_pairs` of their rows, read in one pass by the compiled kernel when built."""
+    if _kernel is not None and not compiled.switched_off():
+        return np.frombuffer(_kernel.table_pairs(tables, k)).reshape(-1, k, 2)
+    return _pairs(list(chain.from_iterable(tables)), k)
 
 
 def _mean(parts: list[np.ndarray]) -> float:

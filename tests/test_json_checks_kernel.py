@@ -106,3 +106,145 @@ def test_whole_episodes_are_accepted_alike_with_the_kernel_switched_off(monkeypa
     assert bad_on.empty and bad_off.empty
     assert on[columns].equals(off[columns])
 
+
+
+# -- whole TPT tables, object fields, and reading the tables' coordinates -------------------------------------
+cells = st.one_of(st.lists(st.one_of(st.floats(-2e9, 2e9), st.integers(-2 * 10**9, 2 * 10**9), st.booleans(),
+                                     st.none()), min_size=1, max_size=3),
+                  st.booleans(), st.floats(-1, 1), st.none(), st.tuples(st.floats(-1, 1), st.floats(-1, 1)))
+tables = st.lists(st.one_of(st.lists(st.lists(cells, max_size=3), max_size=3), st.none(), st.integers(0, 3)),
+                  max_size=4)
+row_counts = st.one_of(st.integers(-1, 3), st.sampled_from([1.0, True, 2.0, None]))
+
+
+def _python(monkeypatch, f, *args):
+    with monkeypatch.context() as m:
+        m.setenv("FUZZYNAV_KERNEL", "python")
+        return f(*args)
+
+
+@given(tables, st.data())
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_are_tables_answers_as_the_python_form(monkeypatch, tabs, data):
+    """Tables of every shape and cell type (a row count that is not an int, rows of other lengths, pairs of three,
+    booleans among coordinates) are accepted by the kernel exactly when the Python form accepts them."""
+    rows = [len(t) if isinstance(t, list) and data.draw(st.booleans()) else data.draw(row_counts) for t in tabs]
+    ks = [len(t[0]) if isinstance(t, list) and t and isinstance(t[0], list) else data.draw(st.integers(0, 3))
+          for t in tabs]
+    for booleans in (False, True):
+        try:
+            expected = _python(monkeypatch, json_checks.are_tables, tabs, rows, ks, booleans)
+        except TypeError:  # a row count the Python form cannot repeat (None, a float): what accepts_all refuses
+            expected = False
+        assert json_checks.are_tables(tabs, rows, ks, booleans) == expected
+
+
+def test_are_tables_accepts_real_tables_and_refuses_one_bad_cell():
+    table = [[[1.0, 2], [3.5, -4.0]], [[0, 0], [1e9, -1e9]]]
+    assert kernel.tables_within([table], [2], [2], -MAX_CM, MAX_CM)
+    assert kernel.tables_booleans([[[True, False], [False, False]]], [2], [2])
+    for bad in ([1.0, True], [1.0, 1e9 + 1], [1.0], [1.0, 2.0, 3.0], (1.0, 2.0), [1.0, math.nan]):
+        assert not kernel.tables_within([[[bad, [0.0, 0.0]], [[0, 0], [0, 0]]]], [2], [2], -MAX_CM, MAX_CM), bad
+    assert not kernel.tables_booleans([[[True, 1]]], [1], [2])
+    assert not kernel.tables_within([table], [2.0], [2], -MAX_CM, MAX_CM)  # a row count that is not an int
+    with pytest.raises(ValueError):
+        kernel.tables_within([table], [2, 2], [2], -MAX_CM, MAX_CM)
+
+
+@given(st.lists(st.lists(st.lists(st.lists(st.one_of(st.floats(allow_nan=False), st.integers(-10**20, 10**20)),
+                                           min_size=2, max_size=2), min_size=2, max_size=2), max_size=4),
+                max_size=5))
+@settings(max_examples=300, deadline=None)
+def test_table_pairs_reads_the_numbers_numpy_reads(tabs):
+    import numpy as np
+
+    from analysis.tpt_errors import _pairs
+
+    got = np.frombuffer(kernel.table_pairs(tabs, 2))
+    expected = _pairs([row for t in tabs for row in t], 2).reshape(-1)
+    assert np.array_equal(got, expected)
+    assert got.tobytes() == expected.tobytes()  # -0.0 and the rounding of big ints included
+
+
+@pytest.mark.parametrize(("tabs", "error"), [
+    ([[[[1.0, 2.0]]], [[[1.0, 2.0], [3.0, 4.0]]]], ValueError),  # a row of another length
+    ([[[[1.0, 2.0, 3.0]]]], ValueError), ([[[[1.0]]]], ValueError),  # a pair of three, of one
+    ([[[(1.0, 2.0)]]], TypeError), ([[((1.0, 2.0),)]], TypeError), ([(([1.0, 2.0],),)], TypeError),
+    ([[[[True, 2.0]]]], TypeError), ([[[["1", 2.0]]]], TypeError), ([[[[10**400, 2.0]]]], OverflowError)])
+def test_table_pairs_refuses_what_is_not_a_table_of_pairs(tabs, error):
+    with pytest.raises(error):
+        kernel.table_pairs(tabs, 1)
+
+
+kinds = st.sampled_from([(0, -MAX_CM, MAX_CM), (0, 0.0, 180.0), (1, 0, 2**63 - 1), (1, 1, 1_000_000), (2, None, None),
+                         (3, None, None)])
+field_values = st.one_of(scalars, st.text(max_size=3), st.lists(scalars, max_size=2))
+messages = st.lists(st.one_of(st.dictionaries(st.sampled_from(["a", "b", "c"]), field_values, max_size=3),
+                              st.none(), st.lists(scalars, max_size=1)), max_size=6)
+
+
+@given(messages, st.lists(st.sampled_from(["a", "b", "c"]), min_size=1, max_size=3, unique=True), kinds)
+@settings(max_examples=600, deadline=None)
+def test_fields_within_is_the_field_rule(msgs, names, kind):
+    """Each kind answers as its item rule (number, integer, boolean, string) on every field of every object; an
+    object without a field, or that is not a dict, is refused."""
+    code, lo, hi = kind
+    rule = {0: lambda: number(lo, hi), 1: lambda: json_checks.integer(lo, hi), 2: lambda: json_checks.boolean,
+            3: lambda: json_checks.string}[code]()
+
+    def ok(v):
+        try:
+            rule(v)
+        except CheckError:
+            return False
+        return True
+
+    expected = all(type(m) is dict and all(n in m and ok(m[n]) for n in names) for m in msgs)
+    assert kernel.fields_within(msgs, tuple(names), code, lo, hi) == expected
+
+
+def test_fields_within_refuses_bad_arguments():
+    with pytest.raises(TypeError):
+        kernel.fields_within([{}], ("a",), 0, 0, 1.0)  # a number's bounds are floats
+    with pytest.raises(TypeError):
+        kernel.fields_within([{}], ("a",), 1, 0.0, 1)  # an integer's are ints
+    with pytest.raises(TypeError):
+        kernel.fields_within([{}], (1,), 2, None, None)  # names are str
+    with pytest.raises(ValueError):
+        kernel.fields_within([{}], ("a",), 7, None, None)
+    assert not kernel.fields_within([DictSubclass(a=True)], ("a",), 2, None, None)
+
+
+def test_fields_within_takes_exact_types_only():
+    """A boolean is not an integer nor a number, a subclass of int, float or str is not one (as the rules say)."""
+    assert kernel.fields_within([{"a": 3, "b": 0}], ("a", "b"), 1, 0, 10)
+    for bad in (True, Inty(3), 3.0):
+        assert not kernel.fields_within([{"a": bad}], ("a",), 1, 0, 10), bad
+    for bad in (True, Floaty(1.0), Inty(1)):
+        assert not kernel.fields_within([{"a": bad}], ("a",), 0, 0.0, 10.0), bad
+    assert kernel.fields_within([{"a": "x"}], ("a",), 3, None, None)
+    assert not kernel.fields_within([{"a": type("S", (str,), {})("x")}], ("a",), 3, None, None)
+    assert not kernel.fields_within([{"a": 1}], ("a",), 2, None, None)
+    assert not kernel.fields_within([{"a": 11}], ("a",), 1, 0, 10)
+    assert not kernel.fields_within([{"a": 1}, {"b": 1}], ("a",), 1, 0, 10)  # a missing field
+
+
+class DictSubclass(dict):
+    pass
+
+
+objects = st.lists(st.fixed_dictionaries({}, optional={
+    "step": st.one_of(st.integers(-2, 10), st.floats(0, 2), st.booleans()), "x_cm": st.one_of(scalars),
+    "y_cm": scalars, "flag": st.one_of(st.booleans(), st.integers(0, 1)), "name": st.one_of(st.text(max_size=2),
+                                                                                        st.none()),
+    "angle": st.one_of(st.floats(-10, 200), st.integers(-1, 181)), "items": st.lists(scalars, max_size=2)}),
+    max_size=5)
+
+
+@given(objects)
+@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_an_objects_batch_check_answers_alike_with_and_without_the_kernel(monkeypatch, msgs):
+    """obj()'s batch form (every scalar field by kind in the kernel) accepts exactly what its Python form accepts."""
+    rule = json_checks.obj(step=json_checks.integer(), x_cm=number(), y_cm=number(), flag=json_checks.boolean,
+                           name=json_checks.string, angle=number(0.0, 180.0), items=json_checks.array(number()))
+    assert json_checks.accepts_all(rule, msgs) == _python(monkeypatch, json_checks.accepts_all, rule, msgs)

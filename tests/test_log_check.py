@@ -254,3 +254,24 @@ def test_logs_named_in_upper_case_are_read_and_deduplicated(tmp_path, recorded_l
     analysis = analyse_logs([tmp_path])
     assert len(analysis.episodes) == 2
     assert analysis.excluded["kind"].tolist() == ["duplicate"]
+
+
+def test_a_log_that_grows_while_it_is_read_is_read_whole_up_to_the_limit(tmp_path, monkeypatch):
+    """read_log_bytes reads the size fstat reports, and on when the file has grown since: all of it, and never more
+    than the limit plus one byte (so that the size check refuses a file grown past it)."""
+    import analysis.logs as logs
+
+    path = tmp_path / "grown.mcap"
+    content = bytes(range(256)) * 40
+    path.write_bytes(content)
+    assert logs.read_log_bytes(path) == content
+    real_fstat = os.fstat
+
+    def stale_fstat(fd):  # the size before the file grew
+        st = real_fstat(fd)
+        return os.stat_result((*st[:6], 100, *st[7:]))
+
+    monkeypatch.setattr(logs.os, "fstat", stale_fstat)
+    assert logs.read_log_bytes(path) == content
+    monkeypatch.setattr(logs, "MAX_FILE_BYTES", 5000)
+    assert logs.read_log_bytes(path) == content[:5001]

@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from analysis.episode_log import load_episode
-from analysis.metrics import MetricOptions, episode_metrics, metrics_table, turn_count
+from analysis.metrics import MetricOptions, episode_metrics, median_and_p99, metrics_table, turn_count
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from tests.handmade import write_log
 
@@ -228,3 +230,21 @@ def test_collisions_are_split_into_walls_and_static_obstacles(tmp_path):
     assert (m["collisions_wall"], m["collisions_static_obstacle"], m["collisions_static"]) == (0, 2, 2)
     # near misses: step 3 (30 − 20 = 10 cm) and step 6 (√(20² + 30²) − 20 = 16.1 cm); step 0: 38.3 cm; the rest touch
     assert m["near_miss_steps"] == 2
+
+
+_compute_times = st.lists(st.one_of(st.floats(0.0, 1e12), st.integers(0, 10**12),
+                                    st.sampled_from([0.0, 0.5, 1.0, 2.0, 1e12, 3])), min_size=1, max_size=300)
+
+
+@given(_compute_times)
+@settings(max_examples=500, deadline=None)
+def test_median_and_p99_are_numpys_to_the_bit(values):
+    """The compute-time columns are numpy's median and 99th percentile of the logged times, bit for bit (ints,
+    floats and both mixed, ties, one value, lengths on both sides of each interpolation branch)."""
+    arr = np.array(values)
+    assert median_and_p99(values) == (float(np.median(arr)), float(np.percentile(arr, 99)))
+
+
+def test_median_and_p99_of_nothing_or_nan_is_nan():
+    assert all(math.isnan(x) for x in median_and_p99([]))
+    assert all(math.isnan(x) for x in median_and_p99([1.0, math.nan, 2.0]))
