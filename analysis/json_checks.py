@@ -15,7 +15,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from itertools import chain, repeat
-from operator import itemgetter
+from operator import eq, itemgetter
 from typing import Any
 
 from fuzzynav import compiled
@@ -78,7 +78,14 @@ def _numbers_within(values: list[Any], lo: float, hi: float) -> bool:
     """All ``values`` are JSON numbers (not booleans) in [lo, hi] (JSON has no NaN: orjson refuses it)."""
     if _kernel_on():
         return _kernel.numbers_within(values, float(lo), float(hi))
-    return not values or (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi)
+    return not values or (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi
+                          and _without_nan(values))
+
+
+def _without_nan(values: list[Any]) -> bool:
+    """No NaN among these numbers: min and max skip a NaN that is not first (every comparison with it is false),
+    so the range test alone would pass one. ``eq`` pairwise keeps the loop in C."""
+    return all(map(eq, values, values))
 
 
 def are_booleans(values: list[Any]) -> bool:
@@ -297,7 +304,8 @@ def are_points(v: Any) -> bool:
     if not set(map(type, v)) <= LIST_TYPES or set(map(len, v)) != {2}:
         return False
     coords = list(chain.from_iterable(v))
-    return set(map(type, coords)) <= NUMBER_TYPES and min(coords) >= -MAX_CM and max(coords) <= MAX_CM
+    return set(map(type, coords)) <= NUMBER_TYPES and min(coords) >= -MAX_CM and max(coords) <= MAX_CM \
+        and _without_nan(coords)
 
 
 def are_tables(tables: list[Any], rows: list[Any], ks: list[int], booleans: bool = False) -> bool:

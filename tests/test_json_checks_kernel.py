@@ -90,6 +90,21 @@ def test_the_python_forms_agree_without_the_kernel(monkeypatch, pairs):
         assert (are_points(pairs), are_booleans([x for p in pairs for x in p])) == with_kernel
 
 
+@given(st.lists(st.floats(-10, 10), min_size=1, max_size=6), st.data())
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_a_nan_anywhere_is_refused_with_and_without_the_kernel(monkeypatch, values, data):
+    """min and max skip a NaN that is not first; both forms must still refuse it wherever it sits (a number
+    list, an object's grouped number fields, point pairs)."""
+    values.insert(data.draw(st.integers(0, len(values))), math.nan)
+    rule = json_checks.obj(x_cm=number(), y_cm=number())
+    pairs = [[v, 0.0] for v in values]
+    objects = [{"x_cm": 0.0, "y_cm": v} for v in values]
+    for form in (lambda f, *a: f(*a), lambda f, *a: _python(monkeypatch, f, *a)):
+        assert not form(json_checks.accepts_all, number(), values)
+        assert not form(json_checks.accepts_all, rule, objects)
+        assert not form(are_points, pairs)
+
+
 def test_whole_episodes_are_accepted_alike_with_the_kernel_switched_off(monkeypatch):
     """The metrics of real logs (TPT tables, decisions, states) with and without the kernel."""
     from pathlib import Path
