@@ -116,7 +116,10 @@ def kind_of(value: Any) -> str:
 
 
 def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
-    """A JSON number (not a boolean) in [lo, hi]; NaN and infinities fail the range test."""
+    """A JSON number (not a boolean) in [lo, hi]; NaN and infinities fail the range test. The bounds are taken as
+    floats, as the kernel takes them (an int bound above 2**53 would otherwise mean one thing to each form)."""
+    lo, hi = float(lo), float(hi)
+
     def check(v: Any) -> None:
         t = type(v)
         if t is not float and t is not int:
@@ -124,7 +127,7 @@ def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo:g}, {hi:g}]")
     check.bounds = (lo, hi)  # type: ignore[attr-defined]  # lets obj() check such fields together
-    check.scalar = (0, float(lo), float(hi))  # type: ignore[attr-defined]  # and its kernel form
+    check.scalar = (0, lo, hi)  # type: ignore[attr-defined]  # and its kernel form
     return with_batch(check, lambda vs: _numbers_within(vs, lo, hi))
 
 
@@ -310,15 +313,22 @@ def are_points(v: Any) -> bool:
 
 def are_tables(tables: list[Any], rows: list[Any], ks: list[int], booleans: bool = False) -> bool:
     """Every ``tables[i]`` is a list of ``rows[i]`` lists of ``ks[i]`` cells each: [x, y] number pairs within
-    ±MAX_CM (a TPT's ``obstacles_cm``), or booleans (its ``collide``). ``rows``: exact ints, as a TPT's
-    ``n_traj + 1`` are (another row count is refused)."""
+    ±MAX_CM (a TPT's ``obstacles_cm``), or booleans (its ``collide``). ``rows`` and ``ks``: exact ints, as a TPT's
+    ``n_traj + 1`` and its obstacle count are (another count is refused, even for a table without rows).
+    ``tables``, ``rows`` and ``ks``: lists of one length (TypeError, ValueError otherwise: the caller's mistake)."""
     if _kernel_on():
         if booleans:
             return _kernel.tables_booleans(tables, rows, ks)
         return _kernel.tables_within(tables, rows, ks, -MAX_CM, MAX_CM)
+    if not (type(tables) is list and type(rows) is list and type(ks) is list):
+        raise TypeError("are_tables: tables, rows and ks must be lists")
+    if not len(tables) == len(rows) == len(ks):
+        raise ValueError(f"are_tables: {len(tables)} tables, {len(rows)} row counts, {len(ks)} column counts")
     if not (set(map(type, tables)) <= LIST_TYPES and list(map(len, tables)) == rows):
         return False
-    if not set(map(type, rows)) <= INT_TYPES:  # as the kernel: a row count must be an int
+    if not (set(map(type, rows)) <= INT_TYPES and set(map(type, ks)) <= INT_TYPES):  # as the kernel
+        return False
+    if ks and min(ks) < 0:
         return False
     table_rows = list(chain.from_iterable(tables))
     if not (set(map(type, table_rows)) <= LIST_TYPES

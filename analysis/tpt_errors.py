@@ -123,7 +123,7 @@ def _table_pairs(tables: list[list[Any]], k: int) -> np.ndarray:
     """The (rows of all ``tables``, k, 2) float array (cm) of tables of rows of ``k`` [x, y] pairs (checked by the
     log check), read-only: :func:`_pairs` of their rows, read in one pass by the compiled kernel when built."""
     if _kernel is not None and not compiled.switched_off():
-        return np.frombuffer(_kernel.table_pairs(tables, k)).reshape(-1, k, 2)
+        return np.frombuffer(_kernel.table_pairs(tables, k)).reshape(sum(map(len, tables)), k, 2)  # k may be 0
     return _pairs(list(chain.from_iterable(tables)), k)
 
 

@@ -138,20 +138,36 @@ def _python(monkeypatch, f, *args):
         return f(*args)
 
 
+def _outcome(f, *args):
+    """f's answer, or the type of the exception it raised."""
+    try:
+        return f(*args)
+    except (TypeError, ValueError) as err:
+        return type(err)
+
+
+column_counts = st.one_of(st.integers(-1, 3), st.sampled_from([1.0, True, 2.0, None, 2**70]))
+
+
 @given(tables, st.data())
 @settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_are_tables_answers_as_the_python_form(monkeypatch, tabs, data):
-    """Tables of every shape and cell type (a row count that is not an int, rows of other lengths, pairs of three,
-    booleans among coordinates) are accepted by the kernel exactly when the Python form accepts them."""
+    """Tables of every shape and cell type (a row or column count that is not an int or is negative, rows of other
+    lengths, pairs of three, booleans among coordinates; count lists of another length, tuples) get the same answer
+    — or the same error — from the kernel as from the Python form."""
     rows = [len(t) if isinstance(t, list) and data.draw(st.booleans()) else data.draw(row_counts) for t in tabs]
-    ks = [len(t[0]) if isinstance(t, list) and t and isinstance(t[0], list) else data.draw(st.integers(0, 3))
-          for t in tabs]
+    ks = [len(t[0]) if isinstance(t, list) and t and isinstance(t[0], list) and data.draw(st.booleans())
+          else data.draw(column_counts) for t in tabs]
+    shape = data.draw(st.sampled_from(["same", "rows short", "ks long", "tuple"]))
+    if shape == "rows short":
+        rows = rows[:-1]
+    elif shape == "ks long":
+        ks = [*ks, 1]
+    elif shape == "tuple":
+        tabs = tuple(tabs)
     for booleans in (False, True):
-        try:
-            expected = _python(monkeypatch, json_checks.are_tables, tabs, rows, ks, booleans)
-        except TypeError:  # a row count the Python form cannot repeat (None, a float): what accepts_all refuses
-            expected = False
-        assert json_checks.are_tables(tabs, rows, ks, booleans) == expected
+        expected = _python(monkeypatch, _outcome, json_checks.are_tables, tabs, rows, ks, booleans)
+        assert _outcome(json_checks.are_tables, tabs, rows, ks, booleans) == expected
 
 
 def test_are_tables_accepts_real_tables_and_refuses_one_bad_cell():
@@ -263,3 +279,18 @@ def test_an_objects_batch_check_answers_alike_with_and_without_the_kernel(monkey
     rule = json_checks.obj(step=json_checks.integer(), x_cm=number(), y_cm=number(), flag=json_checks.boolean,
                            name=json_checks.string, angle=number(0.0, 180.0), items=json_checks.array(number()))
     assert json_checks.accepts_all(rule, msgs) == _python(monkeypatch, json_checks.accepts_all, rule, msgs)
+
+
+def test_edge_arguments_answer_alike_with_and_without_the_kernel(monkeypatch):
+    """No obstacle column (k = 0) gives an empty (rows, 0, 2) array on both paths; an int bound beyond 2**53 means
+    its float on both (the kernel takes float bounds)."""
+    from analysis.tpt_errors import _table_pairs
+
+    for tabs, rows in (([], 0), ([[[]]], 1), ([[[], []], [[]]], 3)):
+        for got in (_table_pairs(tabs, 0), _python(monkeypatch, _table_pairs, tabs, 0)):
+            assert got.shape == (rows, 0, 2)
+    rule = json_checks.obj(a=number(0, 2**53 + 1), b=number(0, 2**53 + 1))
+    values = [{"a": 2**53 + 1, "b": 1.0}]
+    assert json_checks.accepts_all(rule, values) is False
+    assert _python(monkeypatch, json_checks.accepts_all, rule, values) is False
+    assert _python(monkeypatch, json_checks.accepts_all, number(0, 2**53 + 1), [2**53 + 1]) is False
