@@ -32,7 +32,8 @@ from mcap.reader import make_reader
 
 from fuzzynav.episode import Episode, StepRecord
 from fuzzynav.obstacle_model import DEFAULT_MODEL
-from fuzzynav.portable_math import atan2_deg, dist, sin_cos_deg
+from fuzzynav.portable_math import dist
+from runners.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 
@@ -51,7 +52,6 @@ TOPICS = {
 }
 SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
 RUN_METADATA = "fuzzynav.run"
-FRAME = "world"
 LOG_INFO, LOG_WARNING, LOG_ERROR = 2, 3, 4
 CHUNK_BYTES = 32 * 1024  # small chunks: a killed run loses at most the last ~32 KB of messages
 # one thread: a sweep already runs one episode per core. zstd level 1, not the default 3: compressing the chunks
@@ -60,16 +60,6 @@ CHUNK_BYTES = 32 * 1024  # small chunks: a killed run loses at most the last ~32
 ZSTD_LEVEL = 1
 _WRITE_OPTIONS = MCAPWriteOptions(chunk_size=CHUNK_BYTES, compression=MCAPCompression.Zstd, compression_threads=0,
                                   compression_level=ZSTD_LEVEL)
-
-_BLUE = {"r": 0.15, "g": 0.4, "b": 0.95, "a": 1.0}
-_GREEN = {"r": 0.1, "g": 0.75, "b": 0.2, "a": 0.5}
-_RED = {"r": 0.9, "g": 0.2, "b": 0.15, "a": 1.0}
-_GREY = {"r": 0.45, "g": 0.45, "b": 0.45, "a": 1.0}
-_CYAN = {"r": 0.0, "g": 0.8, "b": 0.9, "a": 0.9}
-_ORANGE = {"r": 1.0, "g": 0.6, "b": 0.0, "a": 0.9}
-_PURPLE = {"r": 0.6, "g": 0.2, "b": 0.85, "a": 1.0}
-_HIT = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 0.35}
-
 
 def _r(x: float) -> float:
     """Full precision: replay --verify feeds these numbers back to the navigator, and a rounded input can flip
@@ -81,23 +71,6 @@ def _array(values, *shape: int) -> np.ndarray:
     """A float64 C-ordered array of ``shape`` (orjson writes it as nested JSON lists, full precision); empty
     inputs keep the shape (e.g. no obstacles: ``[[], [], ...]`` rows)."""
     return np.ascontiguousarray(values, dtype=np.float64).reshape(shape or (-1,))
-
-
-def _stamp(t: float) -> dict[str, int]:
-    ns = round(t * 1e9)
-    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
-
-
-def _m(cm: float) -> float:
-    """cm -> m, rounded to 0.1 mm (half to even, exactly as :func:`_points_m` rounds with numpy): geometry for
-    Foxglove (the analysis reads moving positions from the cm topics, the static world from the first scene)."""
-    return round(cm / 100.0 * 10_000.0) / 10_000.0
-
-
-def _points_m(points_cm, z_m: float) -> list[dict]:
-    """``foxglove.Point3`` list of an (N, 2) array of cm points, in m rounded to 0.1 mm, at height ``z_m``."""
-    xy = np.round(np.asarray(points_cm, dtype=np.float64).reshape(-1, 2) / 100.0, 4).tolist()
-    return [{"x": x, "y": y, "z": z_m} for x, y in xy]
 
 
 def _compact(schema: Any) -> Any:
@@ -160,61 +133,6 @@ def _schema_bytes(schema_name: str) -> bytes:
     return json.dumps(schema, separators=(",", ":")).encode()
 
 
-_NO_ROTATION = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}  # shared read-only: the quaternion of heading 0
-_ORIGIN = {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": _NO_ROTATION}
-
-
-def _pose(x_cm: float, y_cm: float, heading_deg: float = 0.0, z_m: float = 0.0) -> dict:
-    if heading_deg == 0.0:
-        orientation = _NO_ROTATION
-    else:
-        sin_half, cos_half = sin_cos_deg(heading_deg / 2.0)  # portable: log content must not depend on the CPU
-        orientation = {"x": 0.0, "y": 0.0, "z": sin_half, "w": cos_half}
-    return {"position": {"x": _m(x_cm), "y": _m(y_cm), "z": float(z_m)}, "orientation": orientation}
-
-
-_NO_PRIMITIVES = {kind: () for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts",
-                                         "models")}  # shared read-only defaults: written as empty arrays
-
-
-_FOREVER = {"sec": 0, "nsec": 0}
-
-
-def _entity(stamp: dict[str, int], eid: str, **primitives: list) -> dict:
-    """A ``foxglove.SceneEntity`` (lifetime 0: until replaced) with the given primitive lists."""
-    return {"timestamp": stamp, "frame_id": FRAME, "id": eid, "lifetime": _FOREVER,
-            "frame_locked": False, "metadata": (), **_NO_PRIMITIVES, **primitives}
-
-
-def _disc(x_cm: float, y_cm: float, r_cm: float, height_m: float, color: dict) -> dict:
-    return _cylinder(x_cm, y_cm, _m(2 * r_cm), height_m, color)
-
-
-def _cylinder(x_cm: float, y_cm: float, diameter_m: float, height_m: float, color: dict) -> dict:
-    """A ``foxglove.CylinderPrimitive`` standing at (x, y) cm: :func:`_disc` with its diameter (m) given (the
-    moving obstacles' are computed once per episode)."""
-    return {"pose": _pose(x_cm, y_cm, 0.0, height_m / 2), "size": {"x": diameter_m, "y": diameter_m, "z": height_m},
-            "bottom_scale": 1.0, "top_scale": 1.0, "color": color}
-
-
-def _line(points_cm, color: dict, loop: bool = False, thickness_m: float = 0.02, z_m: float = 0.01) -> dict:
-    """A ``foxglove.LinePrimitive`` through an (N, 2) array of cm points."""
-    return _line_m(_points_m(points_cm, z_m), color, loop, thickness_m)
-
-
-def _line_m(points_m: list[dict], color: dict, loop: bool = False, thickness_m: float = 0.02) -> dict:
-    """A ``foxglove.LinePrimitive`` through ``foxglove.Point3`` points (m, from :func:`_points_m`)."""
-    return {"type": 1 if loop else 0, "pose": _ORIGIN, "thickness": thickness_m, "scale_invariant": False,
-            "points": points_m, "color": color, "colors": (), "indices": ()}
-
-
-def _columns_m(points_cm: np.ndarray, z_m: float) -> list[list[dict]]:
-    """:func:`_points_m` of every column j of a (T, J, 2) array of cm points (one rounding pass for all columns,
-    the same numbers as column by column)."""
-    xy = np.round(np.asarray(points_cm, dtype=np.float64) / 100.0, 4).transpose(1, 0, 2).tolist()
-    return [[{"x": x, "y": y, "z": z_m} for x, y in column] for column in xy]
-
-
 class EpisodeLogWriter:
     """Writes one episode to ``destination``: a file path or an open binary stream with ``write``, ``seek`` and
     ``flush``. Use :meth:`step` per record, then :meth:`finish`. A path is written as :func:`partial_path` (the
@@ -237,14 +155,11 @@ class EpisodeLogWriter:
         self.steps = 0
         self.finished = False
         self._last_time = 0.0
-        self._plan_lines: list[dict] = []
         self._radii = [float(r) for r in episode.crowd.radii]  # moving obstacles' radii (cm)
-        # what the scene draws of each moving obstacle that stays the same all episode: entity id, diameter, arrow
-        # shaft and head lengths (m), whether it shows its heading (reactive models; scripted ones are drawn as they
-        # always were, so their logs stay byte for byte what they were before obstacle models)
-        self._obstacle_marks = [(f"obstacle/{oid}", _m(2 * rad), _m(rad), _m(rad * 0.6), model != DEFAULT_MODEL)
-                                for oid, rad, model in zip(episode.obstacle_ids, self._radii, episode.crowd.models_of,
-                                                           strict=True)]
+        # a moving obstacle of a reactive model shows where it is heading (scripted ones are drawn as they always
+        # were, so their logs stay byte for byte what they were before obstacle models)
+        self._scenes = StepScenes(self.scenario.robot.radius, episode.obstacle_ids, self._radii,
+                                  [model != DEFAULT_MODEL for model in episode.crowd.models_of])
         self.path = Path(destination) if isinstance(destination, str | Path) else None
         self._identity = (metadata.get("config"), metadata.get("seed"))
         self._partial = partial_path(self.path) if self.path is not None else None
@@ -306,25 +221,11 @@ class EpisodeLogWriter:
 
     def log(self, t: float, level: int, text: str) -> None:
         """A human-readable event on ``/log``."""
-        self._write("/log", t, {"timestamp": _stamp(t), "level": level, "message": text, "name": "fuzzynav",
+        self._write("/log", t, {"timestamp": stamp(t), "level": level, "message": text, "name": "fuzzynav",
                                 "file": "", "line": 0})
 
     def _write_static_scene(self) -> None:
-        s = self.scenario
-        xmin, ymin, xmax, ymax = s.bounds
-        stamp = _stamp(0.0)
-        entities = [_entity(stamp, "walls", lines=[_line([(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)],
-                                                       _GREY, loop=True, thickness_m=0.04)])]
-        for i, obs in enumerate(s.static_obstacles):
-            if obs.circle is not None:
-                c = obs.circle
-                entities.append(_entity(stamp, f"static/{i}", cylinders=[_disc(*c.center, c.radius, 0.3, _GREY)]))
-            else:
-                entities.append(_entity(stamp, f"static/{i}", lines=[_line(obs.polygon, _GREY, loop=True,
-                                                                         thickness_m=0.03)]))
-        gx, gy = s.robot.goal
-        entities.append(_entity(stamp, "goal", cylinders=[_disc(gx, gy, s.tolerance, 0.02, _GREEN)]))
-        self._write("/scene", 0.0, {"deletions": [], "entities": entities})
+        self._write("/scene", 0.0, static_scene(self.scenario))
 
     # -- per step ---------------------------------------------------------------------------------------
     def step(self, rec: StepRecord) -> None:
@@ -335,52 +236,52 @@ class EpisodeLogWriter:
         d = rec.decision
         k = rec.step
         radius = self.scenario.robot.radius
-        stamp = _stamp(t)  # one (read-only) timestamp object shared by this step's messages
-        self._write("/robot/pose", t, {"timestamp": stamp, "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading)})
-        self._write_laser(rec, stamp)
-        self._write("/sonar", t, {"timestamp": stamp, "step": k, "left_cm": _r(rec.sonar[0]),
+        when = stamp(t)  # one (read-only) timestamp object shared by this step's messages
+        self._write("/robot/pose", t, {"timestamp": when, "frame_id": FRAME, "pose": pose(s.x, s.y, s.heading)})
+        self._write_laser(rec, when)
+        self._write("/sonar", t, {"timestamp": when, "step": k, "left_cm": _r(rec.sonar[0]),
                                   "front_cm": _r(rec.sonar[1]), "right_cm": _r(rec.sonar[2]),
                                   "range_cm": _r(self.episode.config.sonar.range_cm)})
-        self._write("/tracks", t, {"timestamp": stamp, "step": k, "mode": self.perception_mode,
+        self._write("/tracks", t, {"timestamp": when, "step": k, "mode": self.perception_mode,
                                    "moving_beams": np.nonzero(rec.moving_beams)[0].tolist(), "tracks": [
             {"id": tr.id, "x_cm": _r(tr.x), "y_cm": _r(tr.y), "vx_cm_s": _r(tr.vx), "vy_cm_s": _r(tr.vy),
              "speed_cm_s": _r(tr.speed), "heading_deg": _r(tr.moving_angle_deg), "radius_cm": _r(tr.radius)}
             for tr in rec.tracks]})
-        self._write("/obstacles/truth", t, {"timestamp": stamp, "step": k, "obstacles": [
+        self._write("/obstacles/truth", t, {"timestamp": when, "step": k, "obstacles": [
             {"id": oid, "x_cm": x, "y_cm": y, "vx_cm_s": vx, "vy_cm_s": vy, "radius_cm": r, "next_x_cm": qx,
              "next_y_cm": qy}
             for oid, (x, y), (vx, vy), r, (qx, qy) in zip(
                 self.episode.obstacle_ids, rec.obstacle_positions.tolist(), rec.obstacle_velocities.tolist(),
                 self._radii, rec.obstacle_next_positions.tolist(), strict=True)]})
         self._write("/robot/state", t, {
-            "timestamp": stamp, "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),
+            "timestamp": when, "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),
             "v_cm_s": _r(s.v), "next_x_cm": _r(n.x), "next_y_cm": _r(n.y), "next_heading_deg": _r(n.heading),
             "next_v_cm_s": _r(n.v), "radius_cm": _r(radius), "contact_static": rec.contact_static,
             "contact_dynamic": list(rec.contact_dynamic), "new_contacts": rec.new_contacts,
             "distance_to_goal_cm": _r(rec.distance_to_goal)})
         if d.tpt is not None:
-            self._write_tpt(t, stamp, k, d.tpt)
-        self._write_decision(t, stamp, k, rec)
-        self._write_scene(t, stamp, rec)
+            self._write_tpt(t, when, k, d.tpt)
+        self._write_decision(t, when, k, rec)
+        self._write_scene(t, when, rec)
         self._write_events(t, rec)
         self.steps += 1
         if self._failures:
             raise self._error()
 
-    def _write_laser(self, rec: StepRecord, stamp: dict[str, int]) -> None:
+    def _write_laser(self, rec: StepRecord, when: dict[str, int]) -> None:
         scan, s = rec.scan, rec.state
         n = len(scan.ranges)
         returned = scan.ranges < scan.range_cm
         self._write("/laser", rec.time_s, {
-            "timestamp": stamp, "frame_id": FRAME, "pose": _pose(s.x, s.y, s.heading, 0.1),
+            "timestamp": when, "frame_id": FRAME, "pose": pose(s.x, s.y, s.heading, 0.1),
             "start_angle": 0.0, "end_angle": 2 * math.pi * (n - 1) / n,
             # full precision: replay --verify rebuilds the static returns from these ranges, and policies that
             # read every return (VFH's histogram cells, ORCA's constraints) can turn on a micrometre
             "ranges": scan.ranges / 100.0, "intensities": returned.astype(np.int64)})
 
-    def _write_tpt(self, t: float, stamp: dict[str, int], k: int, tpt) -> None:
+    def _write_tpt(self, t: float, when: dict[str, int], k: int, tpt) -> None:
         self._write("/tpt", t, {
-            "timestamp": stamp, "step": k, "n_traj": tpt.n_traj, "dt_s": tpt.dt,
+            "timestamp": when, "step": k, "n_traj": tpt.n_traj, "dt_s": tpt.dt,
             "robot_speed_cm_s": _r(tpt.robot_speed), "robot_radius_cm": _r(tpt.robot_radius),
             "safety_margin_cm": _r(tpt.safety_margin), "robot_cm": _array(tpt.robot, -1, 2),
             "obstacle_ids": list(tpt.obstacle_ids), "obstacle_radii_cm": _array(tpt.obstacle_radii),
@@ -388,7 +289,7 @@ class EpisodeLogWriter:
             "obstacles_cm": _array(tpt.obstacles, len(tpt.robot), len(tpt.obstacle_ids), 2),
             "collide": np.ascontiguousarray(tpt.collide, dtype=bool)})
 
-    def _write_decision(self, t: float, stamp: dict[str, int], k: int, rec: StepRecord) -> None:
+    def _write_decision(self, t: float, when: dict[str, int], k: int, rec: StepRecord) -> None:
         d = rec.decision
         planning = None
         if d.new_plan and d.plan is not None:
@@ -399,41 +300,17 @@ class EpisodeLogWriter:
                         "path_cm": [[_r(x), _r(y)] for x, y in p.path]}
         left, front, right, angle = d.inputs
         self._write("/planner/decision", t, {
-            "timestamp": stamp, "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
+            "timestamp": when, "step": k, "mode": d.mode, "new_plan": d.new_plan, "left_cm": _r(left),
             "front_cm": _r(front), "right_cm": _r(right), "angle_deg": _r(angle), "dtheta_deg": _r(d.dtheta_deg),
             "v_cm_s": _r(d.v_cm_s), "strategy": self.strategy, "planning": planning,
             "policy": d.policy, "policy_fields": _policy_fields(d.fields),
             "compute_time_us": round(rec.compute_time_us, 1)})
 
-    def _write_scene(self, t: float, stamp: dict[str, int], rec: StepRecord) -> None:
+    def _write_scene(self, t: float, when: dict[str, int], rec: StepRecord) -> None:
         s, d = rec.state, rec.decision
-        r = self.scenario.robot.radius
-        arrow = {"pose": _pose(s.x, s.y, s.heading, 0.2), "shaft_length": _m(r), "shaft_diameter": 0.03,
-                 "head_length": _m(r * 0.6), "head_diameter": 0.08, "color": _BLUE}
-        entities = [_entity(stamp, "robot", cylinders=[_disc(s.x, s.y, r, 0.2, _BLUE)], arrows=[arrow])]
-        for (x, y), (vx, vy), (eid, diameter, shaft, head, reactive) in zip(
-                rec.obstacle_positions.tolist(), rec.obstacle_velocities.tolist(), self._obstacle_marks, strict=True):
-            # a pedestrian of a reactive model shows where it is heading
-            heading = [] if not reactive or (vx == 0.0 and vy == 0.0) else [
-                {"pose": _pose(x, y, atan2_deg(vy, vx), 0.3), "shaft_length": shaft, "shaft_diameter": 0.03,
-                 "head_length": head, "head_diameter": 0.08, "color": _RED}]
-            entities.append(_entity(stamp, eid, cylinders=[_cylinder(x, y, diameter, 0.3, _RED)], arrows=heading))
-        tpt_lines, hits = [], []
-        if d.tpt is not None:
-            tpt = d.tpt
-            tpt_lines.append(_line(tpt.robot, _CYAN, z_m=0.02))
-            if len(tpt.obstacle_ids):
-                tpt_lines.extend(_line_m(points, _ORANGE) for points in _columns_m(tpt.obstacles, 0.02))
-            for row in np.flatnonzero(tpt.collide[1:].any(axis=1)).tolist():
-                x, y = tpt.robot[row + 1].tolist()
-                hits.append(_disc(x, y, tpt.robot_radius, 0.05, _HIT))
-        entities.append(_entity(stamp, "tpt", lines=tpt_lines, cylinders=hits))
-        if d.plan is None:
-            self._plan_lines = []
-        elif d.new_plan:  # the line of a plan is built once and repeated while the plan runs
-            self._plan_lines = [_line([[s.x, s.y], *d.plan.path.tolist()], _PURPLE, thickness_m=0.04, z_m=0.03)]
-        entities.append(_entity(stamp, "plan", lines=self._plan_lines))
-        self._write("/scene", t, {"deletions": [], "entities": entities})
+        self.channels["/scene"].log(self._scenes.message(
+            when, s.x, s.y, s.heading, rec.obstacle_positions, rec.obstacle_velocities, d.tpt, d.plan, d.new_plan),
+            log_time=round(t * 1e9))
 
     def _write_events(self, t: float, rec: StepRecord) -> None:
         d = rec.decision
@@ -466,7 +343,7 @@ class EpisodeLogWriter:
                 "error": "error", "interrupted": "interrupted"}.get(outcome, outcome)
         try:
             self.log(t, level, f"{text} after {self.steps} step(s)" + (f": {reason}" if reason else ""))
-            self._write("/episode", t, {"timestamp": _stamp(t), "outcome": outcome, "steps": self.steps,
+            self._write("/episode", t, {"timestamp": stamp(t), "outcome": outcome, "steps": self.steps,
                                         "time_s": _r(self.steps * self.dt), "contacts": self.episode.contacts,
                                         "reason": reason})
         finally:  # whatever happens, the file is closed and the process can open the next log
