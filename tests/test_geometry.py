@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzzynav import geometry as geo
@@ -128,3 +128,54 @@ def test_angle_difference_takes_the_short_way_round():
     assert geo.angle_difference_deg(350.0, 10.0) == -20.0
     assert geo.angle_difference_deg(90.0, 270.0) == -180.0
     assert geo.angle_difference_deg(45.0, 45.0) == 0.0
+
+
+# -- the compiled closest approach (fuzzynav/_closest_approach.c) -----------------------------------------------
+ANY = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from([0.0, -0.0, 5e-324, -5e-324, 1e308, 1e-160])
+SHAPES = st.sampled_from([((2,), (2,)), ((4, 2), (4, 2)), ((2,), (3, 2)), ((3, 1, 2), (4, 2)), ((0, 2), (2,)),
+                          ((2, 3, 2), (2, 3, 2)), ((5, 2), (1, 2))])
+
+
+def _pair_arrays(draw_floats, shapes) -> tuple[np.ndarray, np.ndarray]:
+    a_shape, b_shape = shapes
+    a = np.array(draw_floats(int(np.prod(a_shape))), dtype=float).reshape(a_shape)
+    b = np.array(draw_floats(int(np.prod(b_shape))), dtype=float).reshape(b_shape)
+    return a, b
+
+
+def _with_and_without_kernel(monkeypatch, a, b):
+    with np.errstate(all="ignore"):  # the numpy form warns of overflow and 0 * inf; the kernel does not
+        on = geo.closest_approach(a, b)
+        with monkeypatch.context() as m:
+            m.setenv("FUZZYNAV_KERNEL", "python")
+            off = geo.closest_approach(a, b)
+    return on, off
+
+
+@pytest.mark.skipif(geo._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.data(), SHAPES, st.booleans())
+def test_the_kernel_gives_the_numpy_forms_bits(monkeypatch, data, shapes, swap):
+    numbers = ANY if data.draw(st.booleans()) else COORD
+
+    def floats(n: int) -> list[float]:
+        return data.draw(st.lists(numbers, min_size=n, max_size=n))
+
+    a, b = _pair_arrays(floats, shapes[::-1] if swap else shapes)
+    on, off = _with_and_without_kernel(monkeypatch, a, b)
+    assert type(on) is type(off)
+    assert np.shape(on) == np.shape(off)
+    assert np.asarray(on).tobytes() == np.asarray(off).tobytes()
+
+
+@pytest.mark.skipif(geo._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+def test_the_kernel_takes_views_and_refuses_what_the_numpy_form_refuses(monkeypatch):
+    big = np.arange(24, dtype=float).reshape(4, 6)
+    a, b = big[:, 1:3], big[::-1, 3:5]  # not C-contiguous
+    on, off = _with_and_without_kernel(monkeypatch, a, b)
+    assert on.tobytes() == off.tobytes()
+    for bad in ((np.zeros((3, 3)), np.zeros((3, 3))), (np.zeros((3, 2)), np.zeros((4, 2)))):
+        with pytest.raises(ValueError):
+            geo.closest_approach(*bad)
+    # other types take the numpy form
+    assert geo.closest_approach(np.array([3, 4]), np.array([0, 0])) == 5.0
