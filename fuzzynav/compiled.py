@@ -20,8 +20,16 @@ KERNELS = ("_mamdani", "_raycast", "_tracking", "_mcap_chunk", "_social_force", 
 
 
 def switched_off() -> bool:
-    """Whether the environment asks for the Python paths."""
-    return os.environ.get(KERNEL_ENV, "").strip().lower() == "python"
+    """Whether the environment asks for the Python paths (read at every call, so it follows ``os.environ``)."""
+    env = os.environ
+    data, encode = getattr(env, "_data", None), getattr(env, "encodekey", None)
+    if type(data) is not dict or encode is None:  # not CPython's os._Environ
+        return env.get(KERNEL_ENV, "").strip().lower() == "python"
+    # CPython's os.environ keeps its variables in the dict _data: one lookup instead of Mapping.get's, which raises
+    # and catches KeyError when the variable is not set (the usual case) and costs ~1 us; the kernels ask at every
+    # call, up to ~10 times per simulation step
+    value = data.get(encode(KERNEL_ENV))
+    return value is not None and env.decodevalue(value).strip().lower() == "python"
 
 
 def load(name: str) -> ModuleType | None:

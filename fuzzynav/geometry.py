@@ -124,6 +124,9 @@ def keep_inside(positions: np.ndarray, velocities: np.ndarray, radii: np.ndarray
     ymax), with the velocity component (cm/s) into a wall they were stopped at set to 0: the walls are solid for
     reactive pedestrians, whatever force pushed them. A disc wider than the world keeps that coordinate."""
     x, v = positions.copy(), velocities.copy()
+    r = radii[:, None]
+    if (x >= np.array(bounds[:2]) + r).all() and (x <= np.array(bounds[2:]) - r).all():
+        return x, v  # every disc inside (the usual case): the loop below would change nothing
     for axis, lo, hi in ((0, bounds[0], bounds[2]), (1, bounds[1], bounds[3])):
         lo_r, hi_r = lo + radii, hi - radii
         fits = lo_r <= hi_r

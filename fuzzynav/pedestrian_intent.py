@@ -48,7 +48,7 @@ class Intent:
     def initial_velocities(self) -> np.ndarray:
         """Velocities at t = 0 (cm/s): the given velocity, or ``speed`` towards the second waypoint (0 when there
         is none)."""
-        return self._towards(self.starts, self.start_velocities.copy())
+        return self._towards(self.starts, self.start_velocities.copy(), *self._goals())
 
     def _goals(self) -> tuple[np.ndarray, np.ndarray]:
         """Each pedestrian's current waypoint (n, 2) cm and whether it has one (n,): none for constant-velocity
@@ -60,10 +60,9 @@ class Intent:
         has = (inside | wrapped) & ~self.constant
         return self.padded[np.arange(len(k)), index], has
 
-    def _towards(self, positions: np.ndarray, pref: np.ndarray) -> np.ndarray:
-        """``pref`` with each waypoint pedestrian's entry set to ``speed`` towards its current waypoint (0 without
-        one, or when it stands on it)."""
-        goal, has = self._goals()
+    def _towards(self, positions: np.ndarray, pref: np.ndarray, goal: np.ndarray, has: np.ndarray) -> np.ndarray:
+        """``pref`` with each waypoint pedestrian's entry set to ``speed`` towards its current waypoint ``goal`` (0
+        without one, ``has`` False, or when it stands on it)."""
         d = goal - positions
         length = norm2(d)
         moving = has & (length > 0.0)
@@ -84,4 +83,5 @@ class Intent:
             # keep the index small on a long loop
             self.target = np.where(self.loop_ok & (self.target >= 2 * self.lengths), self.target - self.lengths,
                                    self.target)
-        return self._towards(positions, self.start_velocities.copy())
+            goal, has = self._goals()
+        return self._towards(positions, self.start_velocities.copy(), goal, has)

@@ -25,6 +25,13 @@ def test_the_switch_follows_the_environment_as_it_changes(monkeypatch, value, of
     assert not compiled.switched_off()
 
 
+@pytest.mark.parametrize("value, off", [(None, False), ("python", True), (" PYTHON", True), ("c", False)])
+def test_the_switch_reads_an_environment_mapping_of_another_kind(monkeypatch, value, off):
+    # e.g. a harness that replaces os.environ with a plain dict: the switch reads it through its public get
+    monkeypatch.setattr(os, "environ", {} if value is None else {compiled.KERNEL_ENV: value})
+    assert compiled.switched_off() is off
+
+
 def test_the_switch_reads_the_environment_a_process_starts_with():
     code = "from fuzzynav import compiled; print(compiled.switched_off())"
     for value, expected in (("python", "True"), ("no", "False")):
