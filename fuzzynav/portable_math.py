@@ -29,6 +29,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from fuzzynav import compiled
+
 RAD_PER_DEG = math.pi / 180.0
 DEG_PER_RAD = 180.0 / math.pi
 _TAN_PI_8 = math.sqrt(2.0) - 1.0  # tan(22.5°), the split between atan's two reductions
@@ -54,6 +56,13 @@ _ATANH = _series(0, (2 * k + 1 for k in range(1, 12)))  # x^3 .. x^23, |x| <= 0.
 _EXP = (1.0, 1.0, *(float(Fraction(1, math.factorial(n))) for n in range(2, 17)))  # x^0 .. x^16, |x| <= 0.35
 
 
+# sin_cos_deg, atan2_deg (of Python floats) and sin_cos_deg_array in C when built at install: the same operations
+# in the same order, so the same bits (tests/test_portable_math.py); its series and constants are these
+_kernel = compiled.load("_portable_math")
+if _kernel is not None:
+    _kernel.configure(_SIN, _COS, _ATAN, RAD_PER_DEG, DEG_PER_RAD, _TAN_PI_8)
+
+
 def _horner(z, coefficients: Sequence[float]):
     """c0 + z·(c1 + z·(c2 + ...)), one rounding per operation (floats or arrays alike)."""
     acc = coefficients[-1]
@@ -70,6 +79,8 @@ def _sin_cos_reduced(x):
 
 def sin_cos_deg(angle_deg: float) -> tuple[float, float]:
     """(sin, cos) of an angle in degrees. Exact at multiples of 90° (cos 90° is 0, not 6e-17)."""
+    if type(angle_deg) is float and _kernel is not None and not compiled.switched_off():
+        return _kernel.sin_cos_deg(angle_deg)
     if not math.isfinite(angle_deg):
         return math.nan, math.nan
     q = round(angle_deg / 90.0)  # nearest quadrant (ties to even, as np.rint)
@@ -81,6 +92,11 @@ def sin_cos_deg(angle_deg: float) -> tuple[float, float]:
 def sin_cos_deg_array(angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Elementwise :func:`sin_cos_deg` (NaN for non-finite angles)."""
     a = np.asarray(angle_deg, dtype=float)
+    if _kernel is not None and not compiled.switched_off():
+        a = a if a.flags.c_contiguous else a.copy()  # (np.ascontiguousarray would make a 0-d array 1-d)
+        sin, cos = np.empty(a.shape), np.empty(a.shape)
+        _kernel.sin_cos_deg_array(a, sin, cos)
+        return sin, cos
     finite = np.isfinite(a)
     a = np.where(finite, a, 0.0)
     q = np.rint(a / 90.0)
@@ -101,6 +117,8 @@ def _atan_reduced_deg(u):
 
 def atan2_deg(y: float, x: float) -> float:
     """Angle of the vector (x, y) in degrees, in [-180, 180]; 0 for the zero vector."""
+    if type(y) is float and type(x) is float and _kernel is not None and not compiled.switched_off():
+        return _kernel.atan2_deg(y, x)
     ax, ay = abs(x), abs(y)
     if ax == 0.0 and ay == 0.0:
         return 0.0

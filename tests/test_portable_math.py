@@ -8,7 +8,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzzynav import portable_math as pm
@@ -179,3 +180,41 @@ def test_portable_functions_ignore_numpy_simd_and_blas(angle, frac, x, y):
     assert (s[0], c[0]) == pm.sin_cos_deg(angle)
     ys, xs = np.full(1031, y), np.full(1031, x)
     assert pm.atan2_deg_array(ys, xs)[1030] == pm.atan2_deg(y, x)
+
+
+# -- the compiled forms (fuzzynav/_portable_math.c) -----------------------------------------------------------
+ANY_FLOAT = st.floats() | st.sampled_from([0.0, -0.0, 90.0, -90.0, 45.0, 135.0, 1e308, -1e308, 5e-324, 2.0 ** 53,
+                                            2.0 ** 53 + 2.0, 720.0, -450.0, 22.5])
+
+
+def _bits(values) -> list[bytes]:
+    return [np.float64(v).tobytes() for v in values]
+
+
+def _python_forms(monkeypatch, call):
+    with monkeypatch.context() as m:
+        m.setenv("FUZZYNAV_KERNEL", "python")
+        return call()
+
+
+@pytest.mark.skipif(pm._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+@settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(ANY_FLOAT, ANY_FLOAT)
+def test_the_kernel_gives_the_python_forms_bits(monkeypatch, a, b):
+    with np.errstate(all="ignore"):
+        for call in (lambda: pm.sin_cos_deg(a), lambda: (pm.atan2_deg(a, b),),
+                     lambda: tuple(x.tolist() for x in pm.sin_cos_deg_array(np.array([a, b, a + b])))):
+            on, off = call(), _python_forms(monkeypatch, call)
+            assert [type(v) for v in on] == [type(v) for v in off]
+            assert _bits(np.ravel(on)) == _bits(np.ravel(off))
+
+
+@pytest.mark.skipif(pm._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+def test_the_kernel_keeps_the_array_forms_shapes_and_the_scalar_forms_types(monkeypatch):
+    for angles in (np.float64(30.0), np.arange(12.0).reshape(3, 4) * 37.5, np.arange(10.0)[::3], [10, 20], 45):
+        on = pm.sin_cos_deg_array(angles)
+        off = _python_forms(monkeypatch, lambda angles=angles: pm.sin_cos_deg_array(angles))
+        assert [(x.shape, x.dtype, x.tobytes()) for x in on] == [(x.shape, x.dtype, x.tobytes()) for x in off]
+    # numpy scalars and ints take the Python form, which keeps their types
+    assert type(pm.sin_cos_deg(np.float64(30.0))[0]) is np.float64
+    assert pm.atan2_deg(1, 1) == 45.0 and pm.sin_cos_deg(90) == (1.0, 0.0)
