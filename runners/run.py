@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import hydra
-import yaml
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
@@ -32,7 +31,7 @@ from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.policy import DEFAULT_POLICY, policy_source_digest, split_navigator_section
 from fuzzynav.scenario import Scenario
-from runners import process_tree, schema, stop, sweep_resume
+from runners import process_tree, schema, stop, sweep_resume, yaml_text
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
 from runners.provenance import provenance
 
@@ -87,7 +86,7 @@ def scenario_yaml(scenario: Scenario) -> str:
             return [clean(v) for v in value]
         return value
 
-    return yaml.safe_dump(clean(scenario), sort_keys=False)
+    return yaml_text.dump(clean(scenario))
 
 
 def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,

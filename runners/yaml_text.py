@@ -1,0 +1,41 @@
+"""YAML text of plain data (what ``yaml.safe_dump(data, sort_keys=False)`` writes), by libyaml's emitter where it
+writes the same text as PyYAML's, which is four to ten times slower (a 20-pedestrian scenario: ~10 ms of an
+episode's start, per episode, as every generated world is another text).
+
+The two emitters differ in how they fold long double-quoted strings (escapes such as ``\\t`` or non-ASCII text),
+in how they write an empty or a long key and in how they end a document that is a single scalar; on mappings and
+lists of mappings (short keys), lists, numbers, booleans, None and non-empty printable-ASCII strings they write the
+same text
+(``tests/test_yaml_text.py`` compares them). So libyaml is used for such data only, and the text never depends
+on whether this PyYAML was built with libyaml.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import yaml
+
+_PRINTABLE_ASCII = re.compile(r"[ -~]+")
+_KEY = re.compile(r"[ -~]{1,64}")  # PyYAML writes a key of 128 characters or more as "? key", libyaml does not
+_FAST = getattr(yaml, "CSafeDumper", None)  # None when PyYAML was built without libyaml
+
+
+def plain(value: Any) -> bool:
+    """Whether every string in ``value`` is non-empty printable ASCII, and every mapping key such a string of at most
+    64 characters."""
+    if type(value) is str:
+        return _PRINTABLE_ASCII.fullmatch(value) is not None
+    if type(value) is dict:
+        return all(type(k) is str and _KEY.fullmatch(k) is not None and plain(v) for k, v in value.items())
+    if type(value) is list:
+        return all(map(plain, value))
+    return isinstance(value, int | float) or value is None
+
+
+def dump(data: Any) -> str:
+    """``yaml.safe_dump(data, sort_keys=False)``, by libyaml when it gives the same text (a mapping or list of
+    :func:`plain` data)."""
+    dumper = _FAST if _FAST is not None and type(data) in (dict, list) and plain(data) else yaml.SafeDumper
+    return yaml.dump(data, Dumper=dumper, sort_keys=False)
