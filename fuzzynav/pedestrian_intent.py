@@ -44,11 +44,14 @@ class Intent:
     def reset(self) -> None:
         """Back to the first target: the waypoint after the start (index 1)."""
         self.target = np.ones(len(self.paths), dtype=int)
+        self._current = self._goals()  # the waypoints change only when a pedestrian reaches one
 
     def initial_velocities(self) -> np.ndarray:
         """Velocities at t = 0 (cm/s): the given velocity, or ``speed`` towards the second waypoint (0 when there
         is none)."""
-        return self._towards(self.starts, self.start_velocities.copy(), *self._goals())
+        goal, has = self._current
+        d = goal - self.starts
+        return self._towards(d, norm2(d), has)
 
     def _goals(self) -> tuple[np.ndarray, np.ndarray]:
         """Each pedestrian's current waypoint (n, 2) cm and whether it has one (n,): none for constant-velocity
@@ -60,11 +63,10 @@ class Intent:
         has = (inside | wrapped) & ~self.constant
         return self.padded[np.arange(len(k)), index], has
 
-    def _towards(self, positions: np.ndarray, pref: np.ndarray, goal: np.ndarray, has: np.ndarray) -> np.ndarray:
-        """``pref`` with each waypoint pedestrian's entry set to ``speed`` towards its current waypoint ``goal`` (0
-        without one, ``has`` False, or when it stands on it)."""
-        d = goal - positions
-        length = norm2(d)
+    def _towards(self, d: np.ndarray, length: np.ndarray, has: np.ndarray) -> np.ndarray:
+        """The preferred velocities: each waypoint pedestrian's ``speed`` along ``d`` (cm, to its current waypoint,
+        ``length`` long; 0 without one, ``has`` False, or when it stands on it), the others' given velocity."""
+        pref = self.start_velocities.copy()
         moving = has & (length > 0.0)
         pref[~self.constant] = 0.0
         pref[moving] = d[moving] * (self.speeds[moving] / length[moving])[:, None]
@@ -75,13 +77,17 @@ class Intent:
         reached its waypoint on to the next one."""
         if self.constant.all():
             return self.start_velocities.copy()
-        goal, has = self._goals()
+        goal, has = self._current
+        d = goal - positions
+        length = norm2(d)
         # a waypoint reached: on to the next (at most one per call: the steps are shorter than the legs)
-        arrived = has & (norm2(goal - positions) <= self.arrive_cm)
+        arrived = has & (length <= self.arrive_cm)
         if arrived.any():
             self.target[arrived] += 1
             # keep the index small on a long loop
             self.target = np.where(self.loop_ok & (self.target >= 2 * self.lengths), self.target - self.lengths,
                                    self.target)
-            goal, has = self._goals()
-        return self._towards(positions, self.start_velocities.copy(), goal, has)
+            self._current = goal, has = self._goals()
+            d = goal - positions
+            length = norm2(d)
+        return self._towards(d, length, has)
