@@ -5,8 +5,8 @@
  * |rel0 + s step|, each operation the numpy form's, in its order (IEEE basic operations and sqrt, each correctly
  * rounded), so the distances are its bits (tests/test_geometry.py compares them). The clip's sign of a zero s may
  * differ from numpy's; it cannot reach the result (rel0 + (+-0) step squares to the same). A NaN result is NaN in
- * both, its sign bit not always the same (nothing observes it: comparisons are false, the logs write null). Built with
- * -ffp-contract=off (no fused multiply-adds); refuses -ffast-math and x87 arithmetic. Lengths in cm.
+ * both, its sign bit not always the same (nothing observes it: comparisons are false, the logs write null). No
+ * floating-point warnings (numpy's errstate does not apply). Built with -ffp-contract=off (no fused multiply-adds); refuses -ffast-math and x87 arithmetic. Lengths in cm.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>

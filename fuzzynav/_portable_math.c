@@ -6,7 +6,8 @@
  * (tests/test_portable_math.py compares them). The series coefficients and constants are given once by
  * portable_math (configure): one definition, there. The scalar functions are what a simulation step calls a few
  * times to a few dozen times (headings, arrows, wedges): a Python call of the series costs ~2-3 us, this ~0.1 us.
- * Built with -ffp-contract=off (no fused multiply-adds); refuses -ffast-math and x87 arithmetic.
+ * No floating-point warnings (numpy's errstate does not apply). Built with -ffp-contract=off (no fused
+ * multiply-adds); refuses -ffast-math and x87 arithmetic.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -75,16 +76,17 @@ static int configured(void) {
 }
 
 static int copy_series(PyObject *seq, double *dst, Py_ssize_t *n, const char *what) {
-    PyObject *fast = PySequence_Fast(seq, "configure: the series must be sequences of floats");
+    /* a tuple copy: an item's __float__ may change the sequence given, not the copy that owns the items */
+    PyObject *fast = PySequence_Tuple(seq);
     if (fast == NULL) return -1;
-    Py_ssize_t len = PySequence_Fast_GET_SIZE(fast);
+    Py_ssize_t len = PyTuple_GET_SIZE(fast);
     if (len < 1 || len > MAX_TERMS) {
         Py_DECREF(fast);
         PyErr_Format(PyExc_ValueError, "configure: %s must have 1 to %d terms", what, MAX_TERMS);
         return -1;
     }
     for (Py_ssize_t i = 0; i < len; i++) {
-        double v = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(fast, i));
+        double v = PyFloat_AsDouble(PyTuple_GET_ITEM(fast, i));
         if (v == -1.0 && PyErr_Occurred()) {
             Py_DECREF(fast);
             return -1;
@@ -130,7 +132,8 @@ static PyObject *sin_cos_deg(PyObject *self, PyObject *arg) {
     return Py_BuildValue("(dd)", s, c);
 }
 
-/* atan2_deg(y: float, x: float) -> angle of (x, y) in degrees, in [-180, 180]; 0 for the zero vector */
+/* atan2_deg(y: float, x: float) -> angle of (x, y) in degrees, in [-180, 180]; 0 for the zero vector, NaN when
+ * either is NaN */
 static PyObject *atan2_deg(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
     if (!configured()) return NULL;
@@ -142,6 +145,7 @@ static PyObject *atan2_deg(PyObject *self, PyObject *const *args, Py_ssize_t nar
     if (y == -1.0 && PyErr_Occurred()) return NULL;
     double x = PyFloat_AsDouble(args[1]);
     if (x == -1.0 && PyErr_Occurred()) return NULL;
+    if (isnan(x) || isnan(y)) return PyFloat_FromDouble(NAN);
     double ax = fabs(x), ay = fabs(y);
     if (ax == 0.0 && ay == 0.0) return PyFloat_FromDouble(0.0);
     double t = ax >= ay ? ay / ax : ax / ay;

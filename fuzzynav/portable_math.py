@@ -93,7 +93,9 @@ def sin_cos_deg_array(angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Elementwise :func:`sin_cos_deg` (NaN for non-finite angles)."""
     a = np.asarray(angle_deg, dtype=float)
     if _kernel is not None and not compiled.switched_off():
-        a = a if a.flags.c_contiguous else a.copy()  # (np.ascontiguousarray would make a 0-d array 1-d)
+        # a contiguous aligned copy when needed (np.ascontiguousarray would make a 0-d array 1-d, and keeps an array
+        # that is contiguous but not aligned, which the buffer protocol gives as another format)
+        a = a if a.flags.c_contiguous and a.flags.aligned else a.copy()
         sin, cos = np.empty(a.shape), np.empty(a.shape)
         _kernel.sin_cos_deg_array(a, sin, cos)
         return sin, cos
@@ -116,9 +118,11 @@ def _atan_reduced_deg(u):
 
 
 def atan2_deg(y: float, x: float) -> float:
-    """Angle of the vector (x, y) in degrees, in [-180, 180]; 0 for the zero vector."""
+    """Angle of the vector (x, y) in degrees, in [-180, 180]; 0 for the zero vector, NaN when either is NaN."""
     if type(y) is float and type(x) is float and _kernel is not None and not compiled.switched_off():
         return _kernel.atan2_deg(y, x)
+    if math.isnan(x) or math.isnan(y):
+        return math.nan
     ax, ay = abs(x), abs(y)
     if ax == 0.0 and ay == 0.0:
         return 0.0

@@ -148,7 +148,9 @@ def static_scene(scenario) -> dict:
 
 # -- byte templates -----------------------------------------------------------------------------------------------
 def _sentinel(i: int) -> float:
-    return float(f"-1.{i:03d}987654321e300")  # no real coordinate, and no sentinel's digits inside another's
+    # below 1e-5: no value a template bakes in can be one (metres() gives 0 or at least 1e-4, the constants are
+    # short decimals), and no sentinel's digits are inside another's
+    return float(f"1.{i:03d}987654321e-300")
 
 
 def template(build: Callable[..., Any], slots: int) -> bytes:

@@ -146,3 +146,16 @@ def test_line_m_of_point_lists_matches_the_dict_line():
     points, = point_lists(xy, 0.02)
     fmt = template(lambda p: line_m(p, ORANGE), 1)
     assert fmt % (points,) == orjson.dumps(line_m([point(x, y, 0.02) for x, y in xy[0]], ORANGE))
+
+
+def test_no_radius_can_take_a_templates_slot():
+    # a slot is found by its sentinel's digits: no value baked into a template (m, 0.1 mm) can be one
+    for radius in (-1.000987654321e302, -5.004938271605e301, 1e-300, 15.0):
+        scenes = StepScenes(radius, ["a"], [radius], [True])
+        tpt = SimpleNamespace(robot=np.zeros((2, 2)), obstacles=np.zeros((2, 1, 2)), obstacle_ids=("a",),
+                              collide=np.ones((2, 1), bool), robot_radius=radius)
+        when = stamp(1.0)
+        got = scenes.message(when, 1.0, 2.0, 30.0, np.ones((1, 2)), np.ones((1, 2)), tpt, None, False)
+        want = orjson.dumps(_scene_as_dicts(when, 1.0, 2.0, 30.0, radius, ["a"], [radius], [True], np.ones((1, 2)),
+                                            np.ones((1, 2)), tpt, []), option=orjson.OPT_SERIALIZE_NUMPY)
+        assert got == want

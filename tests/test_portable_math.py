@@ -218,3 +218,36 @@ def test_the_kernel_keeps_the_array_forms_shapes_and_the_scalar_forms_types(monk
     # numpy scalars and ints take the Python form, which keeps their types
     assert type(pm.sin_cos_deg(np.float64(30.0))[0]) is np.float64
     assert pm.atan2_deg(1, 1) == 45.0 and pm.sin_cos_deg(90) == (1.0, 0.0)
+
+
+@pytest.mark.skipif(pm._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+def test_nan_and_unaligned_inputs_answer_alike(monkeypatch):
+    nan = math.nan
+    for y, x in ((0.0, nan), (-0.0, nan), (nan, 0.0), (nan, nan), (1.0, nan), (nan, -3.0)):
+        on, off = pm.atan2_deg(y, x), _python_forms(monkeypatch, lambda y=y, x=x: pm.atan2_deg(y, x))
+        assert math.isnan(on) and math.isnan(off)
+    unaligned = np.frombuffer(bytearray(8 * 5 + 1), np.float64, offset=1)
+    on = pm.sin_cos_deg_array(unaligned)
+    off = _python_forms(monkeypatch, lambda: pm.sin_cos_deg_array(unaligned))
+    assert [x.tobytes() for x in on] == [x.tobytes() for x in off]
+
+
+def test_configure_reads_a_copy_of_a_series_that_changes_while_it_is_read():
+    import subprocess
+    import sys
+
+    code = """if True:
+        from fuzzynav import _portable_math as k
+        series = []
+        class Shrinks:
+            def __float__(self):
+                series.clear()
+                return 1.0
+        series += [Shrinks(), 1.0, 2.0]
+        k.configure(series, [1.0], [1.0], 1.0, 1.0, 1.0)
+        print(k.sin_cos_deg(30.0)[0] == k.sin_cos_deg(30.0)[0])"""
+    if pm._kernel is None:
+        pytest.skip("the compiled kernel was not built (no C compiler at install)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "True"
