@@ -72,7 +72,58 @@ done:
     return result;
 }
 
+/* segment_point_clearance(start (2,), ends (S, 2), points (P, 2), out (S,)): for each move start -> ends[i], the
+ * smallest closest_approach(start - points[p], ends[i] - start) over the points (clearance.py's numpy form:
+ * segment_point_distance(...).min(axis=1), without its (S, P, 2) arrays); NaN when one of them is NaN, as numpy's
+ * min. P must be at least 1. */
+static PyObject *segment_point_clearance(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *objs[4];
+    if (!PyArg_UnpackTuple(args, "segment_point_clearance", 4, 4, &objs[0], &objs[1], &objs[2], &objs[3]))
+        return NULL;
+    static const char *what[4] = {"start", "ends", "points", "out"};
+    Py_buffer v[4];
+    Py_ssize_t len[4];
+    int got = 0;
+    PyObject *result = NULL;
+    for (; got < 4; got++)
+        if (get(objs[got], &v[got], got == 3, &len[got], what[got]) < 0) goto done;
+    Py_ssize_t n_moves = len[3], n_points = len[2] / 2;
+    if (len[0] != 2 || len[1] != 2 * n_moves || len[2] != 2 * n_points || n_points < 1) {
+        PyErr_SetString(PyExc_ValueError, "segment_point_clearance: start (2,), ends (S, 2), points (P >= 1, 2), "
+                                          "out (S,)");
+        goto done;
+    }
+    const double *a = v[0].buf, *e = v[1].buf, *q = v[2].buf;
+    double *out = v[3].buf;
+    for (Py_ssize_t i = 0; i < n_moves; i++) {
+        double dx = e[2 * i] - a[0], dy = e[2 * i + 1] - a[1]; /* b - a */
+        double dd = dx * dx + dy * dy;
+        double den = dd > 0 ? dd : 1.0;
+        double best = INFINITY;
+        int nan = 0;
+        for (Py_ssize_t k = 0; k < n_points; k++) {
+            double rx = a[0] - q[2 * k], ry = a[1] - q[2 * k + 1]; /* a - points */
+            double s = -(rx * dx + ry * dy) / den;
+            if (s < 0.0) s = 0.0;
+            if (s > 1.0) s = 1.0;
+            double px = rx + s * dx, py = ry + s * dy;
+            double d = sqrt(px * px + py * py);
+            if (d != d) nan = 1;
+            else if (d < best) best = d;
+        }
+        out[i] = nan ? NAN : best;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"segment_point_clearance", segment_point_clearance, METH_VARARGS,
+     "segment_point_clearance(start, ends, points, out): each move's smallest distance to the points, into out"},
     {"closest_approach", closest_approach, METH_VARARGS,
      "closest_approach(rel0, step, out): the smallest |rel0 + s step| over s in [0, 1] per pair, into out"},
     {NULL, NULL, 0, NULL},

@@ -172,9 +172,11 @@ def test_the_kernel_gives_the_numpy_forms_bits(monkeypatch, data, shapes, swap):
 
 
 def _outcome(call):
+    """The result's bits (a NaN's sign bit aside: nothing observes it) or the kind of error raised."""
     try:
         with np.errstate(all="ignore"):
-            return np.asarray(call()).tobytes()
+            result = np.asarray(call())
+            return np.where(np.isnan(result), np.nan, result).tobytes()
     except Exception as err:  # the kind of error is what is compared
         return type(err)
 
@@ -224,3 +226,41 @@ def test_keep_inside_moves_each_disc_back_and_stops_it_at_the_wall(discs, bounds
     want = _kept_inside_one_by_one(positions, velocities, radii, bounds)
     assert [a.tobytes() for a in got] == [a.tobytes() for a in want]
     assert got[0] is not positions and got[1] is not velocities
+
+
+# -- each move's clearance to the laser's returns (fuzzynav/clearance.py, the same kernel file) ---------------
+@pytest.mark.skipif(geo._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.data(), st.integers(0, 6), st.integers(0, 8))
+def test_the_clearance_kernel_gives_the_numpy_forms_bits(monkeypatch, data, n_moves, n_points):
+    from fuzzynav.clearance import segment_point_clearance
+
+    numbers = ANY if data.draw(st.booleans()) else COORD
+
+    def floats(n: int) -> np.ndarray:
+        return np.array(data.draw(st.lists(numbers, min_size=n, max_size=n)), dtype=float)
+
+    start, ends, points = floats(2), floats(2 * n_moves).reshape(-1, 2), floats(2 * n_points).reshape(-1, 2)
+    if data.draw(st.booleans()):
+        points = np.asfortranarray(np.repeat(points, 2, axis=0)[::2])  # a strided view's copy in another order
+    on = _outcome(lambda: segment_point_clearance(start, ends, points))
+    with monkeypatch.context() as m:
+        m.setenv("FUZZYNAV_KERNEL", "python")
+        off = _outcome(lambda: segment_point_clearance(start, ends, points))
+    assert on == off
+
+
+@pytest.mark.skipif(geo._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
+@pytest.mark.parametrize("start, ends, points", [
+    ([0.0, 0.0], [10.0, 0.0], [[5.0, 3.0]]), (np.zeros(2), np.ones((3, 2)), [[1, 2], [3, 4]]),
+    (np.zeros(2), np.ones((3, 2)), np.ones((4, 3))), (np.zeros(2), np.ones((3, 2)), None),
+    (np.zeros(2), np.empty((0, 2)), np.ones((4, 2))), (np.array([[0.0, 0.0]]), np.ones((3, 2)), np.ones((4, 2))),
+])
+def test_the_clearance_answers_alike_on_other_inputs(monkeypatch, start, ends, points):
+    from fuzzynav.clearance import segment_point_clearance
+
+    on = _outcome(lambda: segment_point_clearance(start, ends, points))
+    with monkeypatch.context() as m:
+        m.setenv("FUZZYNAV_KERNEL", "python")
+        off = _outcome(lambda: segment_point_clearance(start, ends, points))
+    assert on == off
