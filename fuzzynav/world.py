@@ -52,7 +52,7 @@ class World:
     def static_contact(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
         """True if a disc of ``radius`` cm moving straight from ``p0`` to ``p1`` touches an obstacle or wall."""
         # shapely's array constructors: the same geometry as Point / LineString, without their Python-level checks
-        path = shapely.points(p1) if dist(p0, p1) < 1e-9 else shapely.linestrings(np.stack([p0, p1]))
+        path = shapely.points(p1) if dist(p0, p1) < 1e-9 else shapely.linestrings(np.array([p0, p1], dtype=float))
         with np.errstate(divide="ignore", invalid="ignore"):
             return bool(shapely.dwithin(self.solid, path, radius - 1e-9))
 

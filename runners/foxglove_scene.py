@@ -58,7 +58,7 @@ def metres(cm: float) -> float:
 def _metres_array(points_cm) -> np.ndarray:
     """Every element of an array of cm in m, rounded to 0.1 mm by numpy (multiply, round half to even, divide: as
     :func:`metres`, but -0.0 where a negative value rounds to zero)."""
-    return np.round(np.asarray(points_cm, dtype=np.float64) / 100.0, 4)
+    return (np.asarray(points_cm, dtype=np.float64) / 100.0).round(4)  # np.round's own method, without its wrapper
 
 
 def points_m(points_cm, z_m: float) -> list[dict]:
