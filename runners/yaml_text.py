@@ -22,15 +22,20 @@ _KEY = re.compile(r"[ -~]{1,64}")  # PyYAML writes a key of 128 characters or mo
 _FAST = getattr(yaml, "CSafeDumper", None)  # None when PyYAML was built without libyaml
 
 
-def plain(value: Any) -> bool:
+def plain(value: Any, _seen: set[int] | None = None) -> bool:
     """Whether every string in ``value`` is non-empty printable ASCII, and every mapping key such a string of at most
-    64 characters."""
+    64 characters; False for data that holds one list or mapping twice (PyYAML writes it with anchors, and walking it
+    again at every reference could take exponential time)."""
     if type(value) is str:
         return _PRINTABLE_ASCII.fullmatch(value) is not None
-    if type(value) is dict:
-        return all(type(k) is str and _KEY.fullmatch(k) is not None and plain(v) for k, v in value.items())
-    if type(value) is list:
-        return all(map(plain, value))
+    if type(value) is dict or type(value) is list:
+        seen = set() if _seen is None else _seen
+        if id(value) in seen:
+            return False
+        seen.add(id(value))
+        if type(value) is dict:
+            return all(type(k) is str and _KEY.fullmatch(k) is not None and plain(v, seen) for k, v in value.items())
+        return all(plain(v, seen) for v in value)
     return isinstance(value, int | float) or value is None
 
 

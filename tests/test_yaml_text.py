@@ -68,3 +68,16 @@ def _as_data(value):
     if isinstance(value, list | tuple):
         return [_as_data(v) for v in value]
     return value
+
+
+def test_data_holding_a_list_or_mapping_twice_takes_pyyaml_at_once():
+    looped: list = []
+    looped.append(looped)
+    mapping: dict = {}
+    mapping["a"] = mapping
+    shared = [1]
+    for _ in range(40):  # 2**40 paths through the same lists
+        shared = [shared, shared]
+    for data in (looped, mapping, shared, {"a": [1], "b": None}):
+        assert yaml_text.dump(data) == yaml.safe_dump(data, sort_keys=False)
+    assert not yaml_text.plain(shared) and yaml_text.plain({"a": [1], "b": None})
