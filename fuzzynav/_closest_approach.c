@@ -23,12 +23,12 @@
 #pragma STDC FP_CONTRACT OFF
 #endif
 
-/* a C-contiguous float64 buffer, its item count in *n */
-static int get(PyObject *obj, Py_buffer *view, int writable, Py_ssize_t *n, const char *what) {
+/* a C-contiguous float64 buffer, its item count in *n (fn names the function in the error) */
+static int get(PyObject *obj, Py_buffer *view, int writable, Py_ssize_t *n, const char *fn, const char *what) {
     int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
     if (PyObject_GetBuffer(obj, view, flags) < 0) return -1;
     if (view->itemsize != 8 || view->format == NULL || strcmp(view->format, "d") != 0) {
-        PyErr_Format(PyExc_ValueError, "closest_approach: %s must be a C-contiguous float64 array", what);
+        PyErr_Format(PyExc_ValueError, "%s: %s must be a C-contiguous float64 array", fn, what);
         PyBuffer_Release(view);
         return -1;
     }
@@ -47,7 +47,7 @@ static PyObject *closest_approach(PyObject *self, PyObject *args) {
     int got = 0;
     PyObject *result = NULL;
     for (; got < 3; got++)
-        if (get(objs[got], &v[got], got == 2, &len[got], what[got]) < 0) goto done;
+        if (get(objs[got], &v[got], got == 2, &len[got], "closest_approach", what[got]) < 0) goto done;
     Py_ssize_t n = len[2];
     if (len[0] != 2 * n || len[1] != 2 * n) {
         PyErr_SetString(PyExc_ValueError, "closest_approach: rel0 and step must hold two numbers per item of out");
@@ -87,7 +87,7 @@ static PyObject *segment_point_clearance(PyObject *self, PyObject *args) {
     int got = 0;
     PyObject *result = NULL;
     for (; got < 4; got++)
-        if (get(objs[got], &v[got], got == 3, &len[got], what[got]) < 0) goto done;
+        if (get(objs[got], &v[got], got == 3, &len[got], "segment_point_clearance", what[got]) < 0) goto done;
     Py_ssize_t n_moves = len[3], n_points = len[2] / 2;
     if (len[0] != 2 || len[1] != 2 * n_moves || len[2] != 2 * n_points || n_points < 1) {
         PyErr_SetString(PyExc_ValueError, "segment_point_clearance: start (2,), ends (S, 2), points (P >= 1, 2), "

@@ -71,22 +71,25 @@ def log_path(out_dir: Path, scenario: str, cfg: dict[str, Any], seed: int) -> Pa
     return path
 
 
+def scenario_data(value: Any) -> Any:
+    """A scenario (or any part of it) as plain data for YAML: dataclasses as mappings without their None fields,
+    tuples as lists."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(value):
+        return {k: scenario_data(v) for k, v in dataclasses.asdict(value).items() if v is not None}
+    if isinstance(value, dict):
+        return {k: scenario_data(v) for k, v in value.items() if v is not None}
+    if isinstance(value, list | tuple):
+        return [scenario_data(v) for v in value]
+    return value
+
+
 @functools.lru_cache(maxsize=64)
 def scenario_yaml(scenario: Scenario) -> str:
     """The scenario as YAML (the exact world of the episode, generated ones included); cached, as every
     episode of a job logs the same scenario."""
-    import dataclasses
-
-    def clean(value):
-        if dataclasses.is_dataclass(value):
-            return {k: clean(v) for k, v in dataclasses.asdict(value).items() if v is not None}
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items() if v is not None}
-        if isinstance(value, list | tuple):
-            return [clean(v) for v in value]
-        return value
-
-    return yaml_text.dump(clean(scenario))
+    return yaml_text.dump(scenario_data(scenario))
 
 
 def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import pytest
 import yaml
 from hypothesis import given, settings
@@ -46,7 +44,7 @@ def test_other_strings_and_lone_scalars_take_pyyaml(data):
 
 def test_every_configured_scenario_is_written_as_pyyaml_writes_it():
     from runners.bench_crowd import _inputs
-    from runners.run import load_scenario, scenario_yaml
+    from runners.run import load_scenario, scenario_data, scenario_yaml
     from tests.conftest import ROOT
 
     for path in sorted((ROOT / "conf" / "scenario").glob("*.yaml")):
@@ -56,18 +54,9 @@ def test_every_configured_scenario_is_written_as_pyyaml_writes_it():
             scenario = load_scenario(base, 3)
         except Exception:  # a scenario that needs other inputs: its own tests load it
             continue
-        data = _as_data(scenario)
+        data = scenario_data(scenario)
         assert scenario_yaml(scenario) == yaml.safe_dump(data, sort_keys=False), path.name
 
-
-def _as_data(value):
-    if dataclasses.is_dataclass(value):
-        return {k: _as_data(v) for k, v in dataclasses.asdict(value).items() if v is not None}
-    if isinstance(value, dict):
-        return {k: _as_data(v) for k, v in value.items() if v is not None}
-    if isinstance(value, list | tuple):
-        return [_as_data(v) for v in value]
-    return value
 
 
 def test_data_holding_a_list_or_mapping_twice_takes_pyyaml_at_once():
