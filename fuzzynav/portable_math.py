@@ -56,8 +56,8 @@ _ATANH = _series(0, (2 * k + 1 for k in range(1, 12)))  # x^3 .. x^23, |x| <= 0.
 _EXP = (1.0, 1.0, *(float(Fraction(1, math.factorial(n))) for n in range(2, 17)))  # x^0 .. x^16, |x| <= 0.35
 
 
-# sin_cos_deg, atan2_deg (of Python floats) and sin_cos_deg_array in C when built at install: the same operations
-# in the same order, so the same bits (tests/test_portable_math.py); its series and constants are these
+# sin_cos_deg, atan2_deg (of Python floats), sin_cos_deg_array and atan2_deg_array in C when built at install: the
+# same operations in the same order, so the same bits (tests/test_portable_math.py); its series and constants are these
 _kernel = compiled.load("_portable_math")
 if _kernel is not None:
     _kernel.configure(_SIN, _COS, _ATAN, RAD_PER_DEG, DEG_PER_RAD, _TAN_PI_8)
@@ -138,6 +138,13 @@ def atan2_deg(y: float, x: float) -> float:
 def atan2_deg_array(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Elementwise :func:`atan2_deg`."""
     y, x = np.broadcast_arrays(np.asarray(y, dtype=float), np.asarray(x, dtype=float))
+    if _kernel is not None and not compiled.switched_off():
+        # contiguous aligned copies when needed (broadcast views and strided columns such as v[:, 1] are not)
+        y = y if y.flags.c_contiguous and y.flags.aligned else y.copy()
+        x = x if x.flags.c_contiguous and x.flags.aligned else x.copy()
+        out = np.empty(y.shape)
+        _kernel.atan2_deg_array(y, x, out)
+        return out
     ax, ay = np.abs(x), np.abs(y)
     zero = (ax == 0.0) & (ay == 0.0)
     big = np.where(ax >= ay, ax, ay)

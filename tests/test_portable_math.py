@@ -203,7 +203,9 @@ def _python_forms(monkeypatch, call):
 def test_the_kernel_gives_the_python_forms_bits(monkeypatch, a, b):
     with np.errstate(all="ignore"):
         for call in (lambda: pm.sin_cos_deg(a), lambda: (pm.atan2_deg(a, b),),
-                     lambda: tuple(x.tolist() for x in pm.sin_cos_deg_array(np.array([a, b, a + b])))):
+                     lambda: tuple(x.tolist() for x in pm.sin_cos_deg_array(np.array([a, b, a + b]))),
+                     lambda: tuple(pm.atan2_deg_array(np.array([a, b, -a, 0.0, a]), np.array([b, a, b, a, -0.0]))
+                                   .tolist())):
             on, off = call(), _python_forms(monkeypatch, call)
             assert [type(v) for v in on] == [type(v) for v in off]
             assert _bits(np.ravel(on)) == _bits(np.ravel(off))
@@ -215,6 +217,13 @@ def test_the_kernel_keeps_the_array_forms_shapes_and_the_scalar_forms_types(monk
         on = pm.sin_cos_deg_array(angles)
         off = _python_forms(monkeypatch, lambda angles=angles: pm.sin_cos_deg_array(angles))
         assert [(x.shape, x.dtype, x.tobytes()) for x in on] == [(x.shape, x.dtype, x.tobytes()) for x in off]
+    # broadcasting, strided columns, 0-d and empty inputs, ints
+    pairs = np.arange(24.0).reshape(12, 2) - 7.5
+    for y, x in ((pairs[:, 1], pairs[:, 0]), (pairs[:, 1], 3.0), (np.float64(-2.0), -0.0), (np.empty(0), np.empty(0)),
+                 ([1, -1, 0], [0, 0, 0]), (pairs.reshape(3, 4, 2)[..., 0], pairs.reshape(3, 4, 2)[..., 1])):
+        on_a = pm.atan2_deg_array(y, x)
+        off_a = _python_forms(monkeypatch, lambda y=y, x=x: pm.atan2_deg_array(y, x))
+        assert (on_a.shape, on_a.dtype, on_a.tobytes()) == (off_a.shape, off_a.dtype, off_a.tobytes())
     # numpy scalars and ints take the Python form, which keeps their types
     assert type(pm.sin_cos_deg(np.float64(30.0))[0]) is np.float64
     assert pm.atan2_deg(1, 1) == 45.0 and pm.sin_cos_deg(90) == (1.0, 0.0)
@@ -226,10 +235,17 @@ def test_nan_and_unaligned_inputs_answer_alike(monkeypatch):
     for y, x in ((0.0, nan), (-0.0, nan), (nan, 0.0), (nan, nan), (1.0, nan), (nan, -3.0)):
         on, off = pm.atan2_deg(y, x), _python_forms(monkeypatch, lambda y=y, x=x: pm.atan2_deg(y, x))
         assert math.isnan(on) and math.isnan(off)
+    ys, xs = np.array([0.0, -0.0, nan, nan, 1.0, nan, -1.0]), np.array([nan, nan, 0.0, nan, nan, -3.0, nan])
+    on_a = pm.atan2_deg_array(ys, xs)
+    assert np.isnan(on_a).all() and np.isnan(_python_forms(monkeypatch, lambda: pm.atan2_deg_array(ys, xs))).all()
     unaligned = np.frombuffer(bytearray(8 * 5 + 1), np.float64, offset=1)
     on = pm.sin_cos_deg_array(unaligned)
     off = _python_forms(monkeypatch, lambda: pm.sin_cos_deg_array(unaligned))
     assert [x.tobytes() for x in on] == [x.tobytes() for x in off]
+    unaligned[:] = [3.0, -4.0, 0.0, 1e-300, -7.0]
+    on_a = pm.atan2_deg_array(unaligned, unaligned[::-1].copy())
+    off_a = _python_forms(monkeypatch, lambda: pm.atan2_deg_array(unaligned, unaligned[::-1].copy()))
+    assert on_a.tobytes() == off_a.tobytes()
 
 
 def test_configure_reads_a_copy_of_a_series_that_changes_while_it_is_read():
