@@ -6,12 +6,15 @@
  * rounded), so the distances are its bits (tests/test_geometry.py compares them). The clip's sign of a zero s may
  * differ from numpy's; it cannot reach the result (rel0 + (+-0) step squares to the same). A NaN result is NaN in
  * both, its sign bit not always the same (nothing observes it: comparisons are false, the logs write null). No
- * floating-point warnings (numpy's errstate does not apply). Built with -ffp-contract=off (no fused multiply-adds); refuses -ffast-math and x87 arithmetic. Lengths in cm.
+ * floating-point warnings (numpy's errstate does not apply). Built with -ffp-contract=off (no fused multiply-adds);
+ * refuses -ffast-math and x87 arithmetic. Lengths in cm. The pair's formula is _closest_approach.h's.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
 #include <string.h>
+
+#include "_closest_approach.h"
 
 #if defined(__FAST_MATH__)
 #error "fuzzynav._closest_approach must not be built with -ffast-math"
@@ -55,16 +58,8 @@ static PyObject *closest_approach(PyObject *self, PyObject *args) {
     }
     const double *r = v[0].buf, *d = v[1].buf;
     double *out = v[2].buf;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double rx = r[2 * i], ry = r[2 * i + 1], dx = d[2 * i], dy = d[2 * i + 1];
-        double dd = dx * dx + dy * dy;                        /* dot2(step, step) */
-        double q = -(rx * dx + ry * dy) / (dd > 0 ? dd : 1.0); /* -dot2(rel0, step) / where(dd > 0, dd, 1) */
-        double s = q;                                         /* np.clip(q, 0, 1): NaN stays NaN */
-        if (s < 0.0) s = 0.0;
-        if (s > 1.0) s = 1.0;
-        double px = rx + s * dx, py = ry + s * dy;            /* rel0 + s[..., None] * step */
-        out[i] = sqrt(px * px + py * py);                     /* norm2 */
-    }
+    for (Py_ssize_t i = 0; i < n; i++)
+        out[i] = closest_approach_length(r[2 * i], r[2 * i + 1], d[2 * i], d[2 * i + 1]);
     result = Py_None;
     Py_INCREF(result);
 done:

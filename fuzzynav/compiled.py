@@ -16,7 +16,7 @@ from types import ModuleType
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
 # the modules pyproject.toml's ext-modules build
 KERNELS = ("_mamdani", "_raycast", "_tracking", "_mcap_chunk", "_social_force", "_json_checks", "_portable_random",
-           "_orca", "_closest_approach", "_portable_math")
+           "_orca", "_closest_approach", "_portable_math", "_tpt")
 
 
 def switched_off() -> bool:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzynav import compiled
 from fuzzynav.geometry import closest_approach, wrap_360
 from fuzzynav.portable_math import atan2_deg_array, hypot, norm2
 from fuzzynav.tracking import Track
@@ -97,25 +98,55 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     """Build the table for a robot at ``position`` (cm) heading for ``goal`` at ``speed`` (cm/s)."""
     if n_traj < 1:
         raise ValueError(f"planner.n_traj: must be >= 1, got {n_traj}")
-    robot = predict_robot(position, goal, speed, dt, n_traj)
     j = len(tracks)
     pos0 = np.array([[t.x, t.y] for t in tracks], dtype=float).reshape(j, 2)
     vel = np.array([[t.vx, t.vy] for t in tracks], dtype=float).reshape(j, 2)
     radii = np.array([t.radius for t in tracks], dtype=float)
+    if _kernel is not None and not compiled.switched_off():
+        robot, obstacles, collide = _tables_kernel(position, goal, speed, pos0, vel, radii, robot_radius, n_traj,
+                                                   dt, safety_margin, swept)
+    else:
+        robot, obstacles, collide = _tables_numpy(position, goal, speed, pos0, vel, radii, robot_radius, n_traj,
+                                                  dt, safety_margin, swept)
+    return TrajectoryPredictionTable(
+        robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
+        obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),
+        robot_radius=float(robot_radius), safety_margin=float(safety_margin), dt=float(dt),
+        goal=(float(goal[0]), float(goal[1])))
+
+
+def _tables_numpy(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
+                  vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
+                  safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The table's robot rows (n+1, 2), obstacle rows (n+1, J, 2) and collision marks (n+1, J), by numpy: the
+    definition (the compiled kernel performs these operations in this order)."""
+    robot = predict_robot(position, goal, speed, dt, n_traj)
     k = np.arange(n_traj + 1)[:, None, None] * dt
     obstacles = pos0[None, :, :] + vel[None, :, :] * k
     rel = obstacles - robot[:, None, :]  # (n+1, J, 2)
     limit = robot_radius + radii[None, :] + safety_margin
     collide = norm2(rel) < limit
-    if swept and n_traj >= 1 and j:
+    if swept and len(radii):
         # the relative motion over each step from the table's rows, not geometry.swept_distance's
         # (p1 - p0) - (o1 - o0): the two round differently and the recorded tables depend on these bits
         between = closest_approach(rel[:-1], rel[1:] - rel[:-1]) < limit
         earlier = collide[:-1].copy()  # a pass that starts in a marked predicted row is already in the table
         earlier[0] = False  # ... but row 0 is the present, not a prediction
         collide[1:] |= between & ~earlier
-    return TrajectoryPredictionTable(
-        robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
-        obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),
-        robot_radius=float(robot_radius), safety_margin=float(safety_margin), dt=float(dt),
-        goal=(float(goal[0]), float(goal[1])))
+    return robot, obstacles, collide
+
+
+def _tables_kernel(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
+                   vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
+                   safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_tables_numpy` by the compiled kernel (the same bits; the table is built at every step of every
+    TPT navigator, and its ~40 small numpy calls cost ~15x the kernel's time)."""
+    rows, j = n_traj + 1, len(radii)
+    robot, obstacles, collide = np.empty((rows, 2)), np.empty((rows, j, 2)), np.empty((rows, j), dtype=bool)
+    _kernel.tables(float(position[0]), float(position[1]), float(goal[0]), float(goal[1]), float(speed),
+                   float(dt), float(robot_radius), float(safety_margin), bool(swept), pos0, vel, radii, robot,
+                   obstacles, collide)
+    return robot, obstacles, collide
+
+
+_kernel = compiled.load("_tpt")
