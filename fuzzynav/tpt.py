@@ -118,8 +118,9 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
 def _tables_numpy(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
                   vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
                   safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The table's robot rows (n+1, 2), obstacle rows (n+1, J, 2) and collision marks (n+1, J), by numpy: the
-    definition (the compiled kernel performs these operations in this order)."""
+    """The table's robot rows (n+1, 2) cm, obstacle rows (n+1, J, 2) cm and collision marks (n+1, J), by numpy,
+    from the tracks' positions ``pos0`` (J, 2) cm, velocities ``vel`` (J, 2) cm/s and ``radii`` (J,) cm, with ``dt``
+    in s: the definition (the compiled kernel performs these operations in this order)."""
     robot = predict_robot(position, goal, speed, dt, n_traj)
     k = np.arange(n_traj + 1)[:, None, None] * dt
     obstacles = pos0[None, :, :] + vel[None, :, :] * k
