@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -17,6 +18,10 @@ from fuzzynav.portable_math import dist
 from fuzzynav.scenario import StaticObstacle
 
 _FRAME = 1.0e4  # thickness (cm) of the solid frame that stands for "outside the bounds"
+# static_contact answers without GEOS only when its own bound clears the disc by this much (cm): far more than the
+# rounding of the bound's few operations on any coordinates a scenario can have, so the answer is GEOS's answer
+_CLEAR_CM = 0.01
+_MAX_BOUNDING_DISCS = 12  # more obstacles than this: a loop over their discs costs more than GEOS's prepared test
 
 
 class World:
@@ -48,9 +53,44 @@ class World:
         self.segments = np.array(segs, dtype=float)
         self.circles = np.array(circles, dtype=float).reshape(-1, 3)
         self.segments.flags.writeable = self.circles.flags.writeable = False
+        #: (x, y, r) cm of a disc around each static obstacle's GEOS geometry (its vertices' bounding box centre and
+        #: their largest distance from it: the polygon is inside), for :meth:`static_contact`'s quick "far from
+        #: everything"; None when there are too many obstacles for that to pay
+        self.bounding_discs: tuple[tuple[float, float, float], ...] | None = None
+        parts = shapely.get_parts(self.obstacles)
+        if len(parts) <= _MAX_BOUNDING_DISCS:
+            discs = []
+            for part in parts:
+                xy = shapely.get_coordinates(part)
+                cx, cy = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
+                discs.append((float(cx), float(cy), float(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy).max())))
+            self.bounding_discs = tuple(discs)
+
+    def _clear_of_everything(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
+        """True when the path from ``p0`` to ``p1`` (cm) is, by a bound computed here, more than ``radius`` +
+        ``_CLEAR_CM`` cm from the walls and from every obstacle's bounding disc: then no disc of ``radius`` on it
+        touches anything, and GEOS would say so too. False means "ask GEOS" (also for NaN and for paths outside
+        the bounds)."""
+        if self.bounding_discs is None:
+            return False
+        x0, y0, x1, y1 = float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1])
+        xmin, ymin, xmax, ymax = self.bounds
+        limit = radius + _CLEAR_CM
+        # the distance to the outside of the (convex) bounds is smallest at an end of the path
+        if not min(x0 - xmin, xmax - x0, y0 - ymin, ymax - y0, x1 - xmin, xmax - x1, y1 - ymin, ymax - y1) > limit:
+            return False
+        dx, dy = x1 - x0, y1 - y0
+        length2 = dx * dx + dy * dy
+        for cx, cy, r in self.bounding_discs:
+            s = 0.0 if not length2 > 0.0 else min(max(((cx - x0) * dx + (cy - y0) * dy) / length2, 0.0), 1.0)
+            if not math.hypot(x0 + s * dx - cx, y0 + s * dy - cy) - r > limit:
+                return False
+        return True
 
     def static_contact(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
         """True if a disc of ``radius`` cm moving straight from ``p0`` to ``p1`` touches an obstacle or wall."""
+        if self._clear_of_everything(p0, p1, radius):
+            return False
         # shapely's array constructors: the same geometry as Point / LineString, without their Python-level checks
         path = shapely.points(p1) if dist(p0, p1) < 1e-9 else shapely.linestrings(np.array([p0, p1], dtype=float))
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -20,6 +20,9 @@
 6. Report: the time to write the report of 10,000 episodes (:mod:`runners.bench_report`).
 7. Crowds: ``crowd_crossing`` with 20 pedestrians of each obstacle model (scripted, social force, ORCA, random
    walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.bench_crowd`).
+8. Side by side with the commit issue #19 was filed against: CPU time per step on ``mixed`` with and without
+   logging, each tree in its own child process, alternated (:mod:`runners.bench_baseline`).
+9. Issue #19's targets, each with its value, threshold and verdict (:mod:`runners.bench_targets`).
 
 Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
 Writes ``bench.json`` (path with ``--out``).
@@ -524,6 +527,15 @@ def main(argv: list[str] | None = None) -> int:
 
     results["crowd"] = bench_crowd(2 if args.quick else 10)
     print_crowd(results["crowd"])
+    from runners.bench_baseline import bench_baseline, print_baseline  # target 3, side by side
+    from runners.bench_targets import print_targets, targets
+
+    results["baseline"] = bench_baseline(rounds=1, episodes=3, passes=1) if args.quick else bench_baseline()
+    print_baseline(results["baseline"])
+    results["targets"] = [{"name": t.name, "value": t.value, "threshold": t.threshold, "higher_is_better": t.higher,
+                           "unit": t.unit, "met": t.met, "note": t.note} for t in targets(results)]
+    print()
+    print_targets(results)
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(f"wrote {args.out}")
     differ = [r["controller"] for r in results["fuzzy"]

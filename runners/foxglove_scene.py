@@ -239,11 +239,14 @@ class StepScenes:
                            for oid, r, h in zip(obstacle_ids, radii_cm, headings, strict=True)]
         self._plan = b"[]"
         self._shows = np.array([h for *_, h in self._obstacles], dtype=bool)
+        self._any_shows = bool(self._shows.any())  # scripted obstacles only (e.g. ``mixed``): no arrow to draw
 
     def _arrow_quaternions(self, velocities_cm_s: np.ndarray) -> list[float]:
         """qz, qw, qz, qw, ... of the heading arrows drawn this step (the obstacles that show their heading and move),
         in obstacle order: :func:`half_angle` of each velocity's direction, in two array calls (the same bits as one
         at a time: the array and scalar forms of the portable functions agree bit for bit)."""
+        if not self._any_shows:
+            return []
         v = np.asarray(velocities_cm_s, dtype=np.float64).reshape(-1, 2)
         drawn = self._shows & ((v[:, 0] != 0.0) | (v[:, 1] != 0.0))
         if not drawn.any():

@@ -20,7 +20,7 @@ import logging
 import math
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -94,6 +94,19 @@ def _channels() -> tuple[foxglove.Context, dict[str, foxglove.Channel]]:
     return context, channels
 
 
+@functools.cache
+def _writes() -> dict[str, Callable[[bytes, int, None], None]]:
+    """For each topic, the function that writes encoded bytes at a log time (ns), called as ``write(data, ns,
+    None)``: the channel's ``base.log`` (what ``Channel.log`` calls for bytes after checking the message's type;
+    ~0.4 us less per message, ~10 messages a step), or ``Channel.log`` on an SDK without it."""
+    writes = {}
+    for topic, channel in _channels()[1].items():
+        base_log = getattr(getattr(channel, "base", None), "log", None)
+        writes[topic] = base_log if callable(base_log) else (
+            lambda data, ns, _sink, channel=channel: channel.log(data, log_time=ns))
+    return writes
+
+
 _OPEN: list[EpisodeLogWriter] = []  # the log being written in this process, if any
 
 # The SDK does not raise when writing a message fails (disk full, I/O error): it reports a warning on this
@@ -152,6 +165,7 @@ class EpisodeLogWriter:
             raise RuntimeError("an episode log is already open in this process: finish it first "
                                f"(episode seed {_OPEN[0].episode.seed})")
         context, self.channels = _channels()
+        self._writes = _writes()
         self.steps = 0
         self.finished = False
         self._last_time = 0.0
@@ -217,7 +231,7 @@ class EpisodeLogWriter:
 
     # -- writing helpers --------------------------------------------------------------------------------
     def _write(self, topic: str, t: float, message: dict) -> None:
-        self.channels[topic].log(orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY), log_time=round(t * 1e9))
+        self._writes[topic](orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY), round(t * 1e9), None)
 
     def log(self, t: float, level: int, text: str) -> None:
         """A human-readable event on ``/log``."""
@@ -308,9 +322,9 @@ class EpisodeLogWriter:
 
     def _write_scene(self, t: float, when: dict[str, int], rec: StepRecord) -> None:
         s, d = rec.state, rec.decision
-        self.channels["/scene"].log(self._scenes.message(
+        self._writes["/scene"](self._scenes.message(
             when, s.x, s.y, s.heading, rec.obstacle_positions, rec.obstacle_velocities, d.tpt, d.plan, d.new_plan),
-            log_time=round(t * 1e9))
+            round(t * 1e9), None)
 
     def _write_events(self, t: float, rec: StepRecord) -> None:
         d = rec.decision

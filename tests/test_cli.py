@@ -71,6 +71,15 @@ def test_bench_quick_writes_results(tmp_path):
         assert set(shape["phases_s"]) == {"start-up", "validation + workers", "episodes", "summary", "report"}
         assert shape["jobs"] * shape["episodes_per_job"] == data["sweep"]["episodes"]
     assert data["analysis"]["mean_steps"] > 80  # the target is stated for ~100-step episodes
+    base = data["baseline"]  # target 3 side by side with the issue's commit (in a checkout that has it)
+    if base["measured"]:
+        assert base["logged_ratio"] > 0 and base["plain_ratio"] > 0 and len(base["per_round"]) == 1
+        assert "side by side with commit c90ff86" in res.stdout
+    else:
+        assert base["why"] and "not measured" in res.stdout
+    assert "issue #19 targets:" in res.stdout
+    assert {t["name"][:1] for t in data["targets"]} == {"1", "2", "3", "4"}
+    assert all(t["met"] in (True, False, None) for t in data["targets"])
 
 
 def test_bench_refuses_an_unwritable_out_before_measuring(tmp_path):

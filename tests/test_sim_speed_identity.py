@@ -8,6 +8,9 @@ import math
 
 import numpy as np
 import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fuzzynav import tracking
 from fuzzynav.laser import LaserConfig, LaserScan, beam_directions
@@ -15,7 +18,7 @@ from fuzzynav.portable_math import fsum_dot, fsum_mean, norm2
 from fuzzynav.raycast import cast_rays
 from fuzzynav.scenario import Circle, StaticObstacle
 from fuzzynav.sonar import Sonar, SonarConfig
-from fuzzynav.world import World, world_of
+from fuzzynav.world import _MAX_BOUNDING_DISCS, World, world_of
 
 
 def _fit_disc_reference(points: np.ndarray) -> tuple[float, float, float, float]:
@@ -131,3 +134,70 @@ def test_shared_world_is_read_only_and_keyed_by_exact_inputs():
     assert not a.segments.flags.writeable and not a.circles.flags.writeable
     fresh = World((0.0, 0.0, 1000.0, 800.0), obstacles)
     assert fresh.segments.tobytes() == a.segments.tobytes() and fresh.circles.tobytes() == a.circles.tobytes()
+
+
+def _geos_contact(world: World, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
+    """static_contact's answer by GEOS alone (the form before its quick "far from everything" test)."""
+    path = shapely.points(p1) if math.dist(p0, p1) < 1e-9 else shapely.linestrings(np.array([p0, p1], dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return bool(shapely.dwithin(world.solid, path, radius - 1e-9))
+
+
+_coord = st.floats(-200.0, 1200.0, allow_nan=False)
+
+
+@st.composite
+def _worlds_and_paths(draw):
+    """A world of up to 14 circles and triangles (more than _MAX_BOUNDING_DISCS, so both paths are taken) and a
+    short path whose ends are often near an obstacle's rim or a wall (where the quick test must defer to GEOS)."""
+    obstacles = []
+    for _ in range(draw(st.integers(0, 14))):
+        cx, cy = draw(st.floats(50.0, 950.0)), draw(st.floats(50.0, 750.0))
+        if draw(st.booleans()):
+            obstacles.append(StaticObstacle(circle=Circle((cx, cy), draw(st.floats(1.0, 120.0)))))
+        else:
+            d = draw(st.lists(st.floats(-80.0, 80.0), min_size=4, max_size=4))
+            obstacles.append(StaticObstacle(polygon=((cx, cy), (cx + 60.0 + d[0], cy + d[1]),
+                                                     (cx + d[2], cy + 60.0 + d[3]))))
+    world = World((0.0, 0.0, 1000.0, 800.0), obstacles)
+    if obstacles and draw(st.booleans()):  # start at a rim point plus a little: the touching cases
+        ring = shapely.get_coordinates(world.obstacles)
+        x, y = ring[draw(st.integers(0, len(ring) - 1))]
+        p0 = np.array([x + draw(st.floats(-30.0, 30.0)), y + draw(st.floats(-30.0, 30.0))])
+    else:
+        p0 = np.array([draw(_coord), draw(_coord)])
+    p1 = p0 + np.array([draw(st.floats(-45.0, 45.0)), draw(st.floats(-45.0, 45.0))])
+    return world, p0, p1, draw(st.sampled_from([0.0, 1e-3, 5.0, 20.0, 23.7]))
+
+
+@settings(max_examples=600, deadline=None)
+@given(_worlds_and_paths())
+def test_static_contact_is_geos_answer(case):
+    """The quick bound says "clear" only where GEOS says so too: the contact flag (and the episode) is unchanged."""
+    world, p0, p1, radius = case
+    assert world.static_contact(p0, p1, radius) == _geos_contact(world, p0, p1, radius)
+
+
+def test_static_contact_quick_test_is_taken_and_deferred():
+    """Far from everything the answer comes without GEOS; near a rim, at the walls, with NaN or with many
+    obstacles it is GEOS's."""
+    obstacles = (StaticObstacle(circle=Circle((300.0, 300.0), 40.0)),
+                 StaticObstacle(polygon=((600.0, 100.0), (700.0, 100.0), (650.0, 200.0))))
+    w = World((0.0, 0.0, 1000.0, 800.0), obstacles)
+    r = 20.0
+    assert w._clear_of_everything(np.array([500.0, 500.0]), np.array([520.0, 500.0]), r)
+    for p0, p1 in (([300.0, 230.0], [300.0, 245.0]),   # 15 cm from the circle's bounding disc
+                   ([300.0, 200.0], [300.0, 261.0]),   # the path ends inside it
+                   ([15.0, 400.0], [30.0, 400.0])):    # at the wall
+        a, b = np.array(p0), np.array(p1)
+        assert not w._clear_of_everything(a, b, r)
+        assert w.static_contact(a, b, r) == _geos_contact(w, a, b, r)
+    assert w.static_contact(np.array([300.0, 200.0]), np.array([300.0, 261.0]), r)
+    nan = np.array([np.nan, 400.0]), np.array([30.0, 400.0])
+    assert not w._clear_of_everything(*nan, r)  # GEOS's error, as before
+    with pytest.raises(shapely.errors.GEOSException):
+        w.static_contact(*nan, r)
+    many = World((0.0, 0.0, 1000.0, 800.0), [StaticObstacle(circle=Circle((50.0 + 60.0 * k, 700.0), 5.0))
+                                            for k in range(_MAX_BOUNDING_DISCS + 1)])
+    assert many.bounding_discs is None
+    assert not many._clear_of_everything(np.array([500.0, 300.0]), np.array([520.0, 300.0]), r)

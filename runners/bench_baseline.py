@@ -1,0 +1,144 @@
+"""The simulation step side by side with an earlier commit (part of ``python -m runners.bench``): issue #19's
+target 3 asks for a step on ``mixed`` (laser perception, with logging) at least twice as fast as the code the
+issue was filed against, which a number printed on another day cannot show.
+
+The earlier commit's ``fuzzynav``, ``runners``, ``analysis`` and ``conf`` are taken from this checkout's git history
+(``git archive``, into a temporary directory) and imported from there, with this environment's libraries; each
+tree runs in its own child process, the trees alternating round by round (the first in one round is the second in
+the next), so that a slow spell of the machine hits both alike. A child runs its own tree's ``mixed`` scenario
+(``runners.bench._scenario_and_config``, ``runners.run.run_episode``: the same API at both commits) and reports
+CPU seconds per step (``time.process_time``: time the machine gives to other work is not counted), the best of
+three passes over the same seeds, without and with logging. The ratio of a round is earlier / this; the result is
+the median over rounds.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the commit issue #19 was filed against (its numbers: ~670 µs per logged step on ``mixed``); pure Python/numpy
+ISSUE_19_COMMIT = "c90ff8656d1b33455b27065835ab322b90ef7e3c"
+_TREE_PARTS = ("fuzzynav", "runners", "analysis", "conf")
+
+# Run in a child with the tree as its working directory: the tree's packages come first on sys.path, so they,
+# not this checkout's (installed in editable mode), are imported; the child checks that they were.
+_CHILD = r"""
+import json, sys, tempfile, time, warnings
+from pathlib import Path
+tree, episodes, passes = Path(sys.argv[1]).resolve(), int(sys.argv[2]), int(sys.argv[3])
+sys.path.insert(0, str(tree))
+warnings.filterwarnings("ignore")
+import fuzzynav
+if Path(fuzzynav.__file__).resolve().parent != tree / "fuzzynav":
+    raise SystemExit(f"imported {fuzzynav.__file__}, not the tree's fuzzynav")
+from runners.bench import _scenario_and_config
+from runners.run import run_episode
+scenario, evaluator, cfg = _scenario_and_config("mixed")
+with tempfile.TemporaryDirectory() as tmp:
+    def run(log):
+        t, steps = time.process_time(), 0
+        for seed in range(episodes):
+            path = Path(tmp) / f"{seed}.mcap" if log else None
+            steps += run_episode(scenario, evaluator, cfg, seed, path, "")["steps"]
+        return time.process_time() - t, steps
+    run(False), run(True)  # warm-up: imports, caches, the first files
+    plain, logged = [], []
+    for _ in range(passes):
+        seconds, steps = run(False)
+        plain.append(seconds)
+        logged.append(run(True)[0])
+print(json.dumps({"steps": steps, "plain_us_per_step": min(plain) / steps * 1e6,
+                  "logged_us_per_step": min(logged) / steps * 1e6}))
+"""
+
+
+class BaselineUnavailable(Exception):
+    """The earlier commit cannot be measured here (no git, not a checkout, the commit not in its history)."""
+
+
+def baseline_tree(commit: str, dest: Path) -> Path:
+    """Extract ``commit``'s ``fuzzynav``, ``runners``, ``analysis`` and ``conf`` from this checkout's history into
+    ``dest``; :class:`BaselineUnavailable` says why it cannot."""
+    if shutil.which("git") is None:
+        raise BaselineUnavailable("git is not installed")
+    if not (ROOT / ".git").exists():
+        raise BaselineUnavailable(f"{ROOT} is not a git checkout (an installed copy has no history)")
+    try:
+        res = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", commit, *_TREE_PARTS],
+                             capture_output=True, timeout=120)
+    except (OSError, subprocess.SubprocessError) as err:
+        raise BaselineUnavailable(f"git archive failed: {err}") from None
+    if res.returncode != 0:
+        first = (res.stderr.decode(errors="replace").strip().splitlines() or ["no output"])[0]
+        raise BaselineUnavailable(f"commit {commit[:12]} is not in this checkout's history (a shallow clone?): "
+                                  f"{first}")
+    with tarfile.open(fileobj=io.BytesIO(res.stdout)) as tar:
+        tar.extractall(dest, filter="data")
+    return dest
+
+
+def _measure(tree: Path, episodes: int, passes: int) -> dict[str, float]:
+    """One child process's result for ``tree`` (see ``_CHILD``)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(tree), str(episodes), str(passes)], cwd=tree, env=env,
+                         capture_output=True, text=True, timeout=1800)
+    if res.returncode != 0:
+        tail = (res.stderr.strip().splitlines() or ["no output"])[-1]
+        raise RuntimeError(f"the step measurement in {tree} failed: {tail}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def bench_baseline(commit: str = ISSUE_19_COMMIT, rounds: int = 5, episodes: int = 24,
+                   passes: int = 3) -> dict[str, Any]:
+    """CPU µs per step on ``mixed`` of this checkout and of ``commit``, alternated over ``rounds``, and the
+    ratios earlier / this (plain and logged; per round and their medians). ``{"measured": False, "why": ...}``
+    when the commit cannot be had here."""
+    with tempfile.TemporaryDirectory(prefix="fuzzynav-baseline-") as tmp:
+        try:
+            earlier = baseline_tree(commit, Path(tmp))
+        except BaselineUnavailable as err:
+            return {"measured": False, "commit": commit, "why": str(err)}
+        per_round = []
+        for k in range(rounds):
+            order = [("earlier", earlier), ("this", ROOT)]
+            if k % 2:
+                order.reverse()
+            per_round.append({name: _measure(tree, episodes, passes) for name, tree in order})
+    plain = [r["earlier"]["plain_us_per_step"] / r["this"]["plain_us_per_step"] for r in per_round]
+    logged = [r["earlier"]["logged_us_per_step"] / r["this"]["logged_us_per_step"] for r in per_round]
+    return {"measured": True, "commit": commit, "scenario": "mixed", "rounds": rounds, "episodes": episodes,
+            "passes": passes, "per_round": per_round, "plain_ratio_per_round": plain,
+            "logged_ratio_per_round": logged, "plain_ratio": statistics.median(plain),
+            "logged_ratio": statistics.median(logged),
+            "this_logged_us_per_step": statistics.median(r["this"]["logged_us_per_step"] for r in per_round),
+            "earlier_logged_us_per_step": statistics.median(r["earlier"]["logged_us_per_step"] for r in per_round)}
+
+
+def print_baseline(result: dict[str, Any]) -> None:
+    if not result["measured"]:
+        print(f"target 3 (issue #19, step vs commit {result['commit'][:7]}): not measured: {result['why']}")
+        return
+    steps = {r[name]["steps"] for r in result["per_round"] for name in ("earlier", "this")}
+    print(f"side by side with commit {result['commit'][:7]} (mixed, laser perception, {result['episodes']} episodes "
+          f"of {'/'.join(str(s) for s in sorted(steps))} steps in all, CPU time, best of {result['passes']}, "
+          f"{result['rounds']} alternated rounds): logged step {result['earlier_logged_us_per_step']:.0f} -> "
+          f"{result['this_logged_us_per_step']:.0f} µs")
+    print(f"  target 3 (issue #19, >= 2 meets it): {result['logged_ratio']:.2f} x with logging (rounds: "
+          + ", ".join(f"{r:.2f}" for r in result["logged_ratio_per_round"])
+          + f"), {result['plain_ratio']:.2f} x without (rounds: "
+          + ", ".join(f"{r:.2f}" for r in result["plain_ratio_per_round"]) + ")")
+
+
+if __name__ == "__main__":
+    print_baseline(bench_baseline(rounds=int(sys.argv[1]) if len(sys.argv) > 1 else 3))

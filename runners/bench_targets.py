@@ -1,0 +1,101 @@
+"""Issue #19's targets, read off one run of ``python -m runners.bench`` (its ``bench.json`` results): for each,
+the measured value, the threshold, their ratio and whether it is met. Printed last by the bench, so that one run
+says where every target stands.
+
+A target whose measurement is missing (a peer engine not installed, the issue-time commit not in this checkout's
+history) is reported as not measured, never as met.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+CROWD_STEPS_PER_S = 500.0  # target 3: steps/s with 20 reactive pedestrians, per core
+ANALYSIS_EPISODES_PER_S = 200.0  # target 4: 100-step episodes per second, one process
+REPORT_SECONDS = 60.0  # target 4: the report of 10,000 episodes
+RSS_GROWTH = 0.05  # target 4: "RSS flat" over a sweep: at most +5 % from 10 % of the episodes to the end
+AGREEMENT_DEG = 1e-9  # target 2: ours vs scikit-fuzzy (Δθ degrees; v is held to the same number in cm/s)
+STEP_RATIO = 2.0  # target 3: the logged step at least twice as fast as at the issue's commit
+
+
+@dataclass(frozen=True)
+class Target:
+    """One line of the summary: ``value`` against ``threshold`` (``higher`` is better, or lower; the line gives
+    value / threshold, which meets the target at >= 1 or <= 1), ``None`` when not measured (``note`` says why)."""
+
+    name: str
+    value: float | None
+    threshold: float
+    higher: bool
+    unit: str
+    note: str = ""
+
+    @property
+    def met(self) -> bool | None:
+        if self.value is None:
+            return None
+        return self.value >= self.threshold if self.higher else self.value <= self.threshold
+
+    def line(self) -> str:
+        if self.value is None:
+            return f"  {self.name}: not measured ({self.note})"
+        sign = ">=" if self.higher else "<="
+        verdict = "met" if self.met else "NOT met"
+        note = f"; {self.note}" if self.note else ""
+        unit = f" {self.unit}" if self.unit else ""
+        return (f"  {self.name}: {self.value:.3g}{unit} (target {sign} {self.threshold:g}: "
+                f"{self.value / self.threshold:.3g} of it) — {verdict}{note}")
+
+
+def targets(results: dict[str, Any]) -> list[Target]:
+    """The targets of issue #19 from a bench run's ``results`` (the dict written to ``bench.json``)."""
+    out = []
+    for row in results.get("fuzzy", []):
+        c = row["controller"]
+        peers = {p["engine"]: p for p in row.get("peers", [])}
+        missing = [name for name in ("ferrifuzz", "pyfuzzylite") if not peers.get(name, {}).get("installed")]
+        out.append(Target(f"1 peers in the table ({c})", None if missing else 2.0, 2.0, True, "peer engines",
+                          f"{', '.join(missing)} not installed: pip install -e '.[bench]'; pyfuzzylite --no-deps"
+                          if missing else "ferrifuzz, pyfuzzylite"))
+        ferri = "single_over_ferrifuzz" in row
+        why = "ferrifuzz not installed"
+        out.append(Target(f"2 single decision ours / ferrifuzz ({c})", row.get("single_over_ferrifuzz"), 1.0,
+                          False, "", "" if ferri else why))
+        out.append(Target(f"2 batch per core ours / ferrifuzz ({c})", row.get("batch_per_core_over_ferrifuzz"),
+                          1.0, False, "", "" if ferri else why))
+        out.append(Target(f"2 agreement with scikit-fuzzy ({c})",
+                          max(row["max_disagreement_dtheta_deg"], row["max_disagreement_v_cm_s"]), AGREEMENT_DEG,
+                          False, "deg / cm/s"))
+    base = results.get("baseline")
+    if base is not None:
+        measured = base.get("measured")
+        out.append(Target(f"3 logged step vs commit {base['commit'][:7]} (side by side)",
+                          base["logged_ratio"] if measured else None, STEP_RATIO, True, "x",
+                          f"without logging {base['plain_ratio']:.2f} x" if measured else base.get("why", "")))
+    crowd = results.get("crowd")
+    if crowd:
+        slowest = min(crowd, key=lambda r: r["steps_per_s_with_logging"])
+        out.append(Target("3 crowds, 20 pedestrians, slowest model", slowest["steps_per_s_with_logging"],
+                          CROWD_STEPS_PER_S, True, "steps/s", slowest["model"]))
+    if "analysis" in results:
+        out.append(Target("4 analysis, one process", results["analysis"]["episodes_per_s"], ANALYSIS_EPISODES_PER_S,
+                          True, "episodes/s"))
+    report = results.get("report")
+    if report:
+        big = report["synthetic"]
+        out.append(Target(f"4 report of {big['episodes']} episodes", big["total_s_estimate"], REPORT_SECONDS, False,
+                          "s", "read stage estimated, report stage measured"))
+    memory = results.get("memory")
+    if memory:
+        out.append(Target(f"4 RSS growth over {memory['episodes']} episodes", max(memory["growth"], 0.0) * 100,
+                          RSS_GROWTH * 100, False, "%"))
+    return out
+
+
+def print_targets(results: dict[str, Any]) -> None:
+    rows = targets(results)
+    met = sum(1 for t in rows if t.met)
+    print(f"issue #19 targets: {met} of {len(rows)} met in this run")
+    for t in rows:
+        print(t.line())
