@@ -8,8 +8,9 @@ tree runs in its own child process, the trees alternating round by round (the fi
 the next), so that a slow spell of the machine hits both alike. A child runs its own tree's ``mixed`` scenario
 (``runners.bench._scenario_and_config``, ``runners.run.run_episode``: the same API at both commits) and reports
 CPU seconds per step (``time.process_time``: time the machine gives to other work is not counted), the best of
-three passes over the same seeds, without and with logging. The ratio of a round is earlier / this; the result is
-the median over rounds.
+three passes over the same seeds, without and with logging, then the wall time per step by stage in one more
+logged pass (the stages ``runners.bench`` times, by the same function names at both commits). The ratio of a round
+is earlier / this; the result is the median over rounds.
 """
 
 from __future__ import annotations
@@ -32,18 +33,25 @@ ISSUE_19_COMMIT = "c90ff8656d1b33455b27065835ab322b90ef7e3c"
 _TREE_PARTS = ("fuzzynav", "runners", "analysis", "conf")
 
 # Run in a child with the tree as its working directory: the tree's packages come first on sys.path, so they,
-# not this checkout's (installed in editable mode), are imported; the child checks that they were.
+# not this checkout's (installed in editable mode), are imported; the child checks that every module of the project
+# it ran came from the tree.
 _CHILD = r"""
 import json, sys, tempfile, time, warnings
 from pathlib import Path
 tree, episodes, passes = Path(sys.argv[1]).resolve(), int(sys.argv[2]), int(sys.argv[3])
 sys.path.insert(0, str(tree))
 warnings.filterwarnings("ignore")
-import fuzzynav
-if Path(fuzzynav.__file__).resolve().parent != tree / "fuzzynav":
-    raise SystemExit(f"imported {fuzzynav.__file__}, not the tree's fuzzynav")
+def only_the_trees():
+    # every module of the project imported must be the tree's (the editable install's finder would supply one that
+    # the tree lacks from this checkout)
+    stray = sorted(name for name, module in list(sys.modules.items())
+                   if name.split(".")[0] in ("fuzzynav", "runners", "analysis") and getattr(module, "__file__", None)
+                   and not Path(module.__file__).resolve().is_relative_to(tree))
+    if stray:
+        raise SystemExit(f"modules not from the tree {tree}: {', '.join(stray)}")
 from runners.bench import _scenario_and_config
 from runners.run import run_episode
+only_the_trees()
 scenario, evaluator, cfg = _scenario_and_config("mixed")
 with tempfile.TemporaryDirectory() as tmp:
     def run(log):
@@ -58,8 +66,40 @@ with tempfile.TemporaryDirectory() as tmp:
         seconds, steps = run(False)
         plain.append(seconds)
         logged.append(run(True)[0])
-print(json.dumps({"steps": steps, "plain_us_per_step": min(plain) / steps * 1e6,
-                  "logged_us_per_step": min(logged) / steps * 1e6}))
+    # then one logged pass with wall-clock timers on the stages (the functions runners.bench times, by the same
+    # names at both commits); what is in none of them is "rest"
+    from fuzzynav import episode as episode_mod, laser as laser_mod, navigator as nav_mod
+    from fuzzynav.fuzzy_policy import FuzzyPolicy
+    from fuzzynav.sonar import Sonar
+    from runners.mcap_log import EpisodeLogWriter
+    total = {}
+    def timed(owner, attr, stage):
+        original = getattr(owner, attr)
+        def wrapper(*args, **kwargs):
+            t = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                total[stage] = total.get(stage, 0.0) + time.perf_counter() - t
+        setattr(owner, attr, wrapper)
+    for owner, attr, stage in ((Sonar, "read", "sensors"), (laser_mod, "scan", "sensors"),
+                               (episode_mod, "perceive", "tracking"), (nav_mod, "build_tpt", "tpt"),
+                               (nav_mod, "find_new_path", "planner"), (nav_mod.Navigator, "_still_valid", "planner"),
+                               (FuzzyPolicy, "fuzzy", "controller"), (EpisodeLogWriter, "step", "logging")):
+        timed(owner, attr, stage)
+    t = time.perf_counter()
+    run(True)
+    wall = time.perf_counter() - t
+    total["rest"] = max(wall - sum(total.values()), 0.0)
+only_the_trees()
+kernels = []
+if (tree / "fuzzynav" / "compiled.py").exists():  # a commit from before the compiled kernels has none
+    from fuzzynav import compiled
+    kernels = [name for name in compiled.KERNELS if compiled.load(name) is not None and not compiled.switched_off()
+               and Path(sys.modules[f"fuzzynav.{name}"].__file__).resolve().is_relative_to(tree)]
+print(json.dumps({"steps": steps, "kernels": kernels, "plain_us_per_step": min(plain) / steps * 1e6,
+                  "logged_us_per_step": min(logged) / steps * 1e6,
+                  "stage_us_per_step": {k: v / steps * 1e6 for k, v in total.items()}}))
 """
 
 
@@ -84,7 +124,10 @@ def baseline_tree(commit: str, dest: Path) -> Path:
         raise BaselineUnavailable(f"commit {commit[:12]} is not in this checkout's history (a shallow clone?): "
                                   f"{first}")
     with tarfile.open(fileobj=io.BytesIO(res.stdout)) as tar:
-        tar.extractall(dest, filter="data")
+        try:
+            tar.extractall(dest, filter="data")
+        except TypeError:  # Python 3.11.0-3.11.3 have no extraction filters (the archive is this checkout's own)
+            tar.extractall(dest)
     return dest
 
 
@@ -122,7 +165,16 @@ def bench_baseline(commit: str = ISSUE_19_COMMIT, rounds: int = 5, episodes: int
             "logged_ratio_per_round": logged, "plain_ratio": statistics.median(plain),
             "logged_ratio": statistics.median(logged),
             "this_logged_us_per_step": statistics.median(r["this"]["logged_us_per_step"] for r in per_round),
-            "earlier_logged_us_per_step": statistics.median(r["earlier"]["logged_us_per_step"] for r in per_round)}
+            "earlier_logged_us_per_step": statistics.median(r["earlier"]["logged_us_per_step"] for r in per_round),
+            "stage_us_per_step": {name: _median_stages([r[name]["stage_us_per_step"] for r in per_round])
+                                  for name in ("earlier", "this")}}
+
+
+def _median_stages(rounds: list[dict[str, float]]) -> dict[str, float]:
+    """Each stage's median over the rounds (0 in a round that did not time it), largest first."""
+    names = {k for r in rounds for k in r}
+    medians = {k: statistics.median(r.get(k, 0.0) for r in rounds) for k in names}
+    return dict(sorted(medians.items(), key=lambda kv: -kv[1]))
 
 
 def print_baseline(result: dict[str, Any]) -> None:
@@ -130,14 +182,19 @@ def print_baseline(result: dict[str, Any]) -> None:
         print(f"target 3 (issue #19, step vs commit {result['commit'][:7]}): not measured: {result['why']}")
         return
     steps = {r[name]["steps"] for r in result["per_round"] for name in ("earlier", "this")}
+    kernels = {name: len(result["per_round"][0][name]["kernels"]) for name in ("earlier", "this")}
     print(f"side by side with commit {result['commit'][:7]} (mixed, laser perception, {result['episodes']} episodes "
           f"of {'/'.join(str(s) for s in sorted(steps))} steps in all, CPU time, best of {result['passes']}, "
           f"{result['rounds']} alternated rounds): logged step {result['earlier_logged_us_per_step']:.0f} -> "
-          f"{result['this_logged_us_per_step']:.0f} µs")
+          f"{result['this_logged_us_per_step']:.0f} µs; compiled kernels in use: {kernels['earlier']} -> "
+          f"{kernels['this']}")
     print(f"  target 3 (issue #19, >= 2 meets it): {result['logged_ratio']:.2f} x with logging (rounds: "
           + ", ".join(f"{r:.2f}" for r in result["logged_ratio_per_round"])
           + f"), {result['plain_ratio']:.2f} x without (rounds: "
           + ", ".join(f"{r:.2f}" for r in result["plain_ratio_per_round"]) + ")")
+    earlier, this = result["stage_us_per_step"]["earlier"], result["stage_us_per_step"]["this"]
+    print("  wall µs per logged step by stage, earlier -> this (median of rounds): " + ", ".join(
+        f"{k} {earlier.get(k, 0.0):.0f} -> {this.get(k, 0.0):.0f}" for k in earlier | this))
 
 
 if __name__ == "__main__":

@@ -73,3 +73,15 @@ def test_baseline_outside_a_checkout_is_not_measured(monkeypatch, tmp_path):
     monkeypatch.setattr(bench_baseline, "ROOT", tmp_path)
     result = bench_baseline.bench_baseline(rounds=1, episodes=1, passes=1)
     assert result["measured"] is False and "not a git checkout" in result["why"]
+
+
+def test_baseline_child_refuses_modules_from_outside_its_tree(tmp_path):
+    """A module the earlier tree lacks would be found in this checkout by the editable install's finder: the
+    measurement would then time a mix of the two trees. The child refuses instead."""
+    try:
+        tree = bench_baseline.baseline_tree(bench_baseline.ISSUE_19_COMMIT, tmp_path)
+    except bench_baseline.BaselineUnavailable as err:  # e.g. a shallow clone
+        pytest.skip(str(err))
+    (tree / "fuzzynav" / "sonar.py").unlink()
+    with pytest.raises(RuntimeError, match=r"modules not from the tree .*fuzzynav\.sonar"):
+        bench_baseline._measure(tree, 1, 1)

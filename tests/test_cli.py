@@ -75,6 +75,8 @@ def test_bench_quick_writes_results(tmp_path):
     if base["measured"]:
         assert base["logged_ratio"] > 0 and base["plain_ratio"] > 0 and len(base["per_round"]) == 1
         assert "side by side with commit c90ff86" in res.stdout
+        for tree in ("earlier", "this"):  # the per-stage before/after
+            assert set(base["stage_us_per_step"][tree]) >= {"sensors", "tracking", "logging", "rest"}
     else:
         assert base["why"] and "not measured" in res.stdout
     assert "issue #19 targets:" in res.stdout
