@@ -53,6 +53,10 @@ class NormalStream:
 
     def draw(self, mean: float, std: float, size: int) -> np.ndarray:
         """The next ``size`` draws from N(mean, std²)."""
+        used = self._used
+        if used + size <= len(self._block):  # the usual case: a view of the block, no copy (the same values)
+            self._used = used + size
+            return mean + std * self._block[used:used + size]
         out = np.empty(size)
         filled = 0
         while filled < size:

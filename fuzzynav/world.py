@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import functools
 import itertools
-import math
 from collections.abc import Sequence
 
 import numpy as np
 import shapely
 from shapely.geometry import box
 
-from fuzzynav.portable_math import dist
+from fuzzynav.limits import MAX_COORD_CM
+from fuzzynav.portable_math import dist, hypot, norm2
 from fuzzynav.scenario import StaticObstacle
 
 _FRAME = 1.0e4  # thickness (cm) of the solid frame that stands for "outside the bounds"
@@ -22,6 +22,7 @@ _FRAME = 1.0e4  # thickness (cm) of the solid frame that stands for "outside the
 # rounding of the bound's few operations on any coordinates a scenario can have, so the answer is GEOS's answer
 _CLEAR_CM = 0.01
 _MAX_BOUNDING_DISCS = 12  # more obstacles than this: a loop over their discs costs more than GEOS's prepared test
+_BOUND_MAX_CM = 10 * MAX_COORD_CM  # larger numbers (a World built directly, not from a scenario): GEOS only
 
 
 class World:
@@ -62,9 +63,11 @@ class World:
             discs = []
             for part in parts:
                 xy = shapely.get_coordinates(part)
-                cx, cy = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
-                discs.append((float(cx), float(cy), float(np.hypot(xy[:, 0] - cx, xy[:, 1] - cy).max())))
-            self.bounding_discs = tuple(discs)
+                centre = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
+                discs.append((float(centre[0]), float(centre[1]), float(norm2(xy - centre).max())))
+            # the bound's rounding stays far below _CLEAR_CM only for numbers of a scenario's size
+            if all(abs(v) <= _BOUND_MAX_CM for v in (*self.bounds, *itertools.chain.from_iterable(discs))):
+                self.bounding_discs = tuple(discs)
 
     def _clear_of_everything(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> bool:
         """True when the path from ``p0`` to ``p1`` (cm) is, by a bound computed here, more than ``radius`` +
@@ -83,7 +86,7 @@ class World:
         length2 = dx * dx + dy * dy
         for cx, cy, r in self.bounding_discs:
             s = 0.0 if not length2 > 0.0 else min(max(((cx - x0) * dx + (cy - y0) * dy) / length2, 0.0), 1.0)
-            if not math.hypot(x0 + s * dx - cx, y0 + s * dy - cy) - r > limit:
+            if not hypot(x0 + s * dx - cx, y0 + s * dy - cy) - r > limit:
                 return False
         return True
 

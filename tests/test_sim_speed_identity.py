@@ -200,4 +200,7 @@ def test_static_contact_quick_test_is_taken_and_deferred():
     many = World((0.0, 0.0, 1000.0, 800.0), [StaticObstacle(circle=Circle((50.0 + 60.0 * k, 700.0), 5.0))
                                             for k in range(_MAX_BOUNDING_DISCS + 1)])
     assert many.bounding_discs is None
+    huge = World((0.0, 0.0, 1e300, 800.0), obstacles)  # built directly: beyond a scenario's numbers, GEOS only
+    assert huge.bounding_discs is None and not huge._clear_of_everything(np.array([5e299, 400.0]),
+                                                                         np.array([5e299, 420.0]), r)
     assert not many._clear_of_everything(np.array([500.0, 300.0]), np.array([520.0, 300.0]), r)
