@@ -139,25 +139,31 @@ def _measure(tree: Path, episodes: int, passes: int) -> dict[str, float]:
     if res.returncode != 0:
         tail = (res.stderr.strip().splitlines() or ["no output"])[-1]
         raise RuntimeError(f"the step measurement in {tree} failed: {tail}")
-    return json.loads(res.stdout.strip().splitlines()[-1])
+    try:
+        return json.loads((res.stdout.strip().splitlines() or [""])[-1])
+    except json.JSONDecodeError:
+        raise RuntimeError(f"the step measurement in {tree} printed no result") from None
 
 
 def bench_baseline(commit: str = ISSUE_19_COMMIT, rounds: int = 5, episodes: int = 24,
                    passes: int = 3) -> dict[str, Any]:
     """CPU µs per step on ``mixed`` of this checkout and of ``commit``, alternated over ``rounds``, and the
     ratios earlier / this (plain and logged; per round and their medians). ``{"measured": False, "why": ...}``
-    when the commit cannot be had here."""
+    when the commit cannot be had here or a measurement fails (the rest of the bench's results are kept)."""
     with tempfile.TemporaryDirectory(prefix="fuzzynav-baseline-") as tmp:
         try:
             earlier = baseline_tree(commit, Path(tmp))
         except BaselineUnavailable as err:
             return {"measured": False, "commit": commit, "why": str(err)}
         per_round = []
-        for k in range(rounds):
-            order = [("earlier", earlier), ("this", ROOT)]
-            if k % 2:
-                order.reverse()
-            per_round.append({name: _measure(tree, episodes, passes) for name, tree in order})
+        try:
+            for k in range(rounds):
+                order = [("earlier", earlier), ("this", ROOT)]
+                if k % 2:
+                    order.reverse()
+                per_round.append({name: _measure(tree, episodes, passes) for name, tree in order})
+        except RuntimeError as err:  # e.g. the earlier code does not run with this environment's libraries
+            return {"measured": False, "commit": commit, "why": str(err)}
     plain = [r["earlier"]["plain_us_per_step"] / r["this"]["plain_us_per_step"] for r in per_round]
     logged = [r["earlier"]["logged_us_per_step"] / r["this"]["logged_us_per_step"] for r in per_round]
     return {"measured": True, "commit": commit, "scenario": "mixed", "rounds": rounds, "episodes": episodes,

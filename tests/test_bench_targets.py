@@ -85,3 +85,15 @@ def test_baseline_child_refuses_modules_from_outside_its_tree(tmp_path):
     (tree / "fuzzynav" / "sonar.py").unlink()
     with pytest.raises(RuntimeError, match=r"modules not from the tree .*fuzzynav\.sonar"):
         bench_baseline._measure(tree, 1, 1)
+
+
+def test_baseline_that_cannot_run_is_not_measured_and_says_why(monkeypatch, tmp_path):
+    """A tree that fails in its child (here: no conf) is a "not measured" line, not a crash that loses the bench's
+    other results."""
+    def broken_tree(commit, dest):
+        (dest / "fuzzynav").mkdir()
+        (dest / "fuzzynav" / "__init__.py").write_text("raise ImportError('this tree is broken')\n")
+        return dest
+    monkeypatch.setattr(bench_baseline, "baseline_tree", broken_tree)
+    result = bench_baseline.bench_baseline(rounds=1, episodes=1, passes=1)
+    assert result["measured"] is False and "this tree is broken" in result["why"]
