@@ -15,9 +15,11 @@ is earlier / this; the result is the median over rounds.
 
 from __future__ import annotations
 
+import argparse
 import io
 import json
 import os
+import re
 import shutil
 import statistics
 import subprocess
@@ -27,10 +29,13 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from analysis.cli_args import OneLineParser
+
 ROOT = Path(__file__).resolve().parents[1]
 #: the commit issue #19 was filed against (its numbers: ~670 µs per logged step on ``mixed``); pure Python/numpy
 ISSUE_19_COMMIT = "c90ff8656d1b33455b27065835ab322b90ef7e3c"
 _TREE_PARTS = ("fuzzynav", "runners", "analysis", "conf")
+_COMMIT_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./~^-]{0,199}")
 
 # Run in a child with the tree as its working directory: the tree's packages come first on sys.path, so they,
 # not this checkout's (installed in editable mode), are imported; the child checks that every module of the project
@@ -110,6 +115,8 @@ class BaselineUnavailable(Exception):
 def baseline_tree(commit: str, dest: Path) -> Path:
     """Extract ``commit``'s ``fuzzynav``, ``runners``, ``analysis`` and ``conf`` from this checkout's history into
     ``dest``; :class:`BaselineUnavailable` says why it cannot."""
+    if not _COMMIT_NAME.fullmatch(commit):  # never an option of git's ("--output=...")
+        raise BaselineUnavailable(f"{commit!r} is not a commit name (hex digits, or a branch or tag name)")
     if shutil.which("git") is None:
         raise BaselineUnavailable("git is not installed")
     if not (ROOT / ".git").exists():
@@ -203,5 +210,31 @@ def print_baseline(result: dict[str, Any]) -> None:
         f"{k} {earlier.get(k, 0.0):.0f} -> {this.get(k, 0.0):.0f}" for k in earlier | this))
 
 
+def _count(text: str) -> int:
+    """argparse type: a whole number from 1 to 1000."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a whole number") from None
+    if not 1 <= value <= 1000:
+        raise argparse.ArgumentTypeError(f"must be 1 to 1000, got {value}")
+    return value
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m runners.bench_baseline [--commit C] [--rounds N] [--episodes N] [--passes N]``: the side-by-side
+    step measurement alone (exit 1 when it could not be measured)."""
+    parser = OneLineParser(prog="python -m runners.bench_baseline", description=__doc__.split("\n\n")[0],
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--commit", default=ISSUE_19_COMMIT, help="the earlier commit (default: issue #19's)")
+    parser.add_argument("--rounds", type=_count, default=5)
+    parser.add_argument("--episodes", type=_count, default=24)
+    parser.add_argument("--passes", type=_count, default=3)
+    args = parser.parse_args(argv)
+    result = bench_baseline(args.commit, args.rounds, args.episodes, args.passes)
+    print_baseline(result)
+    return 0 if result["measured"] else 1
+
+
 if __name__ == "__main__":
-    print_baseline(bench_baseline(rounds=int(sys.argv[1]) if len(sys.argv) > 1 else 3))
+    raise SystemExit(main())

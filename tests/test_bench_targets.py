@@ -97,3 +97,20 @@ def test_baseline_that_cannot_run_is_not_measured_and_says_why(monkeypatch, tmp_
     monkeypatch.setattr(bench_baseline, "baseline_tree", broken_tree)
     result = bench_baseline.bench_baseline(rounds=1, episodes=1, passes=1)
     assert result["measured"] is False and "this tree is broken" in result["why"]
+
+
+@pytest.mark.parametrize("commit", ["--output=/tmp/x.tar", "-h", "", "a b", "HEAD;rm", "x" * 300])
+def test_baseline_commit_is_never_an_option_of_git(commit, tmp_path):
+    result = bench_baseline.bench_baseline(commit, rounds=1, episodes=1, passes=1)
+    assert result["measured"] is False and "is not a commit name" in result["why"]
+    assert not (tmp_path / "x.tar").exists()
+
+
+@pytest.mark.parametrize(("args", "field"), [(["--rounds", "0"], "--rounds"), (["--rounds", "x"], "--rounds"),
+                                             (["--episodes", "1e9"], "--episodes"), (["--passes", "-1"], "--passes"),
+                                             (["--nope"], "--nope")])
+def test_baseline_cli_refuses_bad_arguments_in_one_line(args, field, capsys):
+    with pytest.raises(SystemExit) as stop:
+        bench_baseline.main(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert stop.value.code == 2 and len(err) == 1 and err[0].startswith("error: ") and field in err[0], err
