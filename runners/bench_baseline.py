@@ -71,30 +71,24 @@ with tempfile.TemporaryDirectory() as tmp:
         seconds, steps = run(False)
         plain.append(seconds)
         logged.append(run(True)[0])
-    # then one logged pass with wall-clock timers on the stages (the functions runners.bench times, by the same
-    # names at both commits); what is in none of them is "rest"
+    # then one logged pass with runners.bench's wall-clock timers (the tree's own _Timers, the same at both commits)
+    # on the functions it times, by the same names at both commits; what is in none of them is "rest"
     from fuzzynav import episode as episode_mod, laser as laser_mod, navigator as nav_mod
     from fuzzynav.fuzzy_policy import FuzzyPolicy
     from fuzzynav.sonar import Sonar
+    from runners.bench import _Timers
     from runners.mcap_log import EpisodeLogWriter
-    total = {}
-    def timed(owner, attr, stage):
-        original = getattr(owner, attr)
-        def wrapper(*args, **kwargs):
-            t = time.perf_counter()
-            try:
-                return original(*args, **kwargs)
-            finally:
-                total[stage] = total.get(stage, 0.0) + time.perf_counter() - t
-        setattr(owner, attr, wrapper)
+    timers = _Timers()
     for owner, attr, stage in ((Sonar, "read", "sensors"), (laser_mod, "scan", "sensors"),
                                (episode_mod, "perceive", "tracking"), (nav_mod, "build_tpt", "tpt"),
                                (nav_mod, "find_new_path", "planner"), (nav_mod.Navigator, "_still_valid", "planner"),
                                (FuzzyPolicy, "fuzzy", "controller"), (EpisodeLogWriter, "step", "logging")):
-        timed(owner, attr, stage)
+        timers.wrap(owner, attr, stage)
     t = time.perf_counter()
     run(True)
     wall = time.perf_counter() - t
+    timers.restore()
+    total = dict(timers.total)
     total["rest"] = max(wall - sum(total.values()), 0.0)
 only_the_trees()
 kernels = []
