@@ -18,12 +18,12 @@ from itertools import chain, repeat
 from operator import eq, itemgetter
 from typing import Any
 
-from fuzzynav import compiled
+from fuzzynav.numerics import compiled
 
 MAX_CM = 1e9  # the scenario files' limit on coordinates (cm): the default magnitude bound of a number
 
 # the one-pass C forms of the array tests below (same answers; None when not built at install)
-_kernel = compiled.load("_json_checks")
+_kernel = compiled.load("analysis._json_checks")
 
 
 def _kernel_on() -> bool:

@@ -22,7 +22,7 @@ from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import Any, BinaryIO
 
-from fuzzynav import compiled
+from fuzzynav.numerics import compiled
 
 MAGIC = b"\x89MCAP0\r\n"
 MAX_FILE_BYTES = 256 * 2**20  # a 10,000-step episode's log is ~20 MB: anything larger is not a fuzzynav log
@@ -42,11 +42,11 @@ _CHUNK_HEAD = struct.Struct("<QQQI")  # message start time, end time, uncompress
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 _MESSAGE_START = struct.Struct("<BQH4xQ")  # a record's opcode and length, and if it is a message its channel and time
 
-# The chunk record loop in C (fuzzynav/_mcap_chunk.c; None when not built): the same messages and errors as
+# The chunk record loop in C (analysis/_mcap_chunk.c; None when not built): the same messages and errors as
 # _Reader._scan_python. Tests set this to None to force the Python loop.
-_mcap_chunk = compiled.load("_mcap_chunk")
+_mcap_chunk = compiled.load("analysis._mcap_chunk")
 # what the loop stops at: the end, a schema or channel record for Python to file, or one of the errors below
-# (the numbers are fuzzynav/_mcap_chunk.c's codes)
+# (the numbers are analysis/_mcap_chunk.c's codes)
 _DONE, _INNER, _CUT, _PAST_END, _TOO_SHORT, _UNDECLARED, _NOT_IN_CHUNK = range(7)
 
 
@@ -295,7 +295,7 @@ class _Reader:
             self._scan_python(records, at)
 
     def _scan_compiled(self, records: bytes, at: int) -> None:
-        """:meth:`_scan_python` with its loop over messages in C (``fuzzynav._mcap_chunk``), which hands each
+        """:meth:`_scan_python` with its loop over messages in C (``analysis._mcap_chunk``), which hands each
         schema and channel record back here in file order (a channel record changes ``keep`` for the messages
         after it)."""
         scan, keep, messages = self.scan, self.keep, self.out.messages

@@ -27,8 +27,8 @@ from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, find_logs, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import MODEL_COLUMNS, model_columns, tpt_errors
-from fuzzynav.geometry import swept_distance, wrap_180
-from fuzzynav.portable_math import bearing_deg, dist, norm2
+from fuzzynav.numerics.geometry import swept_distance, wrap_180
+from fuzzynav.numerics.portable_math import bearing_deg, dist, norm2
 
 PARAMETERS = EPISODE_PARAMETERS
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")

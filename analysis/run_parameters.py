@@ -34,9 +34,6 @@ from typing import Any
 
 import yaml
 
-from fuzzynav.policies import BUILTIN
-from fuzzynav.policy import DEFAULT_POLICY  # a navigator section naming no policy
-
 EPISODE_PARAMETERS = ("scenario", "policy", "strategy", "h_wait", "seed", "controller", "perception")
 """Columns of every per-episode table, in this order (from the metadata; ``seed`` says which episode)."""
 SHOWN = ("scenario", "policy", "strategy", "h_wait", "controller", "perception")
@@ -52,7 +49,11 @@ NAMED_SUBTREES = {"scenario.": "scenario", "controller.": "controller", "navigat
 weights are not a dimension of a comparison of DWA with APF, but are of two DWA runs that differ in them)."""
 
 STRATEGY_ORDER = ("auto", "wait", "detour", "none")
-POLICY_ORDER = tuple(policy.name for policy in BUILTIN)  # the paper's first, then the baselines, direct last
+#: the policy of logs written before policies could be chosen: the paper's fuzzy controller
+LEGACY_POLICY = "fuzzy"
+#: the order of policies in tables and figures: the paper's first, the floor (straight to the goal) last, the rest
+#: by name; the names come from the logs, so a new policy needs no entry here
+POLICY_FIRST, POLICY_LAST = "fuzzy", "direct"
 CONFIG = "config"  # "logged", or "none" for a log without a readable config: its config keys are unknown, not unset
 UNSET = "unset"  # label of a parameter a log does not have (e.g. a key added to the config later)
 SEP = " · "
@@ -109,7 +110,7 @@ def parameters_of(meta: Mapping[str, str], config: Mapping[str, Any] | None = No
     the shown parameters, provenance and ``config=none``."""
     params: dict[str, Any] = {key: meta.get(key) for key in SHOWN}
     params["h_wait"] = _int(params["h_wait"])
-    params["policy"] = params["policy"] or DEFAULT_POLICY  # logs written before policies could be chosen
+    params["policy"] = params["policy"] or LEGACY_POLICY  # logs written before policies could be chosen
     if config is None:
         try:
             config = yaml.load(meta.get("config") or "", Loader=_YAML_LOADER)
@@ -254,7 +255,7 @@ class Grouping:
         strategy = str(run.get("strategy"))
         rank = STRATEGY_ORDER.index(strategy) if strategy in STRATEGY_ORDER else len(STRATEGY_ORDER)
         policy = str(run.get("policy"))
-        policy_rank = ((POLICY_ORDER.index(policy) if policy in POLICY_ORDER else len(POLICY_ORDER), policy)
+        policy_rank = ((0 if policy == POLICY_FIRST else 2 if policy == POLICY_LAST else 1, policy)
                        if "policy" in self.variant_keys else ())
         return (str(run.get("scenario")), *(_order(run.get(k, _MISSING)) for k in self.scenario_keys), *policy_rank,
                 rank, strategy, _order(run.get("h_wait")), *(_order(run.get(k, _MISSING)) for k in self.variant_keys))

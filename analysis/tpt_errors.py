@@ -20,15 +20,15 @@ import numpy as np
 
 from analysis.episode_check import parse_world
 from analysis.episode_log import EpisodeLog
-from fuzzynav import compiled
-from fuzzynav.obstacle_model import DEFAULT_MODEL
-from fuzzynav.portable_math import norm2
+from fuzzynav.numerics import compiled
+from fuzzynav.numerics.portable_math import norm2
+from fuzzynav.pedestrians.base import DEFAULT_MODEL
 
 #: the models whose errors have their own columns (``tpt_ade_cm_<model>``, ``tpt_fde_cm_<model>``): fuzzynav's
 #: built-ins; an obstacle of another model counts in ``tpt_ade_cm`` only
 MODEL_COLUMNS = ("scripted", "social_force", "orca", "random_walk")
 _XY = itemgetter("x_cm", "y_cm")
-_kernel = compiled.load("_json_checks")  # its table_pairs reads the tables' coordinates (None when not built)
+_kernel = compiled.load("analysis._json_checks")  # its table_pairs reads the tables' coordinates (None when not built)
 
 
 def obstacle_models(meta: Mapping[str, str]) -> dict[str, str]:

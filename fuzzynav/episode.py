@@ -20,24 +20,24 @@ from typing import Any
 
 import numpy as np
 
-from fuzzynav import laser as laser_mod
-from fuzzynav import portable_math
-from fuzzynav.checks import check_config_fields
-from fuzzynav.crowd import Crowd, check_crowd_work
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec
-from fuzzynav.geometry import swept_distance, wrap_360
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_spec import ControllerSpec
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.laser import LaserConfig, LaserScan
-from fuzzynav.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation, build_navigator
-from fuzzynav.perception import Perceived, PerceptionConfig, perceive
-from fuzzynav.planner import PlannerConfig
-from fuzzynav.policy import Policy
-from fuzzynav.portable_random import NormalStream
-from fuzzynav.scenario import Scenario
-from fuzzynav.sonar import Sonar, SonarConfig
-from fuzzynav.tracking import Track, TrackerState
-from fuzzynav.world import world_of
+from fuzzynav.numerics import portable_math
+from fuzzynav.numerics.geometry import swept_distance, wrap_360
+from fuzzynav.numerics.portable_random import NormalStream
+from fuzzynav.params.checks import check_config_fields
+from fuzzynav.pedestrians.crowd import Crowd, check_crowd_work
+from fuzzynav.planning.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation, build_navigator
+from fuzzynav.planning.planner import PlannerConfig
+from fuzzynav.policies.base import Policy
+from fuzzynav.scenarios.scenario import Scenario
+from fuzzynav.scenarios.world import world_of
+from fuzzynav.sensing import laser as laser_mod
+from fuzzynav.sensing.laser import LaserConfig, LaserScan
+from fuzzynav.sensing.perception import Perceived, PerceptionConfig, perceive
+from fuzzynav.sensing.sonar import Sonar, SonarConfig
+from fuzzynav.sensing.tracking import Track, TrackerState
 
 OUTCOMES = ("goal", "collision", "timeout")
 
@@ -45,7 +45,7 @@ OUTCOMES = ("goal", "collision", "timeout")
 @dataclass(frozen=True)
 class EpisodeConfig:
     """Everything but the scenario and the controller definition. ``dt`` in seconds. ``policy`` names the
-    navigation policy (registered name or import path, :mod:`fuzzynav.policy`) and ``navigator`` holds its
+    navigation policy (registered name or import path, :mod:`fuzzynav.policies.base`) and ``navigator`` holds its
     parameters (for ``fuzzy``, a :class:`NavigatorConfig`)."""
 
     dt: float = 1.0
@@ -61,7 +61,8 @@ class EpisodeConfig:
     def __post_init__(self) -> None:
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise ValueError(f"dt: must be a positive number of seconds, got {self.dt}")
-        check_config_fields(self)  # every number of the tree: finite and in its documented range (fuzzynav.limits)
+        # every number of the tree: finite and in its documented range (fuzzynav.params.limits)
+        check_config_fields(self)
         self._check_speeds_fit_robot()
 
     def _check_speeds_fit_robot(self) -> None:

@@ -35,7 +35,7 @@ def _digest(config_yaml: str, ignored: tuple[str, ...], seed: int | str, fuzzyna
 def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str, policy_source: str = "") -> str:
     """The identity of the episode of ``seed`` run with the resolved config ``config_yaml`` by this fuzzynav
     version, whatever the seed batching (see the module docstring); ``policy_source``: the digest of a
-    ``_target_`` policy's source (:func:`fuzzynav.policy.policy_source_digest`; '' for fuzzynav's own policies,
+    ``_target_`` policy's source (:func:`fuzzynav.policies.base.policy_source_digest`; '' for fuzzynav's own policies,
     which leaves the key as it was before policies could be chosen)."""
     version = f"{fuzzynav_version}+policy:{policy_source}" if policy_source else fuzzynav_version
     return _digest(config_yaml, BATCHING_KEYS, seed, version)

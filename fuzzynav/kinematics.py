@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from fuzzynav import portable_math
-from fuzzynav.geometry import wrap_180, wrap_360
-from fuzzynav.portable_math import bearing_deg
+from fuzzynav.numerics import portable_math
+from fuzzynav.numerics.geometry import wrap_180, wrap_360
+from fuzzynav.numerics.portable_math import bearing_deg
 
 # navigator.py takes its goal bearing and heading wrap from here, under these names
 wrap_deg = wrap_180

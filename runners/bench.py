@@ -45,9 +45,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_reference import SkfuzzyEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
+from fuzzynav.controller.fuzzy_spec import ControllerSpec
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 
@@ -233,13 +233,13 @@ def bench_simulation(episodes: int, reps: int) -> dict:
 def stage_timers(obstacles: bool = False) -> _Timers:
     """Timers on the stages of a step (call :meth:`_Timers.restore` afterwards): sensors (sonar and laser), tracking
     (perception), TPT, planner, controller, logging and, with ``obstacles``, the obstacle models' motion
-    (:meth:`fuzzynav.crowd.Crowd.step`); what is left of a run's time is ``rest``."""
+    (:meth:`fuzzynav.pedestrians.crowd.Crowd.step`); what is left of a run's time is ``rest``."""
     from fuzzynav import episode as episode_mod
-    from fuzzynav import laser as laser_mod
-    from fuzzynav import navigator as nav_mod
-    from fuzzynav.crowd import Crowd
-    from fuzzynav.fuzzy_policy import FuzzyPolicy
-    from fuzzynav.sonar import Sonar
+    from fuzzynav.pedestrians.crowd import Crowd
+    from fuzzynav.planning import navigator as nav_mod
+    from fuzzynav.policies.fuzzy import FuzzyPolicy
+    from fuzzynav.sensing import laser as laser_mod
+    from fuzzynav.sensing.sonar import Sonar
     from runners.mcap_log import EpisodeLogWriter
 
     timers = _Timers()
@@ -478,7 +478,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     warnings.filterwarnings("ignore", category=DeprecationWarning)
     n_single, n_ref, reps = (200, 20, 3) if args.quick else (1000, 200, 7)
-    from fuzzynav import compiled
+    from fuzzynav.numerics import compiled
 
     kernels = {name: compiled.load(name) is not None and not compiled.switched_off()
                for name in compiled.KERNELS}
@@ -490,7 +490,7 @@ def main(argv: list[str] | None = None) -> int:
     results["sweep"] = bench_sweep(100, rounds=1) if args.quick else bench_sweep(1000)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
-    print("compiled kernels (fuzzynav/compiled.py): " + ", ".join(
+    print("compiled kernels (fuzzynav/numerics/compiled.py): " + ", ".join(
         f"{name} {'in use' if on else 'not in use (Python/numpy form)'}" for name, on in kernels.items()))
     print_fuzzy(results["fuzzy"])
     sim = results["simulation"]

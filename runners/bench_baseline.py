@@ -73,9 +73,11 @@ with tempfile.TemporaryDirectory() as tmp:
         logged.append(run(True)[0])
     # then one logged pass with runners.bench's wall-clock timers (the tree's own _Timers, the same at both commits)
     # on the functions it times, by the same names at both commits; what is in none of them is "rest"
-    from fuzzynav import episode as episode_mod, laser as laser_mod, navigator as nav_mod
-    from fuzzynav.fuzzy_policy import FuzzyPolicy
-    from fuzzynav.sonar import Sonar
+    from fuzzynav import episode as episode_mod
+    from fuzzynav.sensing import laser as laser_mod
+    from fuzzynav.planning import navigator as nav_mod
+    from fuzzynav.policies.fuzzy import FuzzyPolicy
+    from fuzzynav.sensing.sonar import Sonar
     from runners.bench import _Timers
     from runners.mcap_log import EpisodeLogWriter
     timers = _Timers()
@@ -93,7 +95,7 @@ with tempfile.TemporaryDirectory() as tmp:
 only_the_trees()
 kernels = []
 if (tree / "fuzzynav" / "compiled.py").exists():  # a commit from before the compiled kernels has none
-    from fuzzynav import compiled
+    from fuzzynav.numerics import compiled
     kernels = [name for name in compiled.KERNELS if compiled.load(name) is not None and not compiled.switched_off()
                and Path(sys.modules[f"fuzzynav.{name}"].__file__).resolve().is_relative_to(tree)]
 print(json.dumps({"steps": steps, "kernels": kernels, "plain_us_per_step": min(plain) / steps * 1e6,

@@ -31,7 +31,7 @@ def _inputs(model: str, n: int) -> dict[str, Any]:
 def bench_crowd(episodes: int, n: int = 20, max_steps: int = 60) -> list[dict[str, Any]]:
     """For each model: steps/s with logging over ``episodes`` episodes (seeds 0..episodes-1, at most ``max_steps``
     steps each, after a warm-up episode), then, in a second timed pass, the µs per step by stage
-    (:func:`runners.bench.stage_timers`; ``obstacles`` is the model's :meth:`fuzzynav.crowd.Crowd.step`)."""
+    (:func:`runners.bench.stage_timers`; ``obstacles`` is the model's :meth:`fuzzynav.pedestrians.crowd.Crowd.step`)."""
     from runners.bench import stage_timers
     from runners.run import episode_config, load_evaluator, load_scenario, run_episode
 

@@ -3,13 +3,13 @@
 Each adapter builds the peer's Mamdani controller from our definition — the same membership functions
 (trapezoid, triangle, Gaussian with the same parameters), the same 28 (or however many) rules, min (AND),
 min implication, max aggregation, centroid defuzzification — and answers ``evaluate(inputs)`` like
-:class:`fuzzynav.fuzzy_fast.FastEvaluator` (scalars give floats, 1-D arrays give arrays; variables' units:
+:class:`fuzzynav.controller.fuzzy_fast.FastEvaluator` (scalars give floats, 1-D arrays give arrays; variables' units:
 cm, degrees, cm/s). Rows where no rule fires give the definition's fallback, as ours do.
 
 What a peer cannot express exactly (its agreement with scikit-fuzzy is measured and reported, not assumed):
 
 - **crisp inputs** (the angle's right/left of Table 1): no peer has a half-open 0/1 interval; as the
-  scikit-fuzzy reference does (:func:`fuzzynav.fuzzy_spec.crisp_snap`), a crisp input is snapped to the
+  scikit-fuzzy reference does (:func:`fuzzynav.controller.fuzzy_spec.crisp_snap`), a crisp input is snapped to the
   midpoint of its interval first, where a rectangle (ferrifuzz: a trapezoid with vertical sides) is exact;
 - **the centroid's discretisation**: scikit-fuzzy (and ours) integrate the polyline through the grid samples
   plus the points where each term crosses its cut level; ferrifuzz samples the aggregated set on
@@ -32,7 +32,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fuzzynav.fuzzy_spec import ControllerSpec, Term, Variable, crisp_snap
+from fuzzynav.controller.fuzzy_spec import ControllerSpec, Term, Variable, crisp_snap
 
 
 class PeerMissing(RuntimeError):

@@ -6,10 +6,10 @@ therefore hang the run (alias "billion laughs", a 100 MB file), read the environ
 outside the output directory. :func:`check_data_text` refuses, with one line naming the file (and the line or
 the field):
 
-- files over :data:`fuzzynav.limits.MAX_DATA_FILE_BYTES`, or not UTF-8;
+- files over :data:`fuzzynav.params.limits.MAX_DATA_FILE_BYTES`, or not UTF-8;
 - YAML tags (``!!python/...``, ``!!binary``, ``!custom``): a data file needs none;
-- nesting deeper than :data:`~fuzzynav.limits.MAX_YAML_DEPTH`, recursive aliases, more than
-  :data:`~fuzzynav.limits.MAX_YAML_NODES` nodes once aliases are expanded (aliases themselves are fine:
+- nesting deeper than :data:`~fuzzynav.params.limits.MAX_YAML_DEPTH`, recursive aliases, more than
+  :data:`~fuzzynav.params.limits.MAX_YAML_NODES` nodes once aliases are expanded (aliases themselves are fine:
   ``conf/controller/listing.yaml`` shares its sensor terms with one);
 - interpolations: any ``${`` in a key or value;
 - a key given twice in one mapping (YAML's loaders keep the last silently, dropping the first block);
@@ -28,8 +28,8 @@ from pathlib import Path
 
 import yaml
 
-from fuzzynav import limits
-from fuzzynav.checks import key_text
+from fuzzynav.params import limits
+from fuzzynav.params.checks import key_text
 
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _OPEN = (yaml.BlockMappingStartToken, yaml.BlockSequenceStartToken, yaml.FlowMappingStartToken,

@@ -49,7 +49,7 @@ from analysis.cli_args import MAX_JOBS, OneLineParser
 from analysis.cli_args import jobs as cli_jobs
 from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
-from fuzzynav import limits
+from fuzzynav.params import limits
 from runners.data_files import MANIFEST, DataFileError, check_data_file
 from runners.dataset_manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.log_diff import EpisodeDiff, diff_logs, diff_records

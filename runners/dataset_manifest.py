@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from analysis.log_check import OUTCOMES
-from fuzzynav import limits
+from fuzzynav.params import limits
 
 VERSION = 1  # of the manifest's layout, which build writes and verify reads
 #: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_columns`` (one digest per
@@ -34,7 +34,7 @@ DIGEST = re.compile(r"[0-9a-f]{8}")
 MODE_RUN = re.compile(r"(\S+)\*([1-9][0-9]{0,9})")  # a mode and how many steps in a row it was decided
 MAX_LOG_TIMES = limits.MAX_STEPS + 1  # steps 0 to max_steps
 #: episodes per dataset: a built manifest holds about 1.3 kB per episode, and one of more than
-#: :data:`fuzzynav.limits.MAX_MANIFEST_BYTES` (about 15,000 episodes) could not be read back
+#: :data:`fuzzynav.params.limits.MAX_MANIFEST_BYTES` (about 15,000 episodes) could not be read back
 MAX_EPISODES = 15_000
 
 

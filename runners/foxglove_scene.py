@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import orjson
 
-from fuzzynav.portable_math import atan2_deg_array, sin_cos_deg, sin_cos_deg_array
+from fuzzynav.numerics.portable_math import atan2_deg_array, sin_cos_deg, sin_cos_deg_array
 
 FRAME = "world"
 
@@ -260,7 +260,8 @@ class StepScenes:
                 velocities_cm_s: np.ndarray, tpt, plan, new_plan: bool) -> bytes:
         """The ``/scene`` message of a step at ``when`` (``foxglove.Time``): robot at (x, y) cm heading
         ``heading_deg``; moving obstacles at ``positions_cm`` (N, 2) with ``velocities_cm_s`` (N, 2); ``tpt`` the
-        step's :class:`fuzzynav.tpt.TPT` or None; ``plan`` the running plan (None: no plan), ``new_plan`` whether
+        step's :class:`fuzzynav.planning.tpt.TPT` or None; ``plan`` the running plan (None: no plan), ``new_plan``
+        whether
         it was made this step (its line starts at the robot's position)."""
         positions = [metres(v) for xy in positions_cm.tolist() for v in xy]
         headings = self._arrow_quaternions(velocities_cm_s)

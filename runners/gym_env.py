@@ -11,7 +11,7 @@ Install the optional extra (``pip install -e '.[gym]'``) and import this module 
 
 or, without the import, ``gymnasium.make("runners.gym_env:fuzzynav/Navigation-v0", ...)``.
 
-The agent's action takes the place of the navigation policy (:mod:`fuzzynav.policy`): it is the command of a
+The agent's action takes the place of the navigation policy (:mod:`fuzzynav.policies.base`): it is the command of a
 small policy object (mode and name ``agent``) that the episode's navigator calls, so the paper's wait/detour
 layer still runs on top of it when the configuration's ``planner.strategy`` is not ``none`` (the decision
 actually executed is in ``info["mode"]``: ``agent`` or a plan's ``wait``/``detour``/``evade``/``stop``).
@@ -40,14 +40,15 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from fuzzynav import limits, portable_math
-from fuzzynav.checks import check_number
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig, StepRecord
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.laser import LaserScan
-from fuzzynav.navigator import checked_action
-from fuzzynav.policy import AGENT, Action, Observation, Policy, PolicyContext, is_policy_id, make_policy
-from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
+from fuzzynav.numerics import portable_math
+from fuzzynav.params import limits
+from fuzzynav.params.checks import check_number
+from fuzzynav.planning.navigator import checked_action
+from fuzzynav.policies.base import AGENT, Action, Observation, Policy, PolicyContext, is_policy_id, make_policy
+from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
+from fuzzynav.sensing.laser import LaserScan
 
 ENV_ID = "fuzzynav/Navigation-v0"
 
@@ -92,7 +93,7 @@ class NavigationEnv(gymnasium.Env):
     Constructor (keywords):
 
     - ``scenario``: a scenario name of ``conf/scenario/`` (``crossing_right``), a path to a scenario YAML file,
-      or a :class:`fuzzynav.scenario.Scenario`; default: the configuration's (``head_on``);
+      or a :class:`fuzzynav.scenarios.scenario.Scenario`; default: the configuration's (``head_on``);
     - ``overrides``: Hydra override strings as on ``runners.run``'s command line (``["planner=auto",
       "sensors.laser.noise_std_cm=1"]``); ``seed`` and ``episodes`` are not accepted (``reset(seed=...)``
       chooses the seed, each reset is one episode);
@@ -128,7 +129,7 @@ class NavigationEnv(gymnasium.Env):
     ``max_steps``). ``info``: ``step``, ``outcome`` (None until the end), ``mode`` (the decision executed),
     ``distance_to_goal_cm``, ``contacts``, ``tracks_dropped``.
 
-    ``env.unwrapped.observation`` is the step's :class:`fuzzynav.policy.Observation` (what a fuzzynav policy
+    ``env.unwrapped.observation`` is the step's :class:`fuzzynav.policies.base.Observation` (what a fuzzynav policy
     acts on), ``env.unwrapped.episode`` the :class:`fuzzynav.episode.Episode`, ``env.unwrapped.last_record``
     the last :class:`fuzzynav.episode.StepRecord`.
     """
@@ -178,7 +179,7 @@ class NavigationEnv(gymnasium.Env):
 
     @property
     def policy_context(self) -> PolicyContext:
-        """The :class:`fuzzynav.policy.PolicyContext` a policy is built with under ``runners.run``."""
+        """The :class:`fuzzynav.policies.base.PolicyContext` a policy is built with under ``runners.run``."""
         cfg = self.episode_config
         return PolicyContext(cfg.robot, self.scenario.robot.radius, cfg.dt, cfg.sonar.front, self.evaluator)
 
@@ -215,7 +216,7 @@ class NavigationEnv(gymnasium.Env):
         return self._advance(Action(AGENT, float(arr[0]), float(arr[1]), {}), AGENT)
 
     def step_policy_action(self, action: Action, policy_name: str) -> tuple[dict, float, bool, bool, dict]:
-        """One time step with a fuzzynav policy's :class:`~fuzzynav.policy.Action` (its ``act`` on
+        """One time step with a fuzzynav policy's :class:`~fuzzynav.policies.base.Action` (its ``act`` on
         :attr:`observation`), its mode, fields and ``policy_name`` recorded as ``runners.run`` records them."""
         if not isinstance(policy_name, str) or not is_policy_id(policy_name):
             raise ValueError(f"policy_name: expected the policy's name, got {str(policy_name)[:40]!r}")

@@ -23,7 +23,7 @@ from typing import Any
 
 import gymnasium
 
-from fuzzynav.policy import Action
+from fuzzynav.policies.base import Action
 from runners.gym_env import AGENT, NavigationEnv
 from runners.mcap_log import EpisodeLogWriter
 from runners.run import episode_metadata, log_path, outcome_reason

@@ -31,8 +31,8 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from mcap.reader import make_reader
 
 from fuzzynav.episode import Episode, StepRecord
-from fuzzynav.obstacle_model import DEFAULT_MODEL
-from fuzzynav.portable_math import dist
+from fuzzynav.numerics.portable_math import dist
+from fuzzynav.pedestrians.base import DEFAULT_MODEL
 from runners.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
@@ -435,7 +435,8 @@ def _errno_of(text: str) -> int | None:
 
 def _policy_fields(fields: Mapping[str, Any]) -> dict[str, Any]:
     """A policy's own values of one step for the log, in key order: numbers as floats (like every logged number),
-    booleans and strings as they are (the navigator has checked them: ``fuzzynav.navigator.checked_action``)."""
+    booleans and strings as they are (the navigator has checked them:
+    ``fuzzynav.planning.navigator.checked_action``)."""
     return {key: value if isinstance(value, str) else bool(value) if isinstance(value, bool | np.bool_)
             else _r(float(value)) for key, value in sorted(fields.items())}
 

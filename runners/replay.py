@@ -34,13 +34,13 @@ import yaml
 from analysis.cli_args import OneLineParser
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, file_kind
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState
-from fuzzynav.laser import LaserConfig, beam_directions
-from fuzzynav.navigator import ActivePlan, Decision, Navigator, Observation, build_navigator
-from fuzzynav.policy import AGENT
-from fuzzynav.tracking import Track
+from fuzzynav.planning.navigator import ActivePlan, Decision, Navigator, Observation, build_navigator
+from fuzzynav.policies.base import AGENT
+from fuzzynav.sensing.laser import LaserConfig, beam_directions
+from fuzzynav.sensing.tracking import Track
 from runners.run import ConfigFileError, episode_config
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
@@ -178,7 +178,7 @@ def _observation(log: EpisodeLog, k: int, goal: tuple[float, float]) -> Observat
     moving = np.zeros(len(ranges), dtype=bool)
     moving[tr.get("moving_beams", [])] = True
     keep = returned & ~moving
-    # the episode's own direction arithmetic (fuzzynav.laser), not a re-derivation with np.cos
+    # the episode's own direction arithmetic (fuzzynav.sensing.laser), not a re-derivation with np.cos
     d = beam_directions(LaserConfig(beams=len(ranges)), s["heading_deg"])
     pts = np.stack([s["x_cm"] + ranges[keep] * d[keep, 0], s["y_cm"] + ranges[keep] * d[keep, 1]], axis=1)
     return Observation(state, goal, (son["left_cm"], son["front_cm"], son["right_cm"]), tracks, pts)

@@ -27,10 +27,10 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from fuzzynav import episode_identity
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.policy import DEFAULT_POLICY, policy_source_digest, split_navigator_section
-from fuzzynav.scenario import Scenario
+from fuzzynav.policies.base import DEFAULT_POLICY, policy_source_digest, split_navigator_section
+from fuzzynav.scenarios.scenario import Scenario
 from runners import process_tree, schema, stop, sweep_resume, yaml_text
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
 from runners.provenance import provenance

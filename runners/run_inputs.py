@@ -8,7 +8,7 @@ message is one line naming the file (or the config key) and the field:
 - :class:`ConfigFileError` for the scenario and controller files: ``…/my_world.yaml: robot.start: …``;
 - ``ValueError`` for the run configuration: ``planner.safety_margin_cm: must be finite, got nan``.
 
-Ranges and size limits come from :mod:`fuzzynav.limits`.
+Ranges and size limits come from :mod:`fuzzynav.params.limits`.
 """
 
 from __future__ import annotations
@@ -22,16 +22,16 @@ from typing import Any
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from fuzzynav import limits
-from fuzzynav.checks import check_number, kind_of, show
 from fuzzynav.config import episode_config_from_dict
-from fuzzynav.crowd import check_crowd_work
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_spec import ControllerSpec, ControllerSpecError, check_fits_robot
 from fuzzynav.episode import EpisodeConfig
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError, check_fits_robot
-from fuzzynav.generators import generate
-from fuzzynav.limits import Range
-from fuzzynav.scenario import Scenario, ScenarioError, scenario_from_dict
+from fuzzynav.params import limits
+from fuzzynav.params.checks import check_number, kind_of, show
+from fuzzynav.params.limits import Range
+from fuzzynav.pedestrians.crowd import check_crowd_work
+from fuzzynav.scenarios.generator import generate
+from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
 
 DATA_GROUPS = ("scenario", "controller")  # config groups whose options are data files of fuzzynav's own parsers
 

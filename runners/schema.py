@@ -15,10 +15,10 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 
 from fuzzynav.kinematics import RobotLimits
-from fuzzynav.laser import LaserConfig
-from fuzzynav.perception import PerceptionConfig
-from fuzzynav.planner import PlannerConfig
-from fuzzynav.sonar import SonarConfig
+from fuzzynav.planning.planner import PlannerConfig
+from fuzzynav.sensing.laser import LaserConfig
+from fuzzynav.sensing.perception import PerceptionConfig
+from fuzzynav.sensing.sonar import SonarConfig
 
 _MIRRORS: dict[type, type] = {}
 
@@ -77,7 +77,7 @@ class RunSchema:
     sensors: SensorsSchema = dataclasses.field(default_factory=SensorsSchema)
     planner: PlannerSchema = dataclasses.field(default_factory=PlannerSchema)  # type: ignore[valid-type]
     perception: PerceptionSchema = dataclasses.field(default_factory=PerceptionSchema)  # type: ignore[valid-type]
-    navigator: Any = None  # the policy and its parameters: checked by the policy's own config (fuzzynav.policy)
+    navigator: Any = None  # the policy and its parameters: checked by the policy's own config (fuzzynav.policies.base)
     seed: int = 0
     episodes: int = 1
     dt: float = 1.0

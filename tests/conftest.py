@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fuzzynav.fuzzy_spec import ControllerSpec
-from fuzzynav.scenario import Scenario, scenario_from_dict
+from fuzzynav.controller.fuzzy_spec import ControllerSpec
+from fuzzynav.scenarios.scenario import Scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"

@@ -31,7 +31,7 @@ BAD_STRINGS = ["../../escaped/x", "/tmp/abs", "a\x00b", "a\nb", "x" * 300, "", "
 WRONG_TYPES: list[Any] = [None, True, False, "abc", [], {}, [1, 2], {"a": 1}, 3.5, 7]
 EXTRA_KEYS: list[Any] = ["extra", True, False, 1, None, "${x}", "a\nb", "x" * 100, "on"]
 REPEATS = [2, 3, 10, 101, 501, 1001, 2001]
-MAX_LIST = 3_000  # longest list a repetition makes (above every list limit of fuzzynav.limits)
+MAX_LIST = 3_000  # longest list a repetition makes (above every list limit of fuzzynav.params.limits)
 
 
 def numbers() -> st.SearchStrategy[Any]:

@@ -8,11 +8,11 @@ import math
 
 import numpy as np
 
-from fuzzynav.geometry import segment_point_distance
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Policy, PolicyContext
-from fuzzynav.tracking import Track
+from fuzzynav.numerics.geometry import segment_point_distance
+from fuzzynav.planning.navigator import Observation
+from fuzzynav.policies.base import Policy, PolicyContext
+from fuzzynav.sensing.tracking import Track
 
 CTX = PolicyContext(RobotLimits(), robot_radius=20.0)
 NO_POINTS = np.zeros((0, 2))

@@ -1,4 +1,4 @@
-"""The artificial potential field baseline (fuzzynav/apf.py, Khatib 1986): its forces on hand-made inputs,
+"""The artificial potential field baseline (fuzzynav/policies/apf.py, Khatib 1986): its forces on hand-made inputs,
 the speed mapping, determinism, the registry, one closed-loop drive past an obstacle and the method's known
 local minimum."""
 
@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from fuzzynav.apf import ApfConfig, ApfPolicy, apf_command, attractive_force, obstacle_discs, repulsive_force
 from fuzzynav.kinematics import RobotState
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Policy, make_policy
-from fuzzynav.tracking import Track
+from fuzzynav.planning.navigator import Observation
+from fuzzynav.policies.apf import ApfConfig, ApfPolicy, apf_command, attractive_force, obstacle_discs, repulsive_force
+from fuzzynav.policies.base import Policy, make_policy
+from fuzzynav.sensing.tracking import Track
 from tests import policy_scenes as scenes
 from tests.policy_scenes import CTX, drive, in_laser_range, wall
 

@@ -16,8 +16,8 @@ from analysis.episode_log import METRIC_TOPICS, EpisodeLog, load_episode
 from analysis.log_check import MESSAGE_CHECKS, CheckError, check_message, messages_acceptable
 from analysis.logs import LogError, LogFile
 from analysis.tpt_errors import obstacle_models, tpt_errors
-from fuzzynav.obstacle_model import DEFAULT_MODEL
-from fuzzynav.portable_math import norm2
+from fuzzynav.numerics.portable_math import norm2
+from fuzzynav.pedestrians.base import DEFAULT_MODEL
 from tests.fuzz_mutations import mutations
 from tests.handmade import rewrite_log
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture

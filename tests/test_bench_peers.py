@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from fuzzynav.fuzzy_reference import SkfuzzyEvaluator
+from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
 from runners import bench, bench_peers
 
 # the largest disagreement with scikit-fuzzy each peer's discretisation allows here (measured on the bench's

@@ -54,7 +54,7 @@ def test_bench_quick_writes_results(tmp_path):
         assert python["same_bits_as_kernel"] or not row["compiled_kernel"]
     assert "fuzzy decision" in res.stdout and "compiled kernels" in res.stdout
     if os.environ.get("CI"):
-        from fuzzynav.compiled import KERNELS
+        from fuzzynav.numerics.compiled import KERNELS
 
         assert data["machine"]["compiled_kernels"] == dict.fromkeys(KERNELS, True)
     for section in ("simulation", "sweep", "analysis", "memory"):

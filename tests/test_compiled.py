@@ -1,4 +1,4 @@
-"""fuzzynav.compiled: the switch that sends every run down the Python paths."""
+"""fuzzynav.numerics.compiled: the switch that sends every run down the Python paths."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from fuzzynav import compiled
+from fuzzynav.numerics import compiled
 from tests.conftest import ROOT
 
 

@@ -45,7 +45,7 @@ def _configurations() -> list[tuple[str, dict[str, str]]]:
         # glibc's libm picks FMA or non-FMA variants of exp, sin, atan2... by CPU, and their last bits differ
         # (the pedestrian libraries measured for #17 changed trajectories under this setting)
         configs.append((f"GLIBC_TUNABLES={NO_FMA_LIBM} (libm without FMA)", {"GLIBC_TUNABLES": NO_FMA_LIBM}))
-    # the Python and numpy forms instead of the compiled kernels (fuzzynav/compiled.py): a machine without a
+    # the Python and numpy forms instead of the compiled kernels (fuzzynav/numerics/compiled.py): a machine without a
     # C compiler at install runs them, and the logs must be the same bits
     configs.append(("FUZZYNAV_KERNEL=python (without the compiled kernels)",
                     {"FUZZYNAV_KERNEL": "python"}))
@@ -73,7 +73,7 @@ _PROBE = textwrap.dedent("""
     still_on = [g for g in os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split() if __cpu_features__.get(g)]
     # libm's exp on fixed inputs: its last bits say which variant (FMA or not) the C library chose
     libm = hashlib.sha256(repr([math.exp(k / 997.0 - 300.0) for k in range(600_000)]).encode()).hexdigest()[:16]
-    from fuzzynav.fuzzy_fast import kernel_available
+    from fuzzynav.controller.fuzzy_fast import kernel_available
     print(name, libm, "kernel" if kernel_available() else "python", " ".join(still_on))
 """)
 
@@ -99,7 +99,7 @@ def _check_the_setting_took_effect(label: str, env: dict[str, str]) -> str:
     if "FUZZYNAV_KERNEL" in env:
         assert fuzzy_path == "python", f"{label}: the child still uses the compiled kernel"
         if os.environ.get("CI"):  # else the comparison would be Python path against Python path
-            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav._mamdani was not built"
+            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav.controller._mamdani was not built"
     if "GLIBC_TUNABLES" in env and _has_fma():
         _, default_libm, _, _ = _probe(_child_env({}))
         assert libm != default_libm, f"{label}: libm's exp gives the same bits as with FMA (setting ignored?)"

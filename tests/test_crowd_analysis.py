@@ -13,8 +13,8 @@ import pytest
 from analysis.density import count_key, density_table
 from analysis.metrics import metrics_table
 from fuzzynav.config import episode_config_from_dict
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.scenario import scenario_from_dict
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.scenarios.scenario import scenario_from_dict
 from runners.run import run_episode
 from tests.conftest import ROOT
 

@@ -1,4 +1,4 @@
-"""The Dynamic Window Approach policy (fuzzynav/dwa.py): its core math on hand-made observations, its
+"""The Dynamic Window Approach policy (fuzzynav/policies/dwa.py): its core math on hand-made observations, its
 registry entry, and one closed-loop run in a small in-test simulation. Units: cm, s, degrees, cm/s."""
 
 from __future__ import annotations
@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuzzynav.dwa import DWAConfig, DWAPolicy, _segment_distances, evaluate, speed_window
-from fuzzynav.geometry import segment_point_distance, swept_distance
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Policy, PolicyContext, make_policy
-from fuzzynav.portable_math import dist
-from fuzzynav.tracking import Track
+from fuzzynav.numerics.geometry import segment_point_distance, swept_distance
+from fuzzynav.numerics.portable_math import dist
+from fuzzynav.planning.navigator import Observation
+from fuzzynav.policies.base import Policy, PolicyContext, make_policy
+from fuzzynav.policies.dwa import DWAConfig, DWAPolicy, _segment_distances, evaluate, speed_window
+from fuzzynav.sensing.tracking import Track
 from tests.policy_scenes import NO_POINTS, observe, random_observation, wall
 
 LIMITS = RobotLimits()

@@ -9,8 +9,8 @@ import pytest
 
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.perception import PerceptionConfig
-from fuzzynav.planner import PlannerConfig
+from fuzzynav.planning.planner import PlannerConfig
+from fuzzynav.sensing.perception import PerceptionConfig
 from tests.conftest import load_scenario
 
 
@@ -64,7 +64,7 @@ def test_every_episode_ends_with_a_defined_outcome(table1, listing):
 
 def test_wait_strategy_waits(table1):
     """A crossing obstacle with the wait-only strategy: the robot stands still at some step."""
-    from fuzzynav.scenario import scenario_from_dict
+    from fuzzynav.scenarios.scenario import scenario_from_dict
     s = scenario_from_dict({
         "bounds": [0, 0, 1200, 800], "robot": {"start": [100, 400], "goal": [1100, 400]},
         "dynamic_obstacles": [{"id": "x", "radius": 20, "start": [500, 20], "velocity": [0, 25]}],

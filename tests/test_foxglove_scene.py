@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fuzzynav.portable_math import atan2_deg
+from fuzzynav.numerics.portable_math import atan2_deg
 from runners.foxglove_scene import (
     BLUE,
     CYAN,

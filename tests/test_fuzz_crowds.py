@@ -15,15 +15,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav.crowd import Crowd
-from fuzzynav.generators import generate
 from fuzzynav.kinematics import RobotState
-from fuzzynav.obstacle_model import model_factory
-from fuzzynav.pedestrian_orca import PedestrianOrcaConfig
-from fuzzynav.random_walk import RandomWalkConfig
-from fuzzynav.scenario import ScenarioError, scenario_from_dict, validate_geometry
-from fuzzynav.social_force import SocialForceConfig
-from fuzzynav.world import World
+from fuzzynav.pedestrians.base import model_factory
+from fuzzynav.pedestrians.crowd import Crowd
+from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
+from fuzzynav.pedestrians.random_walk import RandomWalkConfig
+from fuzzynav.pedestrians.social_force import SocialForceConfig
+from fuzzynav.scenarios.generator import generate
+from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict, validate_geometry
+from fuzzynav.scenarios.world import World
 from tests.conftest import load_controller
 
 MODEL_NAMES = ["scripted", "social_force", "orca", "random_walk"]
@@ -323,14 +323,15 @@ def test_generator_model_is_checked_even_without_pedestrians(kind, count):
                   "name": kind}, 0)
 
 
-# finding 10 (fixed: fuzzynav.crowd.check_crowd_work, a limit on pedestrian-substeps per episode, checked where a
+# finding 10 (fixed: fuzzynav.pedestrians.crowd.check_crowd_work, a limit on pedestrian-substeps per episode, checked
+# where a
 # run's inputs are loaded and by Episode): 100 orca pedestrians with 0.01 s substeps for 100,000 steps ran for days
 def test_a_huge_orca_crowd_is_refused_before_it_runs(tmp_path):
     import subprocess
     import sys
 
-    from fuzzynav.crowd import check_crowd_work
     from fuzzynav.episode import Episode
+    from fuzzynav.pedestrians.crowd import check_crowd_work
 
     params = {"n": 100, "model": "orca", "model_params": {"substep_s": 0.01}, "max_steps": 100_000}
     s, _ = generate({"generator": "random_walkers", "params": params, "name": "w"}, 0)

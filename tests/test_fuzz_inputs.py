@@ -42,10 +42,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from fuzzynav import limits
+from fuzzynav.controller.fuzzy_spec import sample_membership
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.fuzzy_spec import sample_membership
-from fuzzynav.scenario import scenario_from_dict
+from fuzzynav.params import limits
+from fuzzynav.scenarios.scenario import scenario_from_dict
 from runners import run_inputs
 from runners.data_files import DataFileError, check_data_text
 from tests.conftest import CONF, ROOT

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_reference import SkfuzzyEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
+from fuzzynav.controller.fuzzy_spec import ControllerSpec
 
 TOL_DTHETA = 0.01  # degrees
 TOL_V = 0.01  # cm/s

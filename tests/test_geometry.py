@@ -1,4 +1,4 @@
-"""fuzzynav.geometry: closest approach over a step and angle wrapping (hand-computed cases and properties)."""
+"""fuzzynav.numerics.geometry: closest approach over a step and angle wrapping (hand-computed cases and properties)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import geometry as geo
-from fuzzynav.portable_math import dist
+from fuzzynav.numerics import geometry as geo
+from fuzzynav.numerics.portable_math import dist
 
 COORD = st.floats(-1e4, 1e4, allow_nan=False, allow_subnormal=False)
 POINT = st.tuples(COORD, COORD)
@@ -130,7 +130,8 @@ def test_angle_difference_takes_the_short_way_round():
     assert geo.angle_difference_deg(45.0, 45.0) == 0.0
 
 
-# -- the compiled closest approach (fuzzynav/_closest_approach.c) -----------------------------------------------
+# -- the compiled closest approach (fuzzynav/numerics/_closest_approach.c)
+# -----------------------------------------------
 ANY = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from([0.0, -0.0, 5e-324, -5e-324, 1e308, 1e-160])
 SHAPES = st.sampled_from([((2,), (2,)), ((4, 2), (4, 2)), ((2,), (3, 2)), ((3, 1, 2), (4, 2)), ((0, 2), (2,)),
                           ((2, 3, 2), (2, 3, 2)), ((5, 2), (1, 2))])
@@ -228,12 +229,12 @@ def test_keep_inside_moves_each_disc_back_and_stops_it_at_the_wall(discs, bounds
     assert got[0] is not positions and got[1] is not velocities
 
 
-# -- each move's clearance to the laser's returns (fuzzynav/clearance.py, the same kernel file) ---------------
+# -- each move's clearance to the laser's returns (fuzzynav/numerics/clearance.py, the same kernel file) ---------------
 @pytest.mark.skipif(geo._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.data(), st.integers(0, 6), st.integers(0, 8))
 def test_the_clearance_kernel_gives_the_numpy_forms_bits(monkeypatch, data, n_moves, n_points):
-    from fuzzynav.clearance import segment_point_clearance
+    from fuzzynav.numerics.clearance import segment_point_clearance
 
     numbers = ANY if data.draw(st.booleans()) else COORD
 
@@ -257,7 +258,7 @@ def test_the_clearance_kernel_gives_the_numpy_forms_bits(monkeypatch, data, n_mo
     (np.zeros(2), np.empty((0, 2)), np.ones((4, 2))), (np.array([[0.0, 0.0]]), np.ones((3, 2)), np.ones((4, 2))),
 ])
 def test_the_clearance_answers_alike_on_other_inputs(monkeypatch, start, ends, points):
-    from fuzzynav.clearance import segment_point_clearance
+    from fuzzynav.numerics.clearance import segment_point_clearance
 
     on = _outcome(lambda: segment_point_clearance(start, ends, points))
     with monkeypatch.context() as m:

@@ -19,8 +19,8 @@ import pytest
 
 gymnasium = pytest.importorskip("gymnasium")
 
-from fuzzynav.navigator import PLAN_MODES  # noqa: E402
-from fuzzynav.policy import Action, make_policy  # noqa: E402
+from fuzzynav.planning.navigator import PLAN_MODES  # noqa: E402
+from fuzzynav.policies.base import Action, make_policy  # noqa: E402
 from runners.dataset import content_digests  # noqa: E402
 from runners.gym_env import ENV_ID, NavigationEnv  # noqa: E402  (importing it registers fuzzynav/Navigation-v0)
 from runners.gym_log import RecordMcap  # noqa: E402
@@ -190,7 +190,7 @@ def test_wait_detour_layer_runs_on_top_of_the_agent() -> None:
 
 
 def test_scenario_as_path_and_object_and_generated() -> None:
-    from fuzzynav.scenario import scenario_from_dict
+    from fuzzynav.scenarios.scenario import scenario_from_dict
     from tests.conftest import load_yaml
 
     path = ROOT / "conf" / "scenario" / "head_on.yaml"

@@ -1,4 +1,4 @@
-"""The compiled array tests (fuzzynav._json_checks) answer as the item-by-item rules of analysis.json_checks do,
+"""The compiled array tests (analysis._json_checks) answer as the item-by-item rules of analysis.json_checks do,
 on values of every JSON type and on what decoded JSON cannot hold (NaN, infinities, tuples inside, subclasses of
 int and float, huge ints); and the batch checks of whole episodes give the same answers with the kernel switched
 off. In CI (CI=true) the kernel must have been built."""

@@ -1,4 +1,4 @@
-"""The documented limits (fuzzynav/limits.py) cover every input they should, and the checks enforce them."""
+"""The documented limits (fuzzynav/params/limits.py) cover every input they should, and the checks enforce them."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import typing
 
 import pytest
 
-from fuzzynav import limits
-from fuzzynav.checks import check_config_fields, check_name, check_number, field_name
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import EpisodeConfig
-from fuzzynav.policies import BUILTIN
+from fuzzynav.params import limits
+from fuzzynav.params.checks import check_config_fields, check_name, check_number, field_name
+from fuzzynav.policies.base import registered_policies
 from runners.data_files import DataFileError, check_data_text
 from runners.run_inputs import run_seeds
 
@@ -35,11 +35,11 @@ def numeric_fields(cls: type, prefix: str = "") -> list[str]:
 def test_every_numeric_config_field_has_a_documented_range():
     # the navigator section holds the chosen policy's parameters: every built-in policy's count
     fields = set(numeric_fields(EpisodeConfig))
-    for policy in BUILTIN:
+    for policy in registered_policies().values():
         fields |= set(numeric_fields(policy.config_class, "navigator"))
     documented = set(limits.FIELD_RANGES) - {"seed", "episodes"}
-    assert fields - documented == set(), "numeric fields without a range in fuzzynav/limits.py"
-    assert documented - fields == set(), "ranges in fuzzynav/limits.py for fields that do not exist"
+    assert fields - documented == set(), "numeric fields without a range in fuzzynav/params/limits.py"
+    assert documented - fields == set(), "ranges in fuzzynav/params/limits.py for fields that do not exist"
 
 
 def test_defaults_and_shipped_values_are_inside_their_ranges():
@@ -62,7 +62,8 @@ def test_no_field_accepts_a_non_finite_number(field, bad):
     value: typing.Any = [bad, bad] if field in limits.FIELD_MAX_ITEMS else bad
     node[key] = value
     if section == "navigator":  # the policy whose parameter it is (the fuzzy policy would call it unknown)
-        node["policy"] = next(p.name for p in BUILTIN if key in {f.name for f in dataclasses.fields(p.config_class)})
+        node["policy"] = next(p.name for p in registered_policies().values()
+                              if key in {f.name for f in dataclasses.fields(p.config_class)})
     with pytest.raises(ValueError, match=rf"^{re.escape(field)}(\[0\])?: "):
         episode_config_from_dict(data)
 

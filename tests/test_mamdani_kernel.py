@@ -1,4 +1,4 @@
-"""The compiled kernel (fuzzynav._mamdani) gives the Python path's bits on every definition and input.
+"""The compiled kernel (fuzzynav.controller._mamdani) gives the Python path's bits on every definition and input.
 
 The Python path (``FastEvaluator._evaluate_scalar``) is the definition and the fallback when the kernel is not
 built; the recorded datasets hash every decision, so the two must agree bit for bit, on inputs and definitions
@@ -23,9 +23,9 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import fuzzy_fast
-from fuzzynav.fuzzy_fast import FastEvaluator, kernel_available
-from fuzzynav.fuzzy_spec import SOURCES, ControllerSpec, ControllerSpecError
+from fuzzynav.controller import fuzzy_fast
+from fuzzynav.controller.fuzzy_fast import FastEvaluator, kernel_available
+from fuzzynav.controller.fuzzy_spec import SOURCES, ControllerSpec, ControllerSpecError
 from tests.conftest import require_compiled
 
 require_compiled(fuzzy_fast._mamdani, "_mamdani")
@@ -205,8 +205,8 @@ def test_definitions_over_63_rules_use_the_python_path():
 
 def test_the_environment_switches_the_kernel_off():
     code = ("import yaml\n"
-            "from fuzzynav.fuzzy_fast import FastEvaluator, kernel_available\n"
-            "from fuzzynav.fuzzy_spec import ControllerSpec\n"
+            "from fuzzynav.controller.fuzzy_fast import FastEvaluator, kernel_available\n"
+            "from fuzzynav.controller.fuzzy_spec import ControllerSpec\n"
             "spec = ControllerSpec.from_dict(yaml.safe_load(open('conf/controller/table1.yaml')))\n"
             "print(kernel_available(), FastEvaluator(spec).uses_kernel)")
     env = dict(os.environ, FUZZYNAV_KERNEL="python")

@@ -1,4 +1,4 @@
-"""The compiled chunk record loop (fuzzynav._mcap_chunk) reads what analysis.mcap_verify's Python loop reads.
+"""The compiled chunk record loop (analysis._mcap_chunk) reads what analysis.mcap_verify's Python loop reads.
 
 Each test reads the same bytes twice, with the kernel and with the Python loop (``mcap_verify._mcap_chunk`` set
 to None), and compares everything: the McapContent, or the McapError's text. Chunks drawn at random (schema,

@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 
 from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
 from fuzzynav.config import episode_config_from_dict
-from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.mcap_log import TOPICS
 from runners.run import run_episode
@@ -125,7 +125,7 @@ def test_same_config_and_seed_give_the_same_messages_across_processes(tmp_path):
 
 
 def test_an_episode_that_raises_is_logged_as_error(tmp_path, monkeypatch):
-    import fuzzynav.navigator as nav
+    import fuzzynav.planning.navigator as nav
 
     def broken(self, obs, active):
         raise RuntimeError("boom")

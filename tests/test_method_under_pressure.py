@@ -11,12 +11,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState
-from fuzzynav.navigator import ActivePlan, Navigator, NavigatorConfig, Observation, build_navigator
-from fuzzynav.planner import PlannerConfig, find_new_path
-from fuzzynav.tpt import build_tpt
-from fuzzynav.tracking import Track
+from fuzzynav.planning.navigator import ActivePlan, Navigator, NavigatorConfig, Observation, build_navigator
+from fuzzynav.planning.planner import PlannerConfig, find_new_path
+from fuzzynav.planning.tpt import build_tpt
+from fuzzynav.sensing.tracking import Track
 from tests.conftest import load_controller
 
 EVALUATOR = FastEvaluator(load_controller("table1"))

@@ -17,10 +17,10 @@ from hypothesis import strategies as st
 
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.planner import PlannerConfig, find_new_path
-from fuzzynav.policy import Action, Observation
-from fuzzynav.tpt import build_tpt
-from fuzzynav.tracking import Track
+from fuzzynav.planning.planner import PlannerConfig, find_new_path
+from fuzzynav.planning.tpt import build_tpt
+from fuzzynav.policies.base import Action, Observation
+from fuzzynav.sensing.tracking import Track
 from tests.conftest import CONF, ROOT, load_controller, load_scenario, one_error_line
 
 OPTIONS = {"fuzzy_tpt": ("fuzzy", "auto"), "default": ("fuzzy", "auto"), "paper_literal": ("fuzzy", "auto"),
@@ -78,7 +78,8 @@ def test_the_default_is_the_papers_method_with_the_defaults_of_the_library():
     ({"policy": "fuzzy", "static_near_cm": 1e300}, "navigator.static_near_cm:"),
     ({"policy": "dwa", "_target_": "a.B"}, "navigator._target_: give either navigator.policy"),
     ({"_target_": "no_such_module_xyz.Policy"}, "navigator._target_: cannot import 'no_such_module_xyz'"),
-    ({"_target_": "fuzzynav.policy.NoSuchFactory"}, "navigator._target_: 'fuzzynav.policy' has no callable"),
+    ({"_target_": "fuzzynav.policies.base.NoSuchFactory"},
+     "navigator._target_: 'fuzzynav.policies.base' has no callable"),
     ({"_target_": "../etc/passwd"}, "navigator._target_: expected an import path"),
     ({"_target_": "???"}, "navigator._target_: not given (navigator=custom needs navigator._target_=package.module."
                           "Factory; a sweep over every navigator leaves the template out with "
@@ -146,7 +147,7 @@ class _Returns:
     (Action("Go Left", 0.0, 10.0), "policy broken: mode 'Go Left' is not a mode name"),
     (Action("go", 0.0, 10.0, {"x": math.nan}), "policy broken: field 'x' = 'nan' is not a finite number"),
     (Action("go", 0.0, 10.0, {"x": [1, 2]}), "policy broken: field 'x' = '[1, 2]' is not a finite number"),
-    ((0.0, 10.0), "policy broken: act() returned tuple, not a fuzzynav.policy.Action"),
+    ((0.0, 10.0), "policy broken: act() returned tuple, not a fuzzynav.policies.base.Action"),
     (Action("go", True, 10.0), "policy broken: dtheta_deg = True is not a finite number"),
 ])
 def test_a_command_the_robot_cannot_execute_stops_the_episode_naming_the_policy(action, message):
@@ -327,7 +328,7 @@ def test_a_policy_that_cannot_be_imported_is_one_line(tmp_path):
 def test_a_user_policys_source_is_part_of_its_episodes_identity(tmp_path, monkeypatch):
     """A resumed sweep kept the logs of a user's policy whose code had changed (its result, not the new code's)."""
     from fuzzynav.episode_identity import episode_key, episode_key_of
-    from fuzzynav.policy import policy_source_digest
+    from fuzzynav.policies.base import policy_source_digest
 
     module = tmp_path / "changing_policy.py"
     module.write_text((USER_POLICY / "my_policies.py").read_text())

@@ -1,4 +1,4 @@
-"""Obstacle models (fuzzynav.obstacle_model and the built-ins): the seam, the math of each model against hand
+"""Obstacle models (fuzzynav.pedestrians.base and the built-ins): the seam, the math of each model against hand
 computations, behaviour in small scenes, determinism, and the scenario keys ``model`` / ``model_params``."""
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav.crowd import Crowd
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.kinematics import RobotState
-from fuzzynav.obstacle_model import MODELS, model_factory, register_obstacle_model
-from fuzzynav.obstacle_motion import ObstacleMotion
-from fuzzynav.scenario import ScenarioError, scenario_from_dict
-from fuzzynav.social_force import SocialForceConfig, agent_repulsion, wall_repulsion
-from fuzzynav.world import World
+from fuzzynav.pedestrians.base import MODELS, model_factory, register_obstacle_model
+from fuzzynav.pedestrians.crowd import Crowd
+from fuzzynav.pedestrians.motion import ObstacleMotion
+from fuzzynav.pedestrians.social_force import SocialForceConfig, agent_repulsion, wall_repulsion
+from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict
+from fuzzynav.scenarios.world import World
 from runners.run import scenario_yaml
 from tests.conftest import load_scenario
 

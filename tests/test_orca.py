@@ -1,4 +1,4 @@
-"""The ORCA policy (fuzzynav/orca.py; van den Berg, Guy, Lin & Manocha 2011): its half-planes and linear
+"""The ORCA policy (fuzzynav/policies/orca.py; van den Berg, Guy, Lin & Manocha 2011): its half-planes and linear
 programs on hand-computed cases, the command conversion, determinism, the registry, and closed-loop drives in
 a small in-test simulation. Units: cm, s, degrees, cm/s."""
 
@@ -9,26 +9,22 @@ import math
 import numpy as np
 import pytest
 
-from fuzzynav.geometry import segment_point_distance, swept_distance
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.navigator import Observation
-from fuzzynav.orca import (
+from fuzzynav.numerics.geometry import segment_point_distance, swept_distance
+from fuzzynav.numerics.orca_lp import (
     Line,
-    OrcaConfig,
-    OrcaPolicy,
     choose_velocity,
-    nearest_static_points,
     orca_line,
-    orca_lines,
     solve_lp2,
     solve_lp3,
     static_point_line,
-    velocity_command,
     violation,
 )
-from fuzzynav.policy import Policy, PolicyContext, make_policy
-from fuzzynav.portable_math import dist
-from fuzzynav.tracking import Track
+from fuzzynav.numerics.portable_math import dist
+from fuzzynav.planning.navigator import Observation
+from fuzzynav.policies.base import Policy, PolicyContext, make_policy
+from fuzzynav.policies.orca import OrcaConfig, OrcaPolicy, nearest_static_points, orca_lines, velocity_command
+from fuzzynav.sensing.tracking import Track
 from tests.policy_scenes import NO_POINTS, observe, random_observation
 
 LIMITS = RobotLimits()

@@ -1,5 +1,5 @@
-"""The compiled ``orca`` pedestrian kernel (fuzzynav._orca) against the Python path it replaces
-(:meth:`fuzzynav.pedestrian_orca.PedestrianOrcaModel._velocity`): the same bits for random pedestrian groups and
+"""The compiled ``orca`` pedestrian kernel (fuzzynav.pedestrians._orca) against the Python path it replaces
+(:meth:`fuzzynav.pedestrians.orca.PedestrianOrcaModel._velocity`): the same bits for random pedestrian groups and
 worlds (coincident pedestrians, overlapping discs, zero velocities, pedestrians on walls, parallel constraint
 lines, infeasible programs, tiny and large speed discs), and identical obstacle trajectories over whole crowd
 episodes with and without the kernel. Units: cm, s, cm/s."""
@@ -16,9 +16,10 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import orca, pedestrian_orca
-from fuzzynav.geometry import away_from_static
-from fuzzynav.pedestrian_orca import PedestrianOrcaConfig, PedestrianOrcaModel
+from fuzzynav.numerics import orca_lp as orca
+from fuzzynav.numerics.geometry import away_from_static
+from fuzzynav.pedestrians import orca as pedestrian_orca
+from fuzzynav.pedestrians.orca import PedestrianOrcaConfig, PedestrianOrcaModel
 from tests.conftest import require_compiled
 
 require_compiled(pedestrian_orca._kernel, "_orca")

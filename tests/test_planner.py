@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from fuzzynav.planner import (
+from fuzzynav.planning.planner import (
     PlannerConfig,
     find_collision_window,
     find_new_path,
@@ -15,8 +15,8 @@ from fuzzynav.planner import (
     path_collides,
     phi_low,
 )
-from fuzzynav.tpt import build_tpt
-from fuzzynav.tracking import Track
+from fuzzynav.planning.tpt import build_tpt
+from fuzzynav.sensing.tracking import Track
 
 
 def paper_table():

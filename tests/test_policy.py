@@ -1,14 +1,14 @@
-"""The policy seam (fuzzynav/policy.py) and the ``direct`` floor baseline."""
+"""The policy seam (fuzzynav/policies/base.py) and the ``direct`` floor baseline."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from fuzzynav.direct import DirectPolicy, direct_command
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import POLICIES, Action, Policy, PolicyContext, make_policy, register_policy
+from fuzzynav.planning.navigator import Observation
+from fuzzynav.policies.base import POLICIES, Action, Policy, PolicyContext, make_policy, register_policy
+from fuzzynav.policies.direct import DirectPolicy, direct_command
 
 CTX = PolicyContext(RobotLimits(), robot_radius=20.0)
 

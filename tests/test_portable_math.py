@@ -1,4 +1,4 @@
-"""Portable numerics: the elementary functions of fuzzynav.portable_math and the rule that the simulation
+"""Portable numerics: the elementary functions of fuzzynav.numerics.portable_math and the rule that the simulation
 path calls nothing whose last bits depend on the CPU (see README "Numerics")."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import portable_math as pm
-from fuzzynav.portable_random import NormalStream, standard_normal, uniform
+from fuzzynav.numerics import portable_math as pm
+from fuzzynav.numerics.portable_random import NormalStream, standard_normal, uniform
 
 ROOT = Path(__file__).resolve().parents[1]
 ANGLES = st.floats(-1e4, 1e4, allow_nan=False)
@@ -143,7 +143,8 @@ def _violations(path: Path, root: Path = ROOT) -> list[str]:
             if node.attr in forbidden.get(owner, ()):
                 found.append(f"{where}: {owner}.{node.attr}")
             elif node.attr in FORBIDDEN_RANDOM:
-                found.append(f"{where}: .{node.attr}() draws through the C library (use fuzzynav.portable_random)")
+                found.append(f"{where}: .{node.attr}() draws through the C library (use "
+                             "fuzzynav.numerics.portable_random)")
         elif isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] in {"numpy", "math", "scipy"}:
             names = {a.name for a in node.names}
             bad = names & (FORBIDDEN_NUMPY | FORBIDDEN_MATH) if node.module != "scipy.optimize" else \
@@ -182,7 +183,7 @@ def test_portable_functions_ignore_numpy_simd_and_blas(angle, frac, x, y):
     assert pm.atan2_deg_array(ys, xs)[1030] == pm.atan2_deg(y, x)
 
 
-# -- the compiled forms (fuzzynav/_portable_math.c) -----------------------------------------------------------
+# -- the compiled forms (fuzzynav/numerics/_portable_math.c) -----------------------------------------------------------
 ANY_FLOAT = st.floats() | st.sampled_from([0.0, -0.0, 90.0, -90.0, 45.0, 135.0, 1e308, -1e308, 5e-324, 2.0 ** 53,
                                             2.0 ** 53 + 2.0, 720.0, -450.0, 22.5])
 
@@ -253,7 +254,7 @@ def test_configure_reads_a_copy_of_a_series_that_changes_while_it_is_read():
     import sys
 
     code = """if True:
-        from fuzzynav import _portable_math as k
+        from fuzzynav.numerics import _portable_math as k
         series = []
         class Shrinks:
             def __float__(self):

@@ -1,4 +1,5 @@
-"""The compiled Box-Muller transform (fuzzynav._portable_random) gives the numpy form's normals to the last bit:
+"""The compiled Box-Muller transform (fuzzynav.numerics._portable_random) gives the numpy form's normals to the last
+bit:
 on uniforms drawn at random, on the edges of their range (0, just below 1, the quadrant boundaries of the angle)
 and through NormalStream's blocks. In CI (CI=true) the kernel must have been built."""
 
@@ -9,8 +10,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import portable_random
-from fuzzynav.portable_random import NormalStream, standard_normal
+from fuzzynav.numerics import portable_random
+from fuzzynav.numerics.portable_random import NormalStream, standard_normal
 from tests.conftest import require_compiled
 
 require_compiled(portable_random._kernel, "_portable_random")

@@ -9,14 +9,14 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode
-from fuzzynav.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.portable_math import sin_cos_deg_array
-from fuzzynav.raycast import cast_rays
-from fuzzynav.scenario import Circle, StaticObstacle, scenario_from_dict
-from fuzzynav.sonar import Sonar, SonarConfig
-from fuzzynav.world import World
+from fuzzynav.numerics.portable_math import sin_cos_deg_array
+from fuzzynav.scenarios.scenario import Circle, StaticObstacle, scenario_from_dict
+from fuzzynav.scenarios.world import World
+from fuzzynav.sensing.raycast import cast_rays
+from fuzzynav.sensing.sonar import Sonar, SonarConfig
 from tests.conftest import load_controller
 
 TABLE1 = FastEvaluator(load_controller("table1"))

@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from analysis.episode_log import load_episode
 from analysis.metrics import episode_metrics
 from fuzzynav.config import episode_config_from_dict
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.generators import random_mixed
-from fuzzynav.scenario import ScenarioError, scenario_from_dict
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.scenarios.generators.random_mixed import random_mixed
+from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict
 from runners.run import run_episode
 from tests.conftest import load_controller
 

@@ -1,4 +1,4 @@
-"""The compiled ray caster (fuzzynav._raycast) gives its numpy form's bits: ranges and hit indices.
+"""The compiled ray caster (fuzzynav.sensing._raycast) gives its numpy form's bits: ranges and hit indices.
 
 Worlds drawn at random (segments of any orientation, zero-length ones, segments through the origin and parallel
 to beams, circles around the origin or touching it, rays grazing a rim, coincident objects for ties), rays in
@@ -12,9 +12,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import raycast
-from fuzzynav.laser import LaserConfig, beam_directions
-from fuzzynav.raycast import cast_rays, nearest_numpy
+from fuzzynav.sensing import raycast
+from fuzzynav.sensing.laser import LaserConfig, beam_directions
+from fuzzynav.sensing.raycast import cast_rays, nearest_numpy
 from tests.conftest import require_compiled
 
 require_compiled(raycast._raycast, "_raycast")
@@ -121,8 +121,8 @@ def test_a_whole_laser_frame_gives_the_numpy_forms_bits(monkeypatch, world, head
                                                         n_static_circles, seed):
     """laser.scan with the kernel (``laser_frame``: directions, ranges, noise, labels, end points) and without:
     every array the same bits, and the noise stream left at the same place."""
-    from fuzzynav.laser import scan
-    from fuzzynav.portable_random import NormalStream
+    from fuzzynav.numerics.portable_random import NormalStream
+    from fuzzynav.sensing.laser import scan
 
     ox, oy, segments, circles = world
     static_circles, discs = circles[:n_static_circles], circles[n_static_circles:]

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from analysis.episode_log import load_episode
-from fuzzynav.navigator import build_navigator
+from fuzzynav.planning.navigator import build_navigator
 from runners import replay
 from tests.conftest import one_error_line
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture

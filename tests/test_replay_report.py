@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from analysis.report import build_report
-from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from runners import replay
 from runners.run import run_episode
 from tests.conftest import ROOT, load_controller, load_scenario

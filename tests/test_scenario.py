@@ -6,8 +6,8 @@ import copy
 
 import pytest
 
-from fuzzynav.obstacle_motion import ObstacleMotion
-from fuzzynav.scenario import ScenarioError, scenario_from_dict
+from fuzzynav.pedestrians.motion import ObstacleMotion
+from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict
 
 BASE = {
     "name": "t", "bounds": [0, 0, 1000, 600],

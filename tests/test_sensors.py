@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from fuzzynav import laser as laser_mod
-from fuzzynav import tracking
-from fuzzynav.laser import LaserConfig
-from fuzzynav.scenario import scenario_from_dict
-from fuzzynav.sonar import Sonar, SonarConfig
-from fuzzynav.tracking import TrackerConfig, TrackerState
-from fuzzynav.world import World
+from fuzzynav.scenarios.scenario import scenario_from_dict
+from fuzzynav.scenarios.world import World
+from fuzzynav.sensing import laser as laser_mod
+from fuzzynav.sensing import tracking
+from fuzzynav.sensing.laser import LaserConfig
+from fuzzynav.sensing.sonar import Sonar, SonarConfig
+from fuzzynav.sensing.tracking import TrackerConfig, TrackerState
 
 
 def world_with(statics, bounds=(0, 0, 1000, 1000)):

@@ -12,17 +12,17 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import tracking
-from fuzzynav.laser import LaserConfig, LaserScan, beam_directions
-from fuzzynav.portable_math import fsum_dot, fsum_mean, norm2
-from fuzzynav.raycast import cast_rays
-from fuzzynav.scenario import Circle, StaticObstacle
-from fuzzynav.sonar import Sonar, SonarConfig
-from fuzzynav.world import _MAX_BOUNDING_DISCS, World, world_of
+from fuzzynav.numerics.portable_math import fsum_dot, fsum_mean, norm2
+from fuzzynav.scenarios.scenario import Circle, StaticObstacle
+from fuzzynav.scenarios.world import _MAX_BOUNDING_DISCS, World, world_of
+from fuzzynav.sensing import tracking
+from fuzzynav.sensing.laser import LaserConfig, LaserScan, beam_directions
+from fuzzynav.sensing.raycast import cast_rays
+from fuzzynav.sensing.sonar import Sonar, SonarConfig
 
 
 def _fit_disc_reference(points: np.ndarray) -> tuple[float, float, float, float]:
-    """Kasa's fit with numpy arrays and :mod:`fuzzynav.portable_math`'s correctly rounded sums."""
+    """Kasa's fit with numpy arrays and :mod:`fuzzynav.numerics.portable_math`'s correctly rounded sums."""
     mx, my = fsum_mean(points[:, 0]), fsum_mean(points[:, 1])
     u, v = points[:, 0] - mx, points[:, 1] - my
     z = u * u + v * v

@@ -1,4 +1,5 @@
-"""The compiled social-force kernel (fuzzynav/_social_force.c) gives the numpy path's bits: one substep's forces
+"""The compiled social-force kernel (fuzzynav/pedestrians/_social_force.c) gives the numpy path's bits: one substep's
+forces
 on random crowds and worlds (coincident points, zero velocities, pedestrians on walls and at circle centres,
 huge and tiny distances), its exp on the whole range, and whole crowd episodes with and without it."""
 
@@ -11,12 +12,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import fuzzynav.social_force as sf
-from fuzzynav import compiled
-from fuzzynav.portable_math import exp_array, sin_cos_deg
+import fuzzynav.pedestrians.social_force as sf
+from fuzzynav.numerics import compiled
+from fuzzynav.numerics.portable_math import exp_array, sin_cos_deg
 from tests.conftest import require_compiled
 
-require_compiled(compiled.load("_social_force"), "_social_force")
+require_compiled(compiled.load("fuzzynav.pedestrians._social_force"), "_social_force")
 
 
 def assert_same_bits(got: np.ndarray, want: np.ndarray) -> None:

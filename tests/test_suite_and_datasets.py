@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.generators import generate
-from fuzzynav.scenario import ScenarioError
+from fuzzynav.scenarios.generator import generate
+from fuzzynav.scenarios.scenario import ScenarioError
 from runners import dataset
 from runners.run import episode_config, load_scenario
 from tests.conftest import CONF, ROOT, load_controller

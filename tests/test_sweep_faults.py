@@ -213,8 +213,8 @@ def _flip_a_byte_inside_a_chunk(path: Path) -> None:
 
 def _rewrite_as_error(path: Path, monkeypatch) -> None:
     """The same episode (same config hash and seed), logged again as ended by a transient MemoryError."""
-    import fuzzynav.navigator as nav
-    from fuzzynav.fuzzy_fast import FastEvaluator
+    import fuzzynav.planning.navigator as nav
+    from fuzzynav.controller.fuzzy_fast import FastEvaluator
     from runners.run import episode_config, run_episode
 
     meta = read_metadata(path)

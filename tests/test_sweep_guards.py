@@ -21,8 +21,8 @@ from omegaconf import OmegaConf
 
 from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
 from fuzzynav.config import episode_config_from_dict
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode_identity import episode_key, episode_key_of
-from fuzzynav.fuzzy_fast import FastEvaluator
 from runners import stop, sweep_control, sweep_lock, sweep_resume
 from runners.mcap_log import SDK_LOGGER, EpisodeLogWriter, LogWriteError, partial_path
 from runners.run import run_episode

@@ -7,8 +7,8 @@ import copy
 import numpy as np
 import pytest
 
-from fuzzynav.fuzzy_fast import FastEvaluator
-from fuzzynav.fuzzy_spec import ControllerSpec, ControllerSpecError, sample_membership
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_spec import ControllerSpec, ControllerSpecError, sample_membership
 from tests.conftest import CONF, load_yaml
 
 CORE = {"near": 15.0, "medium": 65.0, "far": 115.0}  # cm: membership 1 in exactly one term

@@ -1,4 +1,4 @@
-"""The compiled Trajectory Prediction Table (fuzzynav/_tpt.c) against its numpy form (tpt._tables_numpy).
+"""The compiled Trajectory Prediction Table (fuzzynav/planning/_tpt.c) against its numpy form (tpt._tables_numpy).
 
 Both are asked through build_tpt, once as it runs and once with FUZZYNAV_KERNEL=python: every array of the table
 must be the same bits (a NaN's sign bit aside: nothing observes it), on the simulation's numbers and on hostile
@@ -12,8 +12,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import tpt
-from fuzzynav.tracking import Track
+from fuzzynav.planning import tpt
+from fuzzynav.sensing.tracking import Track
 
 pytestmark = pytest.mark.skipif(tpt._kernel is None,
                                 reason="the compiled kernel was not built (no C compiler at install)")

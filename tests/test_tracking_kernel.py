@@ -1,4 +1,4 @@
-"""The compiled tracker kernel (fuzzynav._tracking) finds the Python form's detections, bit for bit.
+"""The compiled tracker kernel (fuzzynav.sensing._tracking) finds the Python form's detections, bit for bit.
 
 Scans drawn at random: rooms of walls with discs of every size (some touching, some around the robot, some
 beyond the range), polygons, beams that return nothing, range noise, all beams returning (one closed cluster),
@@ -14,10 +14,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzynav import tracking
-from fuzzynav.laser import LaserConfig, LaserScan, beam_directions
-from fuzzynav.raycast import cast_rays
-from fuzzynav.tracking import TrackerConfig, detect, detect_python
+from fuzzynav.sensing import tracking
+from fuzzynav.sensing.laser import LaserConfig, LaserScan, beam_directions
+from fuzzynav.sensing.raycast import cast_rays
+from fuzzynav.sensing.tracking import TrackerConfig, detect, detect_python
 from tests.conftest import require_compiled
 
 require_compiled(tracking._tracking, "_tracking")

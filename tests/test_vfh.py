@@ -1,4 +1,4 @@
-"""The vector field histogram baseline (fuzzynav/vfh.py, Borenstein & Koren 1991 with the VFH+ enlargement):
+"""The vector field histogram baseline (fuzzynav/policies/vfh.py, Borenstein & Koren 1991 with the VFH+ enlargement):
 histogram, smoothing, valleys, steering and speed on hand-made inputs, determinism, the registry and one
 closed-loop drive past an obstacle (the drive helpers are test_apf's, so both baselines face the same
 obstacle)."""
@@ -11,10 +11,9 @@ import numpy as np
 import pytest
 
 from fuzzynav.kinematics import RobotState
-from fuzzynav.navigator import Observation
-from fuzzynav.policy import Policy, make_policy
-from fuzzynav.tracking import Track
-from fuzzynav.vfh import (
+from fuzzynav.planning.navigator import Observation
+from fuzzynav.policies.base import Policy, make_policy
+from fuzzynav.policies.vfh import (
     VfhConfig,
     VfhPolicy,
     occupied_cells,
@@ -26,6 +25,7 @@ from fuzzynav.vfh import (
     vfh_command,
     vfh_speed,
 )
+from fuzzynav.sensing.tracking import Track
 from tests.policy_scenes import CTX, drive, wall
 
 CFG = VfhConfig()

@@ -21,7 +21,7 @@ from mcap.writer import CompressionType, Writer
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from fuzzynav.config import episode_config_from_dict
-from fuzzynav.fuzzy_fast import FastEvaluator
+from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from runners.run import run_episode
 from tests.conftest import load_controller, load_scenario
 from tests.handmade import register_topic

@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from fuzzynav.geometry import wrap_180
-from fuzzynav.policy import Action, Observation, PolicyContext
-from fuzzynav.portable_math import bearing_deg
+from fuzzynav.numerics.geometry import wrap_180
+from fuzzynav.numerics.portable_math import bearing_deg
+from fuzzynav.policies.base import Action, Observation, PolicyContext
 
 
 class Straight:

@@ -1,0 +1,43 @@
+"""The optional compiled kernels (C files built by the install when a C compiler is there).
+
+Each numeric kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are
+the same bits with or without it; the analysis's (``_mcap_chunk``, ``_json_checks``) give the same answers and
+the same errors as their Python forms (each kernel has a test that compares it with its counterpart).
+``FUZZYNAV_KERNEL=python`` in the environment switches every kernel off: the runs then take the Python paths (to
+check them, or to time them).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from types import ModuleType
+
+KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
+# the modules pyproject.toml's ext-modules build
+KERNELS = ("fuzzynav.controller._mamdani", "fuzzynav.sensing._raycast", "fuzzynav.sensing._tracking",
+           "analysis._mcap_chunk", "fuzzynav.pedestrians._social_force", "analysis._json_checks",
+           "fuzzynav.numerics._portable_random", "fuzzynav.pedestrians._orca", "fuzzynav.numerics._closest_approach",
+           "fuzzynav.numerics._portable_math", "fuzzynav.planning._tpt")
+
+
+def switched_off() -> bool:
+    """Whether the environment asks for the Python paths (read at every call, so it follows ``os.environ``)."""
+    env = os.environ
+    data, encode = getattr(env, "_data", None), getattr(env, "encodekey", None)
+    if type(data) is not dict or encode is None:  # not CPython's os._Environ
+        return env.get(KERNEL_ENV, "").strip().lower() == "python"
+    # CPython's os.environ keeps its variables in the dict _data: one lookup instead of Mapping.get's, which raises
+    # and catches KeyError when the variable is not set (the usual case) and costs ~1 us; the kernels ask at every
+    # call, up to ~10 times per simulation step
+    value = data.get(encode(KERNEL_ENV))
+    return value is not None and env.decodevalue(value).strip().lower() == "python"
+
+
+def load(name: str) -> ModuleType | None:
+    """The compiled module ``name`` (a full module name, one of :data:`KERNELS`), or None when it was not built
+    (no C compiler at install)."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        return None

@@ -1,0 +1,251 @@
+"""Every documented limit on fuzzynav's inputs, in one place: the code checks these and the README table is
+printed from them (``python -m fuzzynav.params.limits``), so the two cannot disagree.
+
+Two kinds:
+
+- **size and work limits** (:data:`SIZE_LIMITS`): file size, YAML nodes, vertices, obstacles, rules, steps,
+  episodes... Each bounds the time or memory one input can cost, so that a typo (``n_static=1e8``) or a
+  hostile file ends with a one-line error instead of a hang;
+- **value ranges** of the run configuration (:data:`FIELD_RANGES`, keyed by the dotted field as written on
+  the command line, e.g. ``planner.safety_margin_cm``): every number must be finite and inside its range.
+  A test checks that every numeric field of :class:`fuzzynav.episode.EpisodeConfig` has an entry.
+
+Units are those of the field: cm, cm/s, s, degrees, counts.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Limit:
+    """A size or work limit: at most ``value`` of ``what``; ``why`` says what it protects."""
+
+    field: str
+    value: int
+    why: str
+
+
+@dataclass(frozen=True)
+class Range:
+    """A closed or half-open interval ``[lo, hi]`` (``lo_open``/``hi_open`` exclude the end) in ``unit``;
+    ``integer`` demands an integer. ``why`` explains the bounds."""
+
+    lo: float
+    hi: float
+    unit: str = ""
+    why: str = ""
+    lo_open: bool = False
+    hi_open: bool = False
+    integer: bool = False
+
+    def contains(self, x: float) -> bool:
+        above = x > self.lo if self.lo_open else x >= self.lo
+        below = x < self.hi if self.hi_open else x <= self.hi
+        return above and below
+
+    def text(self) -> str:
+        """``(0, 60] s`` or ``[1, 1000]``."""
+        lo = _num(self.lo)
+        hi = _num(self.hi)
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{'(' if self.lo_open else '['}{lo}, {hi}{')' if self.hi_open else ']'}{unit}"
+
+
+def _num(x: float) -> str:
+    return f"{int(x):,}" if float(x).is_integer() else f"{x:g}"
+
+
+# -- names that become file names ---------------------------------------------------------------------------
+NAME_MAX_CHARS = 64
+#: letters, digits, ``_ - .``; not starting with ``.`` (no hidden files, no ``..``), at most 64 characters
+NAME_PATTERN = re.compile(rf"[A-Za-z0-9_-][A-Za-z0-9_.-]{{0,{NAME_MAX_CHARS - 1}}}", re.ASCII)
+
+# -- data files (scenario and controller YAML) ---------------------------------------------------------------
+MAX_DATA_FILE_BYTES = 1_000_000
+MAX_YAML_NODES = 10_000  # after alias expansion
+MAX_YAML_DEPTH = 32
+MAX_TEXT_CHARS = 10_000  # a free-text field (description)
+MAX_MANIFEST_BYTES = 20_000_000  # a dataset manifest: about 1.3 kB per episode (suite_v1: 560 episodes, 0.7 MB)
+MAX_MANIFEST_NODES = 1_000_000  # about 40 per episode
+
+# -- scenarios ----------------------------------------------------------------------------------------------
+MAX_COORD_CM = 1e9  # |x| of every scenario number (coordinates, radii, speeds)
+MAX_STATIC_OBSTACLES = 500
+MAX_POLYGON_VERTICES = 1_000
+MAX_TOTAL_VERTICES = 2_000
+MAX_DYNAMIC_OBSTACLES = 100
+MAX_WAYPOINTS = 1_000
+MAX_STEPS = 100_000
+MAX_PEDESTRIAN_SUBSTEPS = 20_000_000  # reactive pedestrians x substeps per step x max_steps
+
+# -- controllers --------------------------------------------------------------------------------------------
+MAX_CONTROLLER_VARIABLES = 16  # inputs and outputs together
+MAX_TERMS = 32  # per variable
+MAX_RULES = 1_000
+MAX_UNIVERSE_STEPS = 10_000  # grid steps of one variable's universe
+MAX_CONTROLLER_ABS = 1e6  # |x| of universes, breakpoints and fallbacks, in the variable's unit
+MAX_STEER_DEG = 180.0  # the steering output's universe lies within [-180, 180] degrees
+MAX_SPEED_CM_S = 1_000.0  # speeds: robot limits, the speed output's universe, planner speeds
+
+# -- runs ---------------------------------------------------------------------------------------------------
+MAX_EPISODES_PER_RUN = 10_000
+MAX_SEED = 9_007_199_254_740_991  # 2^53 - 1: seeds stay exact as float64 (pandas tables of the analysis)
+MAX_LAUNCHER_JOBS = 256
+
+SIZE_LIMITS: tuple[Limit, ...] = (
+    Limit("scenario / controller file size (bytes)", MAX_DATA_FILE_BYTES,
+          "checked before anything parses the file (a 100 MB file kept Hydra busy for minutes); shipped "
+          "files are < 10 kB"),
+    Limit("YAML nodes per file after alias expansion", MAX_YAML_NODES,
+          "Hydra's OmegaConf builds about 5,000 nodes per second, several times per run; aliases (&a / *a) "
+          "can expand exponentially (\"billion laughs\")"),
+    Limit("YAML nesting depth", MAX_YAML_DEPTH, "the parsers recurse once per level"),
+    Limit("dataset manifest size (bytes)", MAX_MANIFEST_BYTES,
+          "checked before it is parsed, like a scenario file; about 15,000 episodes"),
+    Limit("dataset manifest YAML nodes after alias expansion", MAX_MANIFEST_NODES,
+          "about 40 per episode; no YAML tags or interpolations either"),
+    Limit("name (scenario, controller, obstacle id; characters)", NAME_MAX_CHARS,
+          "names become log file names: letters, digits, _ - . only, not starting with ."),
+    Limit("description (characters)", MAX_TEXT_CHARS, "stored in every log's metadata"),
+    Limit("scenario numbers, absolute value (cm, cm/s)", int(MAX_COORD_CM),
+          "1e9 cm = 10,000 km; coordinates stay exact to about 1e-7 cm"),
+    Limit("static_obstacles", MAX_STATIC_OBSTACLES, "sonar and contact checks per step grow with them"),
+    Limit("static_obstacles[i].polygon vertices", MAX_POLYGON_VERTICES, "ray casting: beams x edges per step"),
+    Limit("polygon vertices in a scenario", MAX_TOTAL_VERTICES,
+          "ray casting: 2,000 edges within laser range cost about 5-10 ms per step"),
+    Limit("dynamic_obstacles", MAX_DYNAMIC_OBSTACLES, "tracking (Hungarian) and TPT grow with them"),
+    Limit("dynamic_obstacles[i].waypoints", MAX_WAYPOINTS, "path bookkeeping per step"),
+    Limit("max_steps (also params.max_steps)", MAX_STEPS,
+          "an episode of 100,000 steps takes minutes and writes a log of about 200 MB"),
+    Limit("reactive pedestrian-substeps per episode (pedestrians x substeps per step x max_steps)",
+          MAX_PEDESTRIAN_SUBSTEPS, "an ORCA pedestrian's substep costs about 0.1 ms: 20 million is about an hour"),
+    Limit("params.n_static of random_mixed", MAX_STATIC_OBSTACLES, "as static_obstacles (200 placements each)"),
+    Limit("params.n_dynamic of random_mixed", MAX_DYNAMIC_OBSTACLES, "as dynamic_obstacles"),
+    Limit("controller variables (inputs + outputs)", MAX_CONTROLLER_VARIABLES, "evaluated at every decision"),
+    Limit("terms per variable", MAX_TERMS, "sampled memberships are terms x grid points"),
+    Limit("rules", MAX_RULES, "evaluated at every decision"),
+    Limit("grid steps per universe ((max - min) / resolution)", MAX_UNIVERSE_STEPS,
+          "the batch evaluator allocates grid x 1024 floats per output"),
+    Limit("controller numbers, absolute value (universes, params, fallback)", int(MAX_CONTROLLER_ABS),
+          "widths and centroids stay finite (1e308 overflowed)"),
+    Limit("episodes per run (seeds per job)", MAX_EPISODES_PER_RUN,
+          "every scenario of a run is validated before its first episode; split bigger runs into jobs"),
+    Limit("seed + episodes", MAX_SEED, "2^53 - 1: seeds stay exact in the analysis' float64 tables"),
+    Limit("hydra.launcher.n_jobs, absolute value (0 is refused)", MAX_LAUNCHER_JOBS, "one worker process each"),
+)
+
+_CM = "cm"
+_M = "a margin or distance in cm; 10 m is far beyond the sensors"
+_R = "a distance in cm, at most the longest sensor range (100 m)"
+_S = "a speed in cm/s; the robot drives 10-40 cm/s"
+_N = "a noise standard deviation in cm; beyond 10 m it swamps every reading"
+
+MIN_DT_S = 1e-3  # a millisecond: below it a step is no navigation step, and speeds per step lose their digits
+MAX_DT_S = 60.0  # a minute: sensing and the TPT sample once per step
+
+#: The range of every numeric run-configuration field (dotted as on the command line).
+FIELD_RANGES: dict[str, Range] = {
+    "seed": Range(0, MAX_SEED, why="numpy seeds are non-negative; see seed + episodes", integer=True),
+    "episodes": Range(1, MAX_EPISODES_PER_RUN, why="at least one episode per run", integer=True),
+    "dt": Range(MIN_DT_S, MAX_DT_S, "s", "seconds per step; sensing and the TPT sample once per step (the "
+                "analysis reads logs in this range only)"),
+    "robot.max_turn_deg": Range(0, 180, "deg", "turn per step; 180 reaches every heading", lo_open=True),
+    "robot.v_min": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
+    "robot.v_max": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
+    "sensors.sonar.left": Range(-360, 360, "deg", "sector bounds relative to the heading"),
+    "sensors.sonar.front": Range(-360, 360, "deg", "sector bounds relative to the heading"),
+    "sensors.sonar.right": Range(-360, 360, "deg", "sector bounds relative to the heading"),
+    "sensors.sonar.range_cm": Range(0, 10_000, _CM, "sensor range up to 100 m", lo_open=True),
+    "sensors.sonar.arc_step_deg": Range(0.1, 30, "deg", "arc sampling: at most 3,600 points per sector"),
+    "sensors.laser.range_cm": Range(0, 10_000, _CM, "sensor range up to 100 m", lo_open=True),
+    "sensors.laser.beams": Range(8, 3_600, "", "ray casting per step grows with the beams", integer=True),
+    "sensors.laser.noise_std_cm": Range(0, 1_000, _CM, _N),
+    "perception.position_noise_std_cm": Range(0, 1_000, _CM, _N),
+    "perception.velocity_noise_std_cm_s": Range(0, 1_000, "cm/s", "a noise standard deviation in cm/s"),
+    "perception.confirm_frames": Range(1, 1_000, "frames", "ground truth reports an obstacle from this frame",
+                                       integer=True),
+    "perception.tracker.cluster_gap_cm": Range(0, 1_000, _CM, _M, lo_open=True),
+    "perception.tracker.min_points": Range(3, 3_600, "", "a circle fit needs 3 points; at most every beam",
+                                           integer=True),
+    "perception.tracker.max_radius_cm": Range(0, 10_000, _CM, _R, lo_open=True),
+    "perception.tracker.max_fit_rms_cm": Range(0, 1_000, _CM, _M, lo_open=True),
+    "perception.tracker.gate_cm": Range(0, 10_000, _CM, _R, lo_open=True),
+    "perception.tracker.min_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", _S),
+    "perception.tracker.max_missed": Range(0, 1_000, "frames", "frames a lost track is kept", integer=True),
+    "perception.tracker.velocity_alpha": Range(0, 1, "", "smoothing factor", lo_open=True),
+    "planner.h_wait": Range(0, 1_000, "steps", "compared with waitTime <= n_traj", integer=True),
+    "planner.n_traj": Range(1, 1_000, "steps", "steps predicted per table; TPT and planning grow with it",
+                            integer=True),
+    "planner.safety_margin_cm": Range(0, 1_000, _CM, _M),
+    "planner.successor_speeds": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
+    "planner.n_headings": Range(1, 361, "", "successor headings per speed", integer=True),
+    "planner.heading_step_deg": Range(0.1, 180, "deg", "evasion tries 2 x max_turn / step headings"),
+    "planner.astar_max_expansions": Range(1, 100_000, "", "A* work per plan", integer=True),
+    "planner.detour_tolerance_cm": Range(0, 1_000, _CM, _M, lo_open=True),
+    "planner.detour_max_steps": Range(1, 1_000, "steps", "greedy and A* depth per plan", integer=True),
+    "planner.static_margin_cm": Range(0, 1_000, _CM, _M),
+    "planner.cruise_speed": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
+    "planner.plan_tolerance_cm": Range(0, 1_000, _CM, _M, lo_open=True),
+    "planner.plan_check_margin_cm": Range(0, 1_000, _CM, _M),
+    "navigator.static_near_cm": Range(0, 10_000, _CM, _R),
+    "navigator.direct_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
+    "navigator.clear_path_margin_cm": Range(0, 1_000, _CM, _M),
+    # the baselines' parameters (navigator=dwa, apf, vfh, orca, direct): one flat namespace, as on the command
+    # line; a name two policies share (margin_cm: DWA, ORCA) means the same thing in both
+    "navigator.turn_samples": Range(3, 721, "", "DWA: turn samples per speed, odd (each is rolled out)",
+                                    integer=True),
+    "navigator.speed_samples": Range(1, 100, "", "DWA: speed samples per turn", integer=True),
+    "navigator.accel_cm_s2": Range(0, 100_000, "cm/s²", "DWA: the speed window's reach in one step",
+                                   lo_open=True),
+    "navigator.decel_cm_s2": Range(0, 100_000, "cm/s²", "DWA: braking deceleration", lo_open=True),
+    "navigator.max_turn_rate_deg_s": Range(0, 36_000, "deg/s", "DWA: the turn window", lo_open=True),
+    "navigator.horizon_steps": Range(1, 100, "steps", "DWA: rollout length; work grows with it", integer=True),
+    "navigator.alpha_heading": Range(0, 1e6, "", "DWA: weight of the heading term"),
+    "navigator.beta_clearance": Range(0, 1e6, "", "DWA: weight of the clearance term"),
+    "navigator.gamma_velocity": Range(0, 1e6, "", "DWA: weight of the velocity term"),
+    "navigator.clearance_cap_cm": Range(0, 10_000, _CM, "DWA: " + _R, lo_open=True),
+    "navigator.margin_cm": Range(0, 1_000, _CM, "DWA, ORCA: " + _M),
+    "navigator.attractive_gain": Range(0, 1e6, "1/s", "APF: ξ", lo_open=True),
+    "navigator.attractive_switch_cm": Range(0, 10_000, _CM, "APF: d*, " + _R, lo_open=True),
+    "navigator.repulsive_gain": Range(0, 1e12, "", "APF: η"),
+    "navigator.influence_cm": Range(0, 10_000, _CM, "APF: ρ0, " + _R, lo_open=True),
+    "navigator.lookahead_s": Range(0, 60, "s", "APF: where moving obstacles repel from"),
+    "navigator.min_gap_cm": Range(0, 1_000, _CM, "APF: floor of the gap ρ", lo_open=True),
+    "navigator.sector_deg": Range(0.5, 45, "deg", "VFH: α; 8 to 720 sectors (the histogram is sectors x cells)"),
+    "navigator.cell_cm": Range(1, 1_000, _CM, "VFH: histogram-grid cell"),
+    "navigator.window_cm": Range(0, 10_000, _CM, "VFH: active window, " + _R, lo_open=True),
+    "navigator.b": Range(0, 1e6, "1/cm", "VFH: magnitude per cm", lo_open=True),
+    "navigator.smoothing_l": Range(1, 180, "sectors", "VFH: l, at most half the sectors", integer=True),
+    "navigator.threshold": Range(0, 1e12, "", "VFH: threshold on h'", lo_open=True),
+    "navigator.wide_valley_sectors": Range(1, 359, "sectors", "VFH: s_max", integer=True),
+    "navigator.h_m": Range(0, 1e12, "", "VFH: density that stops the robot", lo_open=True),
+    "navigator.safety_cm": Range(0, 1_000, _CM, "VFH: d_s, " + _M),
+    "navigator.perimeter_spacing_cm": Range(1, 1_000, _CM, "VFH: points around a moving obstacle"),
+    "navigator.pref_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", "ORCA: " + _S, lo_open=True),
+    "navigator.time_horizon_s": Range(0, 600, "s", "ORCA: τ for tracks", lo_open=True),
+    "navigator.time_horizon_obst_s": Range(0, 600, "s", "ORCA: τ for static returns", lo_open=True),
+    "navigator.reciprocity": Range(0.5, 1, "", "ORCA: share of each avoidance the robot takes"),
+    "navigator.max_static_points": Range(0, 1_000, "", "ORCA: static constraints per decision", integer=True),
+    "navigator.speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", "direct: " + _S, lo_open=True),
+}
+
+#: Sequence fields: at most this many items (each item checked against its FIELD_RANGES entry).
+FIELD_MAX_ITEMS: dict[str, int] = {"planner.successor_speeds": 20, "sensors.sonar.left": 2,
+                                   "sensors.sonar.front": 2, "sensors.sonar.right": 2}
+
+
+def markdown_table() -> str:
+    """The limits as two Markdown tables (size and work limits; configuration ranges), for the README."""
+    lines = ["| input | limit | why |", "|---|---|---|"]
+    lines += [f"| {lim.field} | {lim.value:,} | {lim.why} |" for lim in SIZE_LIMITS]
+    lines += ["", "| field | range | why |", "|---|---|---|"]
+    lines += [f"| `{field}` | {rng.text()}{' (integer)' if rng.integer else ''} | {rng.why} |"
+              for field, rng in FIELD_RANGES.items()]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(markdown_table())

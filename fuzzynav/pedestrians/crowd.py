@@ -1,0 +1,115 @@
+"""All moving obstacles of an episode, moved by their models (:mod:`fuzzynav.pedestrians.base`).
+
+Obstacles that name the same model with the same parameters share one model instance (so a social-force crowd
+is one system); every model steps from the same :class:`~fuzzynav.pedestrians.base.CrowdView` (simultaneous
+update). Positions in cm, velocities in cm/s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from fuzzynav.kinematics import RobotState
+from fuzzynav.params import limits
+from fuzzynav.pedestrians.base import DEFAULT_MODEL, CrowdView, ObstacleModel, model_config, model_factory, substeps
+
+if TYPE_CHECKING:
+    from fuzzynav.scenarios.scenario import DynamicObstacle
+    from fuzzynav.scenarios.world import World
+
+#: the second word of the obstacles' random streams ``default_rng((seed, OBSTACLE_STREAM, group))``: independent of the
+#: sensor noise (``default_rng(seed)``) and of the generators' ``(seed, 7)``, so a scripted scenario (which
+#: draws nothing) keeps its logs, and a model's draws never shift the sensor noise
+OBSTACLE_STREAM = 11
+
+
+def obstacle_rng(seed: int, group: int) -> np.random.Generator:
+    """The random stream of the ``group``-th model instance of an episode with ``seed``."""
+    return np.random.default_rng((seed, OBSTACLE_STREAM, group))
+
+
+def crowd_work(obstacles: Sequence[DynamicObstacle], dt: float, max_steps: int) -> int:
+    """Pedestrian-substeps an episode of ``max_steps`` steps of ``dt`` seconds may cost: for every obstacle whose
+    model integrates in substeps (``model_params.substep_s``), ceil(dt / substep_s) per step."""
+    per_step = 0
+    for o in obstacles:
+        substep = getattr(o.model_params, "substep_s", None)
+        if substep:
+            per_step += substeps(dt, substep)[0]
+    return per_step * max_steps
+
+
+def check_crowd_work(obstacles: Sequence[DynamicObstacle], dt: float, max_steps: int) -> None:
+    """``ValueError`` naming ``dynamic_obstacles`` when :func:`crowd_work` exceeds its limit
+    (:mod:`fuzzynav.params.limits`):
+    100 ORCA pedestrians with 0.01 s substeps for 100,000 steps would run for days."""
+    work = crowd_work(obstacles, dt, max_steps)
+    if work > limits.MAX_PEDESTRIAN_SUBSTEPS:
+        raise ValueError(f"dynamic_obstacles: {work:,} pedestrian-substeps per episode (pedestrians x substeps per "
+                         f"step x max_steps), more than the limit of {limits.MAX_PEDESTRIAN_SUBSTEPS:,} (use fewer "
+                         "pedestrians, a larger model_params.substep_s or fewer max_steps)")
+
+
+def model_name(obstacle: DynamicObstacle) -> str:
+    """The obstacle's model (``scripted`` when its entry names none)."""
+    return obstacle.model or DEFAULT_MODEL
+
+
+class Crowd:
+    """The moving obstacles of a scenario: :meth:`reset` to t = 0, then :meth:`step` once per time step."""
+
+    def __init__(self, obstacles: Sequence[DynamicObstacle], world: World, robot_radius: float) -> None:
+        self.ids = tuple(o.id for o in obstacles)
+        self.radii = np.array([o.radius for o in obstacles], dtype=float)
+        self.models_of = tuple(model_name(o) for o in obstacles)
+        self.world = world
+        self.robot_radius = robot_radius
+        groups: dict[tuple, list[int]] = {}
+        for i, o in enumerate(obstacles):
+            name = model_name(o)
+            config = model_config(name, o.model_params, f"dynamic_obstacles[{i}].model_params")
+            groups.setdefault((name, config), []).append(i)
+        self._models: list[tuple[ObstacleModel, np.ndarray]] = []
+        for (name, config), members in groups.items():
+            model = model_factory(name, "model")([obstacles[i] for i in members], config)
+            self._models.append((model, np.array(members, dtype=int)))
+        self.positions = np.zeros((len(obstacles), 2))
+        self.velocities = np.zeros((len(obstacles), 2))
+        self.step_index = 0
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def reset(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """Every obstacle at t = 0: positions (N, 2) cm and velocities (N, 2) cm/s."""
+        pos = np.zeros((len(self.ids), 2))
+        vel = np.zeros((len(self.ids), 2))
+        for group, (model, members) in enumerate(self._models):
+            p, v = model.reset(obstacle_rng(seed, group))
+            pos[members], vel[members] = p, v
+        self.positions, self.velocities, self.step_index = pos, vel, 0
+        return pos, vel
+
+    def step(self, robot: RobotState, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Advance every obstacle from the current time (step ``step_index``) by ``dt`` seconds, seeing the robot
+        as it was at the current time; returns and keeps the new positions and velocities."""
+        if not len(self.ids):
+            self.step_index += 1
+            return self.positions, self.velocities
+        view = CrowdView(self.world, robot, self.robot_radius, self.positions, self.velocities, self.radii,
+                         self.step_index * dt, self.step_index)
+        pos = np.zeros_like(self.positions)
+        vel = np.zeros_like(self.velocities)
+        for model, members in self._models:
+            p, v = model.step(view, members, dt)
+            pos[members], vel[members] = p, v
+        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            bad = int(np.nonzero(~(np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)))[0][0])
+            raise FloatingPointError(f"obstacle {self.ids[bad]!r} ({self.models_of[bad]}): non-finite position or "
+                                     f"velocity at step {self.step_index + 1}")
+        self.positions, self.velocities = pos, vel
+        self.step_index += 1
+        return pos, vel

@@ -1,0 +1,60 @@
+"""Plug-ins found without a central list: fuzzynav's own by their package, other packages' by entry points.
+
+A kind of plug-in (navigation policies, pedestrian models, scenario generators) is a registry, a mapping from
+name to factory that the plug-ins fill themselves: a module of fuzzynav's own registers on import (a decorator
+such as ``@register_policy("dwa")``), and :func:`load_plugins` imports every public module of the kind's package
+(``fuzzynav.policies``) the first time a name is looked up. A plug-in of another installed package declares an
+entry point in the kind's group, in its ``pyproject.toml``::
+
+    [project.entry-points."fuzzynav.policies"]
+    wall_follow = "my_package.wall_follow:WallFollowPolicy"
+
+and is used by that name (``navigator.policy=wall_follow``): the object the entry point names is registered
+under the entry point's name (a module that registers itself on import may be named instead). Adding a plug-in
+is therefore one module (plus its YAML); no list in fuzzynav names it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable
+from importlib import metadata
+from types import ModuleType
+from typing import Any
+
+_LOADED: set[tuple[str, str]] = set()
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())[:200]
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
+                 registered: Callable[[str], Any]) -> None:
+    """Import every public module of ``package`` (they register themselves), then load the entry points of
+    ``group``: each one's object is registered under the entry point's name by ``register(name, factory)``
+    unless ``registered(name)`` already returns it (a module that registered itself on import). Runs once per
+    (package, group); a plug-in that fails to load raises ``ValueError`` naming the entry point."""
+    key = (package, group)
+    if key in _LOADED:
+        return
+    _LOADED.add(key)  # before loading: a plug-in's import may look a name up again
+    try:
+        pkg = importlib.import_module(package)
+        for info in pkgutil.iter_modules(pkg.__path__):
+            if not info.name.startswith("_"):
+                importlib.import_module(f"{package}.{info.name}")
+        for entry in metadata.entry_points(group=group):
+            try:
+                obj = entry.load()
+            except Exception as err:  # another package's code: any failure is that plug-in's error
+                raise ValueError(f"entry point {entry.name!r} of group {group!r} ({entry.value}): loading it "
+                                 f"failed: {_one_line(err)}") from None
+            if isinstance(obj, ModuleType) or registered(entry.name) is obj:
+                continue
+            register(entry.name, obj)
+    except BaseException:
+        _LOADED.discard(key)  # a later lookup tries again and reports the same error
+        raise
