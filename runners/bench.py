@@ -44,12 +44,11 @@ from typing import Any
 
 import numpy as np
 import yaml
+from fuzzynav.conf import CONF_DIR as CONF
 
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
 from fuzzynav.controller.fuzzy_spec import ControllerSpec
-
-CONF = Path(__file__).resolve().parents[1] / "conf"
 
 
 def _inputs(spec: ControllerSpec, n: int, seed: int) -> dict[str, np.ndarray]:
@@ -312,7 +311,7 @@ def _sweep_once(episodes: int, per_job: int) -> dict:
         t0 = time.time()
         res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", "scenario=head_on", "planner=auto",
                               f"seed=range(0,{episodes},{per_job})", f"episodes={per_job}", f"hydra.sweep.dir={out}"],
-                             cwd=CONF.parent, capture_output=True, text=True)
+                             cwd=tmp, capture_output=True, text=True)
         wall = time.time() - t0
         if res.returncode != 0:
             raise RuntimeError(f"sweep failed: {res.stderr[-500:]}")

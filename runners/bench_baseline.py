@@ -73,11 +73,17 @@ with tempfile.TemporaryDirectory() as tmp:
         logged.append(run(True)[0])
     # then one logged pass with runners.bench's wall-clock timers (the tree's own _Timers, the same at both commits)
     # on the functions it times, by the same names at both commits; what is in none of them is "rest"
-    from fuzzynav import episode as episode_mod
-    from fuzzynav.sensing import laser as laser_mod
-    from fuzzynav.planning import navigator as nav_mod
-    from fuzzynav.policies.fuzzy import FuzzyPolicy
-    from fuzzynav.sensing.sonar import Sonar
+    import importlib
+    # the same functions by their module at either layout (flat fuzzynav/ before its subpackages); chosen by the
+    # tree's folders, since importing a name the tree lacks would take this checkout's module
+    nested = (tree / "fuzzynav" / "sensing").is_dir()
+    def module(new, old):
+        return importlib.import_module(new if nested else old)
+    episode_mod = module("fuzzynav.episode", "fuzzynav.episode")
+    laser_mod = module("fuzzynav.sensing.laser", "fuzzynav.laser")
+    nav_mod = module("fuzzynav.planning.navigator", "fuzzynav.navigator")
+    FuzzyPolicy = module("fuzzynav.policies.fuzzy", "fuzzynav.fuzzy_policy").FuzzyPolicy
+    Sonar = module("fuzzynav.sensing.sonar", "fuzzynav.sonar").Sonar
     from runners.bench import _Timers
     from runners.mcap_log import EpisodeLogWriter
     timers = _Timers()
@@ -94,10 +100,14 @@ with tempfile.TemporaryDirectory() as tmp:
     total["rest"] = max(wall - sum(total.values()), 0.0)
 only_the_trees()
 kernels = []
-if (tree / "fuzzynav" / "compiled.py").exists():  # a commit from before the compiled kernels has none
-    from fuzzynav.numerics import compiled
-    kernels = [name for name in compiled.KERNELS if compiled.load(name) is not None and not compiled.switched_off()
-               and Path(sys.modules[f"fuzzynav.{name}"].__file__).resolve().is_relative_to(tree)]
+compiled_py = [p for p in ("numerics/compiled.py", "compiled.py") if (tree / "fuzzynav" / p).exists()]
+if compiled_py:  # a commit from before the compiled kernels has none
+    import importlib
+    compiled = importlib.import_module("fuzzynav." + compiled_py[0][:-3].replace("/", "."))
+    full = [name if "." in name else f"fuzzynav.{name}" for name in compiled.KERNELS]  # short names before subpackages
+    kernels = [module for name, module in zip(compiled.KERNELS, full, strict=True)
+               if compiled.load(name) is not None and not compiled.switched_off()
+               and Path(sys.modules[module].__file__).resolve().is_relative_to(tree)]
 print(json.dumps({"steps": steps, "kernels": kernels, "plain_us_per_step": min(plain) / steps * 1e6,
                   "logged_us_per_step": min(logged) / steps * 1e6,
                   "stage_us_per_step": {k: v / steps * 1e6 for k, v in total.items()}}))

@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from fuzzynav.conf import CONF_DIR as CONF
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
 MODELS = ("scripted", "social_force", "orca", "random_walk")
 
 

@@ -44,12 +44,14 @@ from typing import Any
 
 import pandas as pd
 import yaml
+from fuzzynav.conf import CONF_DIR as CONF
 
 from analysis.cli_args import MAX_JOBS, OneLineParser
 from analysis.cli_args import jobs as cli_jobs
 from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
 from fuzzynav.params import limits
+from runners import config_plugins
 from runners.data_files import MANIFEST, DataFileError, check_data_file
 from runners.dataset_manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.log_diff import EpisodeDiff, diff_logs, diff_records
@@ -58,7 +60,6 @@ from runners.verify_report import detail_lines, episode_line, summary_lines
 
 ROOT = Path(__file__).resolve().parents[1]
 DATASETS = ROOT / "datasets"  # the default place of datasets; ``--root`` (tests: a temporary directory) changes it
-CONF = ROOT / "conf"
 
 
 # -- the manifest -------------------------------------------------------------------------------------------
@@ -215,6 +216,7 @@ def _check_distinct_variants(path: Path, before: list[str], variants: list[list[
         return
     schema.register()
     seen: dict[str, int] = {}
+    config_plugins.register()  # other packages' config folders (entry points)
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         for i, parts in enumerate(variants):
             cfg = compose("config", overrides=[*before, *parts, *after])
@@ -330,6 +332,7 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
     if GlobalHydra.instance().is_initialized():
         cfg = compose("config", overrides=job["overrides"])
     else:  # a context: with one worker this runs in the caller's process, whose later prechecks initialise Hydra
+        config_plugins.register()  # other packages' config folders (entry points)
         with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
             cfg = compose("config", overrides=job["overrides"])
     plain = OmegaConf.to_container(cfg, resolve=True)

@@ -49,6 +49,7 @@ from fuzzynav.planning.navigator import checked_action
 from fuzzynav.policies.base import AGENT, Action, Observation, Policy, PolicyContext, is_policy_id, make_policy
 from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
 from fuzzynav.sensing.laser import LaserScan
+from runners import config_plugins
 
 ENV_ID = "fuzzynav/Navigation-v0"
 
@@ -425,6 +426,7 @@ def _compose(overrides: list[str]) -> Any:
     from runners.precheck import CONF
 
     schema.register()
+    config_plugins.register()  # other packages' config folders (entry points)
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         return compose("config", overrides=overrides, return_hydra_config=True)
 

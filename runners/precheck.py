@@ -25,16 +25,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import yaml
+from fuzzynav.conf import CONF_DIR as CONF
 from hydra import compose, initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ChoiceSweep, Glob, Override, ValueType
 from omegaconf import DictConfig
 
-from runners import schema
+from runners import config_plugins, schema
 from runners.data_files import DataFileError, check_data_file
 from runners.run_inputs import DATA_GROUPS, ConfigFileError, load_run
-
-CONF = Path(__file__).resolve().parents[1] / "conf"
 
 
 def _value_kind(value: object) -> object:
@@ -78,7 +77,8 @@ def _one_line(err: BaseException) -> str:
     missing = re.search(r"Could not find '([^']+)'", full)
     if missing:
         group = missing.group(1).split("/")[0]
-        options = sorted(p.stem for p in (CONF / group).glob("*.yaml")) if (CONF / group).is_dir() else []
+        dirs = [CONF, *(folder for _, folder in config_plugins.plugin_config_dirs())]
+        options = sorted({p.stem for d in dirs if (d / group).is_dir() for p in (d / group).glob("*.yaml")})
         hint = f" (available: {', '.join(options)})" if options else ""
         return f"config: no config '{missing.group(1)}'{hint}"
     return f"config: {texts[0].splitlines()[0]}"
@@ -94,12 +94,13 @@ def _unavailable_search_path(caught: Sequence[warnings.WarningMessage]) -> str |
 
 
 def _search_dirs(parsed: Sequence[Override]) -> list[Path]:
-    """Config directories in Hydra's order: ``conf/``, then the ``file://`` entries of ``hydra.searchpath``."""
+    """Config directories in Hydra's order: ``conf/``, the ``file://`` entries of ``hydra.searchpath``, then other
+    packages' config folders (:mod:`runners.config_plugins`)."""
     dirs = [CONF]
     for o in parsed:
         if o.get_key_element() == "hydra.searchpath" and isinstance(o.value(), list):
             dirs += [Path(str(p)[len("file://"):]) for p in o.value() if str(p).startswith("file://")]
-    return dirs
+    return dirs + [folder for _, folder in config_plugins.plugin_config_dirs()]
 
 
 def _options(value: object, group: str, dirs: Sequence[Path]) -> set[str]:
@@ -223,6 +224,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     if problem:
         return problem
     schema.register()
+    config_plugins.register()  # other packages' config folders (entry points)
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         for k, overrides in enumerate(trials):
             with warnings.catch_warnings(record=True) as caught:

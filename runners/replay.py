@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from fuzzynav.conf import CONF_DIR as CONF
 
 from analysis.cli_args import OneLineParser
 from analysis.episode_log import EpisodeLog, load_episode
@@ -43,7 +44,6 @@ from fuzzynav.sensing.laser import LaserConfig, beam_directions
 from fuzzynav.sensing.tracking import Track
 from runners.run import ConfigFileError, episode_config
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
 ALL_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode", "/tracks",
               "/sonar", "/laser")
 TOLERANCE = 1e-2  # degrees and cm/s (and a policy's own numbers): the log rounds to 1e-4

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import hydra
+from fuzzynav.conf import CONF_DIR
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
@@ -31,7 +32,7 @@ from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.policies.base import DEFAULT_POLICY, policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.scenario import Scenario
-from runners import process_tree, schema, stop, sweep_resume, yaml_text
+from runners import config_plugins, process_tree, schema, stop, sweep_resume, yaml_text
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
 from runners.provenance import provenance
 
@@ -46,7 +47,6 @@ __all__ = ["ConfigFileError", "Interrupted", "episode_config", "episode_metadata
            "log_name", "outcome_reason", "run_episode", "run_job"]
 
 schema.register()
-CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # absolute: works from any working directory
 
 
 def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
@@ -211,7 +211,7 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     return results
 
 
-@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
+@hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="config")  # absolute: any working dir
 def main(cfg: DictConfig) -> list[dict[str, Any]]:
     logging.raiseExceptions = False  # a job's log file on a full disk must not print a traceback per record
     try:
@@ -325,6 +325,7 @@ def register_sweeper() -> None:
             sys.exit(2)
         return
     Plugins.instance().register(FuzzynavSweeper)
+    config_plugins.register()
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fuzzynav.conf import CONF_DIR as CONF
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ValueType
 from hydra.experimental.callback import Callback
@@ -45,7 +46,6 @@ if TYPE_CHECKING:  # pandas and the analysis are imported where the summary is w
 
     from analysis.metrics import Analysis
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
 
 
 def count_episodes(config: DictConfig) -> int | None:

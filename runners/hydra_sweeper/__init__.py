@@ -36,9 +36,10 @@ from hydra.core.utils import JobStatus
 from omegaconf import OmegaConf
 
 from runners import sweep_control, sweep_resume
+from runners.config_plugins import PluginConfigSearchPath  # found here by Hydra's scan of hydra_plugins
 from runners.precheck import representative_jobs
 
-__all__ = ["FaultTolerantSweeper", "FuzzynavSweeper", "representative_jobs"]
+__all__ = ["FaultTolerantSweeper", "FuzzynavSweeper", "PluginConfigSearchPath", "representative_jobs"]
 
 log = logging.getLogger(__name__)
 
