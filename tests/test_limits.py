@@ -32,18 +32,28 @@ def numeric_fields(cls: type, prefix: str = "") -> list[str]:
     return out
 
 
+def policy_ranges() -> dict[str, tuple[str, limits.Range]]:
+    """``navigator.<field>`` -> (policy, range) of every registered policy's own declared ranges."""
+    return {field: (name, rng) for name, policy in sorted(registered_policies().items())
+            for field, rng in limits.declared_ranges(policy.config_class, "navigator").items()}
+
+
 def test_every_numeric_config_field_has_a_documented_range():
-    # the navigator section holds the chosen policy's parameters: every built-in policy's count
-    fields = set(numeric_fields(EpisodeConfig))
-    for policy in registered_policies().values():
-        fields |= set(numeric_fields(policy.config_class, "navigator"))
+    # the core configuration's ranges are in FIELD_RANGES; each policy's (the navigator section) on its own class
+    core = {f for f in numeric_fields(EpisodeConfig) if not f.startswith("navigator.")}
     documented = set(limits.FIELD_RANGES) - {"seed", "episodes"}
-    assert fields - documented == set(), "numeric fields without a range in fuzzynav/params/limits.py"
-    assert documented - fields == set(), "ranges in fuzzynav/params/limits.py for fields that do not exist"
+    assert core - documented == set(), "numeric fields without a range in fuzzynav/params/limits.py"
+    assert documented - core == set(), "ranges in fuzzynav/params/limits.py for fields that do not exist"
+    for name, policy in registered_policies().items():
+        declared = limits.declared_ranges(policy.config_class, "navigator")
+        assert set(numeric_fields(policy.config_class, "navigator")) - set(declared) == set(), \
+            f"policy {name}: numeric parameters without a range (limits.ranged) on {policy.config_class.__name__}"
 
 
 def test_defaults_and_shipped_values_are_inside_their_ranges():
     check_config_fields(EpisodeConfig())  # raises on a default outside its range
+    for policy in registered_policies().values():
+        check_config_fields(policy.config_class(), "navigator")
     table = limits.markdown_table()
     for field, rng in limits.FIELD_RANGES.items():
         assert f"| `{field}` | {rng.text()}" in table
@@ -51,7 +61,7 @@ def test_defaults_and_shipped_values_are_inside_their_ranges():
         assert f"| {lim.field} | {lim.value:,} |" in table
 
 
-@pytest.mark.parametrize("field", sorted(set(limits.FIELD_RANGES) - {"seed", "episodes"}))
+@pytest.mark.parametrize("field", sorted(set(limits.FIELD_RANGES) - {"seed", "episodes"}) + sorted(policy_ranges()))
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_no_field_accepts_a_non_finite_number(field, bad):
     section, _, key = field.rpartition(".")
@@ -62,8 +72,7 @@ def test_no_field_accepts_a_non_finite_number(field, bad):
     value: typing.Any = [bad, bad] if field in limits.FIELD_MAX_ITEMS else bad
     node[key] = value
     if section == "navigator":  # the policy whose parameter it is (the fuzzy policy would call it unknown)
-        node["policy"] = next(p.name for p in registered_policies().values()
-                              if key in {f.name for f in dataclasses.fields(p.config_class)})
+        node["policy"] = policy_ranges()[field][0]
     with pytest.raises(ValueError, match=rf"^{re.escape(field)}(\[0\])?: "):
         episode_config_from_dict(data)
 

@@ -139,7 +139,7 @@ _SECTION_CHECKS = {"sensors.sonar": check_sonar_sectors}
 
 
 def check_config_fields(config: Any, prefix: str = "") -> None:
-    """Check every numeric field of a config dataclass tree against :data:`fuzzynav.params.limits.FIELD_RANGES`
+    """Check every numeric field of a config dataclass tree against its range (:func:`~.limits.field_range`)
     (finite always; the documented range where one is listed; sequences item by item and in length), then the
     checks across fields of a section (:data:`_SECTION_CHECKS`)."""
     for f in dataclasses.fields(config):
@@ -152,6 +152,6 @@ def check_config_fields(config: Any, prefix: str = "") -> None:
         elif isinstance(value, tuple):
             check_count(len(value), field, limits.FIELD_MAX_ITEMS.get(field, 1_000))
             for i, item in enumerate(value):
-                check_number(item, f"{field}[{i}]", limits.FIELD_RANGES.get(field))
+                check_number(item, f"{field}[{i}]", limits.field_range(f, field))
         elif isinstance(value, int | float) and not isinstance(value, bool):
-            check_number(value, field, limits.FIELD_RANGES.get(field))
+            check_number(value, field, limits.field_range(f, field))

@@ -8,15 +8,19 @@ Two kinds:
   hostile file ends with a one-line error instead of a hang;
 - **value ranges** of the run configuration (:data:`FIELD_RANGES`, keyed by the dotted field as written on
   the command line, e.g. ``planner.safety_margin_cm``): every number must be finite and inside its range.
-  A test checks that every numeric field of :class:`fuzzynav.episode.EpisodeConfig` has an entry.
+  A plug-in's parameters (a policy's ``navigator.*``) carry their ranges on their own config dataclass instead
+  (:func:`ranged`), so that no table here names them. A test checks that every numeric field of
+  :class:`fuzzynav.episode.EpisodeConfig` and of every registered policy's config has a range.
 
 Units are those of the field: cm, cm/s, s, degrees, counts.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -143,6 +147,9 @@ _R = "a distance in cm, at most the longest sensor range (100 m)"
 _S = "a speed in cm/s; the robot drives 10-40 cm/s"
 _N = "a noise standard deviation in cm; beyond 10 m it swamps every reading"
 
+#: why-texts of the common kinds of range, for the config classes that declare their own (:func:`ranged`)
+WHY_MARGIN, WHY_REACH, WHY_SPEED = _M, _R, _S
+
 MIN_DT_S = 1e-3  # a millisecond: below it a step is no navigation step, and speeds per step lose their digits
 MAX_DT_S = 60.0  # a minute: sensing and the TPT sample once per step
 
@@ -190,61 +197,48 @@ FIELD_RANGES: dict[str, Range] = {
     "planner.cruise_speed": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
     "planner.plan_tolerance_cm": Range(0, 1_000, _CM, _M, lo_open=True),
     "planner.plan_check_margin_cm": Range(0, 1_000, _CM, _M),
-    "navigator.static_near_cm": Range(0, 10_000, _CM, _R),
-    "navigator.direct_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", _S, lo_open=True),
-    "navigator.clear_path_margin_cm": Range(0, 1_000, _CM, _M),
-    # the baselines' parameters (navigator=dwa, apf, vfh, orca, direct): one flat namespace, as on the command
-    # line; a name two policies share (margin_cm: DWA, ORCA) means the same thing in both
-    "navigator.turn_samples": Range(3, 721, "", "DWA: turn samples per speed, odd (each is rolled out)",
-                                    integer=True),
-    "navigator.speed_samples": Range(1, 100, "", "DWA: speed samples per turn", integer=True),
-    "navigator.accel_cm_s2": Range(0, 100_000, "cm/s²", "DWA: the speed window's reach in one step",
-                                   lo_open=True),
-    "navigator.decel_cm_s2": Range(0, 100_000, "cm/s²", "DWA: braking deceleration", lo_open=True),
-    "navigator.max_turn_rate_deg_s": Range(0, 36_000, "deg/s", "DWA: the turn window", lo_open=True),
-    "navigator.horizon_steps": Range(1, 100, "steps", "DWA: rollout length; work grows with it", integer=True),
-    "navigator.alpha_heading": Range(0, 1e6, "", "DWA: weight of the heading term"),
-    "navigator.beta_clearance": Range(0, 1e6, "", "DWA: weight of the clearance term"),
-    "navigator.gamma_velocity": Range(0, 1e6, "", "DWA: weight of the velocity term"),
-    "navigator.clearance_cap_cm": Range(0, 10_000, _CM, "DWA: " + _R, lo_open=True),
-    "navigator.margin_cm": Range(0, 1_000, _CM, "DWA, ORCA: " + _M),
-    "navigator.attractive_gain": Range(0, 1e6, "1/s", "APF: ξ", lo_open=True),
-    "navigator.attractive_switch_cm": Range(0, 10_000, _CM, "APF: d*, " + _R, lo_open=True),
-    "navigator.repulsive_gain": Range(0, 1e12, "", "APF: η"),
-    "navigator.influence_cm": Range(0, 10_000, _CM, "APF: ρ0, " + _R, lo_open=True),
-    "navigator.lookahead_s": Range(0, 60, "s", "APF: where moving obstacles repel from"),
-    "navigator.min_gap_cm": Range(0, 1_000, _CM, "APF: floor of the gap ρ", lo_open=True),
-    "navigator.sector_deg": Range(0.5, 45, "deg", "VFH: α; 8 to 720 sectors (the histogram is sectors x cells)"),
-    "navigator.cell_cm": Range(1, 1_000, _CM, "VFH: histogram-grid cell"),
-    "navigator.window_cm": Range(0, 10_000, _CM, "VFH: active window, " + _R, lo_open=True),
-    "navigator.b": Range(0, 1e6, "1/cm", "VFH: magnitude per cm", lo_open=True),
-    "navigator.smoothing_l": Range(1, 180, "sectors", "VFH: l, at most half the sectors", integer=True),
-    "navigator.threshold": Range(0, 1e12, "", "VFH: threshold on h'", lo_open=True),
-    "navigator.wide_valley_sectors": Range(1, 359, "sectors", "VFH: s_max", integer=True),
-    "navigator.h_m": Range(0, 1e12, "", "VFH: density that stops the robot", lo_open=True),
-    "navigator.safety_cm": Range(0, 1_000, _CM, "VFH: d_s, " + _M),
-    "navigator.perimeter_spacing_cm": Range(1, 1_000, _CM, "VFH: points around a moving obstacle"),
-    "navigator.pref_speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", "ORCA: " + _S, lo_open=True),
-    "navigator.time_horizon_s": Range(0, 600, "s", "ORCA: τ for tracks", lo_open=True),
-    "navigator.time_horizon_obst_s": Range(0, 600, "s", "ORCA: τ for static returns", lo_open=True),
-    "navigator.reciprocity": Range(0.5, 1, "", "ORCA: share of each avoidance the robot takes"),
-    "navigator.max_static_points": Range(0, 1_000, "", "ORCA: static constraints per decision", integer=True),
-    "navigator.speed_cm_s": Range(0, MAX_SPEED_CM_S, "cm/s", "direct: " + _S, lo_open=True),
 }
+
+#: the metadata key of a config dataclass field's range (:func:`ranged`)
+RANGE_KEY = "fuzzynav_range"
+
+
+def ranged(default: Any, rng: Range) -> Any:
+    """A config dataclass field with ``default`` and its documented range, for a plug-in's own parameters
+    (``margin_cm: float = ranged(10.0, Range(0, 1_000, "cm", "why"))``): parsing and checks read it from the field."""
+    return dataclasses.field(default=default, metadata={RANGE_KEY: rng})
+
+
+def field_range(f: dataclasses.Field, dotted: str) -> Range | None:
+    """The range of config field ``f`` (dotted name ``dotted``, as on the command line): its own, else
+    :data:`FIELD_RANGES`'s entry; None when it has neither (strings, booleans)."""
+    return f.metadata.get(RANGE_KEY) or FIELD_RANGES.get(dotted)
+
+
+def declared_ranges(cls: type, prefix: str) -> dict[str, Range]:
+    """The ranges a config dataclass declares on its own fields (:func:`ranged`), by dotted name under ``prefix``."""
+    return {f"{prefix}.{f.name}": f.metadata[RANGE_KEY] for f in dataclasses.fields(cls) if RANGE_KEY in f.metadata}
+
 
 #: Sequence fields: at most this many items (each item checked against its FIELD_RANGES entry).
 FIELD_MAX_ITEMS: dict[str, int] = {"planner.successor_speeds": 20, "sensors.sonar.left": 2,
                                    "sensors.sonar.front": 2, "sensors.sonar.right": 2}
 
 
+def range_table(ranges: dict[str, Range]) -> str:
+    """Configuration ranges as a Markdown table (field, range, why)."""
+    lines = ["| field | range | why |", "|---|---|---|"]
+    lines += [f"| `{field}` | {rng.text()}{' (integer)' if rng.integer else ''} | {rng.why} |"
+              for field, rng in ranges.items()]
+    return "\n".join(lines)
+
+
 def markdown_table() -> str:
-    """The limits as two Markdown tables (size and work limits; configuration ranges), for the README."""
+    """The limits as two Markdown tables (size and work limits; configuration ranges), for the docs. A policy's
+    own parameters: ``python -m fuzzynav.policies``."""
     lines = ["| input | limit | why |", "|---|---|---|"]
     lines += [f"| {lim.field} | {lim.value:,} | {lim.why} |" for lim in SIZE_LIMITS]
-    lines += ["", "| field | range | why |", "|---|---|---|"]
-    lines += [f"| `{field}` | {rng.text()}{' (integer)' if rng.integer else ''} | {rng.why} |"
-              for field, rng in FIELD_RANGES.items()]
-    return "\n".join(lines)
+    return "\n".join([*lines, "", range_table(FIELD_RANGES)])
 
 
 if __name__ == "__main__":

@@ -2,8 +2,9 @@
 
 ``from_dict(DWAConfig, {"margin_cm": 12})`` fills every other field with its default. An unknown key, a
 non-string key, a wrong type or a list of the wrong length raises ``ValueError`` naming the dotted field; each
-number is checked against its documented range (:data:`fuzzynav.params.limits.FIELD_RANGES`) where it is parsed,
-then the dataclass checks itself (``__post_init__``).
+number is checked where it is parsed, so that the message names exactly this field, against its documented range
+(the field's own, :func:`fuzzynav.params.limits.ranged`, else :data:`fuzzynav.params.limits.FIELD_RANGES`); then
+the dataclass checks itself (``__post_init__``: relations between fields).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ def from_dict(cls: type, data: Mapping[str, Any] | None, path: str = "") -> Any:
         if dataclasses.is_dataclass(hint):
             kwargs[key] = from_dict(hint, value, where)
         else:
-            kwargs[key] = _coerce(hint, value, where)
+            kwargs[key] = _coerce(hint, value, where, limits.field_range(fields[key], where))
     try:
         return cls(**kwargs)
     except ValueError as err:
@@ -45,7 +46,7 @@ def from_dict(cls: type, data: Mapping[str, Any] | None, path: str = "") -> Any:
         raise ValueError(msg if named else f"{path or cls.__name__}: {msg or type(err).__name__}") from None
 
 
-def _coerce(hint: Any, value: Any, where: str) -> Any:
+def _coerce(hint: Any, value: Any, where: str, rng: limits.Range | None) -> Any:
     origin = typing.get_origin(hint)
     if origin is tuple:
         if not isinstance(value, list | tuple):
@@ -54,7 +55,7 @@ def _coerce(hint: Any, value: Any, where: str) -> Any:
         if args and Ellipsis not in args and len(value) != len(args):
             raise ValueError(f"{where}: expected a list of {len(args)} items, got {len(value)}")
         item = args[0] if args else float
-        return tuple(_coerce(item, v, f"{where}[{i}]") for i, v in enumerate(value))
+        return tuple(_coerce(item, v, f"{where}[{i}]", rng) for i, v in enumerate(value))
     if hint is bool:
         if not isinstance(value, bool):
             raise ValueError(f"{where}: expected true or false, got {show(value)}")
@@ -62,23 +63,15 @@ def _coerce(hint: Any, value: Any, where: str) -> Any:
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"{where}: expected an integer, got {show(value)}")
-        _check_range(value, where)
+        check_number(value, where, rng)
         return value
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"{where}: expected a number, got {show(value)}")
-        _check_range(value, where)
+        check_number(value, where, rng)
         return float(value)
     if hint is str:
         if not isinstance(value, str):
             raise ValueError(f"{where}: expected a string, got {show(value)}")
         return value
     return value
-
-
-def _check_range(value: int | float, where: str) -> None:
-    """The documented range of the field (``planner.successor_speeds[2]`` uses ``planner.successor_speeds``),
-    checked here, where the value is parsed, so that the message names exactly this field; the dataclasses'
-    own checks (relations between fields) run after."""
-    rng = limits.FIELD_RANGES.get(where.split("[")[0])
-    check_number(value, where, rng)

@@ -44,6 +44,7 @@ import numpy as np
 
 from fuzzynav.numerics.geometry import angle_difference_deg
 from fuzzynav.numerics.portable_math import atan2_deg, dist, hypot, norm2, sin_cos_deg
+from fuzzynav.params.limits import WHY_REACH, Range, ranged
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.policies.base import Action, Observation, PolicyContext, register_policy
 from fuzzynav.sensing.tracking import Track
@@ -54,21 +55,21 @@ class ApfConfig:
     """Gains and distances of the potential field (see the module docstring)."""
 
     # ξ (1/s): only the ratio η/ξ shapes the path; chosen 1 so that the far-field pull ξ·d* reads in cm
-    attractive_gain: float = 1.0
+    attractive_gain: float = ranged(1.0, Range(0, 1e6, "1/s", "APF: ξ", lo_open=True))
     # d* (cm), the quadratic/conic switch: chosen 100 cm (2.5 steps at v_max) so the robot slows over its
     # last metre instead of arriving at full speed
-    attractive_switch_cm: float = 100.0
+    attractive_switch_cm: float = ranged(100.0, Range(0, 10_000, "cm", "APF: d*, " + WHY_REACH, lo_open=True))
     # η (cm³ per unit of ξ·d*): chosen so that one static return 20 cm from the robot's surface pushes about
     # as hard as the far-field pull: η·(1/20 − 1/80)/20² ≈ 107 vs ξ·d* = 100
-    repulsive_gain: float = 1.0e6
+    repulsive_gain: float = ranged(1.0e6, Range(0, 1e12, "", "APF: η"))
     # ρ0 (cm), Khatib's limit distance of influence: chosen 80 cm, two steps at v_max, so an obstacle is felt
     # at least two decisions before contact
-    influence_cm: float = 80.0
+    influence_cm: float = ranged(80.0, Range(0, 10_000, "cm", "APF: ρ0, " + WHY_REACH, lo_open=True))
     # (s) where moving obstacles repel from: chosen 1 s, one decision step, i.e. where the obstacle will be
     # when this step's move ends (0 = present position, as in Khatib's paper)
-    lookahead_s: float = 1.0
+    lookahead_s: float = ranged(1.0, Range(0, 60, "s", "APF: where moving obstacles repel from"))
     # (cm) floor of the gap ρ: chosen 1 cm, below any gap the simulation resolves, to keep forces finite
-    min_gap_cm: float = 1.0
+    min_gap_cm: float = ranged(1.0, Range(0, 1_000, "cm", "APF: floor of the gap ρ", lo_open=True))
 
     def __post_init__(self) -> None:
         for f in fields(self):

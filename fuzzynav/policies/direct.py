@@ -13,6 +13,7 @@ from typing import Any
 
 from fuzzynav.numerics.geometry import wrap_180
 from fuzzynav.numerics.portable_math import bearing_deg, dist
+from fuzzynav.params.limits import MAX_SPEED_CM_S, WHY_SPEED, Range, ranged
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.policies.base import Action, Observation, PolicyContext, register_policy
 
@@ -21,7 +22,7 @@ from fuzzynav.policies.base import Action, Observation, PolicyContext, register_
 class DirectConfig:
     """Cruise speed (cm/s)."""
 
-    speed_cm_s: float = 25.0
+    speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", "direct: " + WHY_SPEED, lo_open=True))
 
     def __post_init__(self) -> None:
         if not self.speed_cm_s > 0:

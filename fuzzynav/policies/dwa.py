@@ -58,6 +58,7 @@ import numpy as np
 from fuzzynav.kinematics import RobotLimits, RobotState
 from fuzzynav.numerics.geometry import angle_difference_deg, closest_approach_fraction, swept_distance, wrap_180
 from fuzzynav.numerics.portable_math import atan2_deg_array, bearing_deg, dist, norm2, sin_cos_deg_array
+from fuzzynav.params.limits import WHY_MARGIN, WHY_REACH, Range, ranged
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.policies.base import Action, Observation, PolicyContext, register_policy
 from fuzzynav.sensing.tracking import Track
@@ -73,36 +74,38 @@ class DWAConfig:
 
     # chosen: 10° between turn samples across ±120° (the robot's turn limit); odd, so that 0 (straight on)
     # and both extremes are samples. The paper samples (v, ω) at the resolution of its velocity space.
-    turn_samples: int = 25
+    turn_samples: int = ranged(25,
+                               Range(3, 721, "", "DWA: turn samples per speed, odd (each is rolled out)", integer=True))
     # chosen: 5 cm/s between samples of the widest window from rest ([10, 15] cm/s: 2 samples) to the usual
     # [v - 30, v + 15]; both ends of the window are always samples
-    speed_samples: int = 4
+    speed_samples: int = ranged(4, Range(1, 100, "", "DWA: speed samples per turn", integer=True))
     # chosen: 15 cm/s² lets the robot start (v_min = 10 cm/s is reachable from rest in one 1 s step) and reach
     # v_max = 40 cm/s in three steps (15, 30, 40), a gentle start as in the paper's RHINO, whose window is
     # its acceleration over one interval; must be at least v_min / dt
-    accel_cm_s2: float = 15.0
+    accel_cm_s2: float = ranged(15.0,
+                                Range(0, 100_000, "cm/s²", "DWA: the speed window's reach in one step", lo_open=True))
     # chosen: 30 cm/s² brings v_max down to v_min in one step, so the window never forces the robot to keep
     # speed (its model can change speed at once); it is also the paper's braking deceleration v̇_b of the
     # admissibility test: from 40 cm/s the robot needs a gap of 40² / 60 ≈ 27 cm beyond the margin
-    decel_cm_s2: float = 30.0
+    decel_cm_s2: float = ranged(30.0, Range(0, 100_000, "cm/s²", "DWA: braking deceleration", lo_open=True))
     # chosen: 120 °/s, the robot's default turn limit per 1 s step: the window on turns is then the whole
     # turn range (no angular inertia in the model); lower it to emulate a robot with a slew-rate limit
-    max_turn_rate_deg_s: float = 120.0
+    max_turn_rate_deg_s: float = ranged(120.0, Range(0, 36_000, "deg/s", "DWA: the turn window", lo_open=True))
     # chosen: 3 steps (3 s; 120 cm at v_max, inside the laser's 250 cm): long enough to see a crossing
     # obstacle's approach, short enough for constant-velocity predictions of tracks to hold. The paper
     # looks one interval ahead plus the braking distance.
-    horizon_steps: int = 3
+    horizon_steps: int = ranged(3, Range(1, 100, "steps", "DWA: rollout length; work grows with it", integer=True))
     # paper: α = 2, β = 0.2, γ = 0.2 (RHINO's weights): the goal's heading dominates, clearance and speed
     # break the choice between similar headings
-    alpha_heading: float = 2.0
-    beta_clearance: float = 0.2
-    gamma_velocity: float = 0.2
+    alpha_heading: float = ranged(2.0, Range(0, 1e6, "", "DWA: weight of the heading term"))
+    beta_clearance: float = ranged(0.2, Range(0, 1e6, "", "DWA: weight of the clearance term"))
+    gamma_velocity: float = ranged(0.2, Range(0, 1e6, "", "DWA: weight of the velocity term"))
     # paper: dist is a large constant when no obstacle is on the trajectory; chosen 100 cm (2.5 robot
     # diameters, the navigator's static_near_cm): obstacles farther than that do not change the choice
-    clearance_cap_cm: float = 100.0
+    clearance_cap_cm: float = ranged(100.0, Range(0, 10_000, "cm", "DWA: " + WHY_REACH, lo_open=True))
     # chosen: 10 cm, the planner's safety_margin_cm (tracks are estimates: a few cm off in position and
     # speed); the paper's robot stops at the obstacle itself
-    margin_cm: float = 10.0
+    margin_cm: float = ranged(10.0, Range(0, 1_000, "cm", WHY_MARGIN))
 
     def __post_init__(self) -> None:
         if self.turn_samples < 3 or self.turn_samples % 2 == 0:

@@ -30,6 +30,7 @@ import numpy as np
 from fuzzynav.kinematics import RobotState, bearing_deg, wrap_deg
 from fuzzynav.numerics.clearance import segment_point_clearance
 from fuzzynav.numerics.portable_math import dist, sin_cos_deg
+from fuzzynav.params.limits import MAX_SPEED_CM_S, WHY_MARGIN, WHY_REACH, WHY_SPEED, Range, ranged
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.policies.base import Action, Observation, PolicyContext, register_policy
 
@@ -38,12 +39,12 @@ from fuzzynav.policies.base import Action, Observation, PolicyContext, register_
 class NavigatorConfig:
     """When static navigation uses the fuzzy controller (see the module docstring)."""
 
-    static_near_cm: float = 100.0
-    direct_speed_cm_s: float = 25.0
+    static_near_cm: float = ranged(100.0, Range(0, 10_000, "cm", WHY_REACH))
+    direct_speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", WHY_SPEED, lo_open=True))
     near_sectors: str = "target_side"
     goal_overrides_static: bool = True
     direct_needs_clear_path: bool = True
-    clear_path_margin_cm: float = 5.0
+    clear_path_margin_cm: float = ranged(5.0, Range(0, 1_000, "cm", WHY_MARGIN))
 
     def __post_init__(self) -> None:
         if self.near_sectors not in ("all", "target_side"):

@@ -79,6 +79,7 @@ from fuzzynav.kinematics import RobotLimits
 from fuzzynav.numerics.geometry import wrap_180
 from fuzzynav.numerics.orca_lp import Line, Vec, choose_velocity, orca_line, static_point_line
 from fuzzynav.numerics.portable_math import atan2_deg, bearing_deg, dist, hypot, norm2, sin_cos_deg
+from fuzzynav.params.limits import MAX_SPEED_CM_S, WHY_MARGIN, WHY_SPEED, Range, ranged
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.policies.base import Action, Observation, PolicyContext, register_policy
 from fuzzynav.sensing.tracking import Track
@@ -90,21 +91,21 @@ class OrcaConfig:
 
     # chosen: the speed of the direct baseline and of the paper's navigator in open space (25 cm/s), so the
     # policies differ in avoidance, not in cruising speed; the speed disc is the robot's v_max (40 cm/s)
-    pref_speed_cm_s: float = 25.0
+    pref_speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", "ORCA: " + WHY_SPEED, lo_open=True))
     # τ for tracks, chosen 5 s (CrowdNav's ORCA baseline uses 5 s at comparable pedestrian speeds): a head-on
     # obstacle at the laser's 250 cm range closes at up to 80 cm/s and is reached in about 3 s, so it is
     # inside the horizon as soon as it is seen
-    time_horizon_s: float = 5.0
+    time_horizon_s: float = ranged(5.0, Range(0, 600, "s", "ORCA: τ for tracks", lo_open=True))
     # τ_obst for static returns, chosen 2 s (two decisions): at 40 cm/s the robot then needs 80 cm of free
     # space ahead, enough to turn away next step, while corridors a little wider than the robot stay open
-    time_horizon_obst_s: float = 2.0
+    time_horizon_obst_s: float = ranged(2.0, Range(0, 600, "s", "ORCA: τ for static returns", lo_open=True))
     # ρ: share of each avoidance the robot takes; 1 because the scripted pedestrians do not reciprocate
     # (the paper's 0.5 is for two ORCA agents); must be in [0.5, 1]
-    reciprocity: float = 1.0
+    reciprocity: float = ranged(1.0, Range(0.5, 1, "", "ORCA: share of each avoidance the robot takes"))
     # chosen: 10 cm, the planner's safety_margin_cm and DWA's margin (tracks are estimates, a few cm off)
-    margin_cm: float = 10.0
+    margin_cm: float = ranged(10.0, Range(0, 1_000, "cm", WHY_MARGIN))
     # chosen: 32 nearest returns (a 1.6 m arc at the 5 cm spacing of a wall), bounding the linear program
-    max_static_points: int = 32
+    max_static_points: int = ranged(32, Range(0, 1_000, "", "ORCA: static constraints per decision", integer=True))
 
     def __post_init__(self) -> None:
         for name in ("pref_speed_cm_s", "time_horizon_s", "time_horizon_obst_s"):

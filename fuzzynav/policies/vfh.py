@@ -46,6 +46,7 @@ import numpy as np
 
 from fuzzynav.numerics.geometry import angle_difference_deg, wrap_360
 from fuzzynav.numerics.portable_math import atan2_deg_array, bearing_deg, dist, norm2, sequential_sum, sin_cos_deg_array
+from fuzzynav.params.limits import WHY_MARGIN, WHY_REACH, Range, ranged
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.policies.base import Action, Observation, PolicyContext, register_policy
 from fuzzynav.sensing.tracking import Track
@@ -56,29 +57,30 @@ class VfhConfig:
     """Parameters of the histogram, the valley choice and the speed (see the module docstring)."""
 
     # α (degrees): paper, 5° (72 sectors)
-    sector_deg: float = 5.0
+    sector_deg: float = ranged(5.0,
+                               Range(0.5, 45, "deg", "VFH: α; 8 to 720 sectors (the histogram is sectors x cells)"))
     # histogram-grid cell (cm): paper, 10 cm
-    cell_cm: float = 10.0
+    cell_cm: float = ranged(10.0, Range(1, 1_000, "cm", "VFH: histogram-grid cell"))
     # radius (cm) of the active window: the paper's window is 33 x 33 cells of 10 cm; this is the circle of
     # its half-width, 160 cm, so that every direction sees equally far (within the 250 cm laser range)
-    window_cm: float = 160.0
+    window_cm: float = ranged(160.0, Range(0, 10_000, "cm", "VFH: active window, " + WHY_REACH, lo_open=True))
     # b (magnitude per cm): chosen 1, so a magnitude reads as cm inside the window; a = b·window_cm
-    b: float = 1.0
+    b: float = ranged(1.0, Range(0, 1e6, "1/cm", "VFH: magnitude per cm", lo_open=True))
     # l, the smoothing window: paper, 5
-    smoothing_l: int = 5
+    smoothing_l: int = ranged(5, Range(1, 180, "sectors", "VFH: l, at most half the sectors", integer=True))
     # threshold on h': chosen 100, so that a single occupied cell blocks directions from about 110 cm away
     # (and about its whole enlarged width, 60°, at 60 cm) and a wall across the path from about 150 cm
-    threshold: float = 100.0
+    threshold: float = ranged(100.0, Range(0, 1e12, "", "VFH: threshold on h'", lo_open=True))
     # s_max (sectors), the widest "narrow" valley: paper, 18
-    wide_valley_sectors: int = 18
+    wide_valley_sectors: int = ranged(18, Range(1, 359, "sectors", "VFH: s_max", integer=True))
     # h_m, the density that brings the speed to 0 before clamping: chosen 2·threshold, half speed when the
     # heading's sector is at the threshold
-    h_m: float = 200.0
+    h_m: float = ranged(200.0, Range(0, 1e12, "", "VFH: density that stops the robot", lo_open=True))
     # d_s (cm), VFH+'s safety distance added to the robot radius: chosen 10 cm, a quarter step at v_max
-    safety_cm: float = 10.0
+    safety_cm: float = ranged(10.0, Range(0, 1_000, "cm", "VFH: d_s, " + WHY_MARGIN))
     # spacing (cm) of the points sampled around a moving obstacle: chosen one cell, so every cell the
     # perimeter crosses is occupied
-    perimeter_spacing_cm: float = 10.0
+    perimeter_spacing_cm: float = ranged(10.0, Range(1, 1_000, "cm", "VFH: points around a moving obstacle"))
 
     def __post_init__(self) -> None:
         positive = ("sector_deg", "cell_cm", "window_cm", "b", "threshold", "h_m", "perimeter_spacing_cm")
