@@ -33,7 +33,7 @@ def test_the_switch_reads_an_environment_mapping_of_another_kind(monkeypatch, va
 
 
 def test_the_switch_reads_the_environment_a_process_starts_with():
-    code = "from fuzzynav import compiled; print(compiled.switched_off())"
+    code = "from fuzzynav.numerics import compiled; print(compiled.switched_off())"
     for value, expected in (("python", "True"), ("no", "False")):
         env = {**os.environ, compiled.KERNEL_ENV: value}
         out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,
