@@ -17,9 +17,10 @@ from typing import TYPE_CHECKING
 from omegaconf import DictConfig
 
 from runners import sweep_control, sweep_resume
-from runners.sweep import count_episodes, write_summary
 from runners.sweep_outputs import write_report
 from runners.sweep_paths import job_logs, partial_logs
+from runners.sweep_size import count_episodes
+from runners.sweep_summary import write_summary
 
 if TYPE_CHECKING:
     from analysis.metrics import Analysis
