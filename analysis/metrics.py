@@ -24,7 +24,8 @@ import pandas as pd
 import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
-from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, find_logs, read_logs
+from analysis.log_inputs import find_logs
+from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import MODEL_COLUMNS, model_columns, tpt_errors
 from fuzzynav.numerics.geometry import swept_distance, wrap_180
@@ -405,7 +406,8 @@ def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int)
 
 def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1
                   ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(one row per usable episode, logs left out with the reason), in the order of :func:`find_logs`.
+    """(one row per usable episode, logs left out with the reason), in the order of
+    :func:`analysis.log_inputs.find_logs`.
 
     ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes when there are many
     (:func:`analysis.logs.read_logs`); the result is the same as with ``jobs=1``."""

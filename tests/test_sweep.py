@@ -8,7 +8,8 @@ import sys
 import pandas as pd
 import yaml
 
-from analysis.logs import episode_summary, find_logs
+from analysis.log_inputs import find_logs
+from analysis.logs import episode_summary
 from runners.sweep_size import count_episodes
 from tests.conftest import CONF, ROOT
 
