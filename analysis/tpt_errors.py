@@ -22,7 +22,7 @@ from analysis.episode_check import parse_world
 from analysis.episode_log import EpisodeLog
 from fuzzynav.numerics import compiled
 from fuzzynav.numerics.portable_math import norm2
-from fuzzynav.pedestrians.base import DEFAULT_MODEL
+from fuzzynav.params.names import DEFAULT_MODEL
 
 #: the models whose errors have their own columns (``tpt_ade_cm_<model>``, ``tpt_fde_cm_<model>``): fuzzynav's
 #: built-ins; an obstacle of another model counts in ``tpt_ade_cm`` only

@@ -33,7 +33,8 @@ from analysis.interrupts import Interrupted
 from fuzzynav import episode_identity
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.policies.base import DEFAULT_POLICY, policy_source_digest, split_navigator_section
+from fuzzynav.params.names import DEFAULT_POLICY
+from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.scenario import Scenario
 from runners import process_tree, schema, stop, sweep_resume, yaml_text
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata

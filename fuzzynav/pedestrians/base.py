@@ -39,8 +39,6 @@ if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle
     from fuzzynav.scenarios.world import World
 
-#: the model of an obstacle whose scenario entry names none: its scripted path (constant velocity or waypoints)
-DEFAULT_MODEL = "scripted"
 NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 MAX_ABS = 1e15  # a parameter's absolute value before its own range is checked
 
