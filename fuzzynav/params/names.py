@@ -12,8 +12,8 @@ DEFAULT_POLICY = "fuzzy"
 #: the policy name of episodes whose commands came from outside (a Gymnasium agent): reserved, never registered
 AGENT = "agent"
 NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
-"""A registered policy's name, and a mode name (:class:`fuzzynav.policies.base.Action`; the log's
-``/planner/decision.mode``)."""
+"""A registered policy's or pedestrian model's name, and a mode name (:class:`fuzzynav.policies.base.Action`; the
+log's ``/planner/decision.mode``)."""
 IMPORT_PATH = re.compile(r"(?=.{3,200}$)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
 """The import path of a ``_target_`` policy factory: dotted identifiers, at most 200 characters."""
 
