@@ -18,7 +18,7 @@ import yaml
 
 from analysis.json_checks import CheckError, array, number, obj
 from analysis.log_check import FINISHED, MAX_CONFIG_BYTES, POSITIVE_CM, TIME_TOLERANCE_NS, YAML_LOADER
-from fuzzynav.policies.base import DEFAULT_POLICY
+from fuzzynav.params.names import DEFAULT_POLICY
 
 if TYPE_CHECKING:
     from analysis.episode_log import EpisodeLog

@@ -56,8 +56,8 @@ from analysis.json_checks import (
 )
 from fuzzynav.episode_identity import POLICY_SOURCE, config_hash  # what runners.run records: one definition
 from fuzzynav.params import limits
-from fuzzynav.policies import base as policy_names
-from fuzzynav.policies.base import DEFAULT_POLICY
+from fuzzynav.params import names as policy_names
+from fuzzynav.params.names import DEFAULT_POLICY
 
 __all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash",
            "messages_acceptable"]

@@ -1,6 +1,6 @@
 """Which files an analysis reads: every log file once, every episode once, whatever the paths given.
 
-:func:`collect_logs` turns command-line paths into the list of logs the analysis reads:
+:func:`find_logs` turns command-line paths into the list of logs the analysis reads:
 
 1. A directory stands for its ``*.mcap`` files (the extension in any case: ``*.MCAP`` too) at any depth, in
    sorted order, except hidden ones and those in hidden directories (``.hydra/``, a sweep's ``.fuzzynav/`` with
@@ -29,6 +29,7 @@ import stat
 from collections.abc import Iterable
 from pathlib import Path
 
+from analysis.episode_log import load_episode
 from analysis.logs import RUN_METADATA, LogError, LogFile, RejectedLog, file_kind
 from analysis.mcap_verify import peek_metadata
 from fuzzynav.episode_identity import episode_key_of
@@ -43,9 +44,9 @@ def is_provenance_key(key: str) -> bool:
 _COMPUTE_TIME = re.compile(rb'"compute_time_us":[-+0-9.eE]+')  # the one field no re-run reproduces
 
 
-def collect_logs(paths: Iterable[str | Path]) -> list[Path]:
-    """The logs to read, in order: plain paths, and :class:`RejectedLog` for what must not be read (see the
-    module docstring)."""
+def find_logs(paths: Iterable[str | Path]) -> list[Path]:
+    """The logs under the given files or directories, in order: each file once, each episode once (see the module
+    docstring); what must not be read comes back as a :class:`RejectedLog` with the reason."""
     out: list[Path] = []
     seen: set[tuple[int, int] | str] = set()
     for path in _expand(paths):
@@ -117,8 +118,6 @@ def _content_digest(path: Path) -> str | None:
     batching replaced by the episode key; None when the log is truncated, unreadable or fails a check (its own
     reading reports it): a damaged or edited log is never believed, so it must not make a good log of the same
     episode a conflict."""
-    from analysis.episode_log import load_episode
-
     try:
         load_episode(path)  # every check the analysis makes (metadata, messages, the episode as a whole)
         log = LogFile(path)

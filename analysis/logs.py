@@ -73,8 +73,8 @@ def mcap_error_kind(message: str) -> str:
 
 
 class RejectedLog(type(Path())):  # type: ignore[misc]  # the concrete Path class of this platform
-    """A path that :func:`find_logs` will not let the analysis read (not a regular file, the same episode as
-    another log, ...), with the reason and its ``kind`` (:data:`LEFT_OUT_KINDS`); opening it raises
+    """A path that :func:`analysis.log_inputs.find_logs` will not let the analysis read (not a regular file, the
+    same episode as another log, ...), with the reason and its ``kind`` (:data:`LEFT_OUT_KINDS`); opening it raises
     :class:`LogError` with both. It survives pickling (the analysis's worker processes receive paths)."""
 
     reason: str
@@ -158,14 +158,6 @@ def is_complete(path: Path) -> bool:
             return f.read() == MCAP_MAGIC
     except OSError:
         return False
-
-
-def find_logs(paths: Iterable[str | Path]) -> list[Path]:
-    """The logs under the given files or directories: each file once, each episode once (see
-    :mod:`analysis.log_inputs`); what cannot be read comes back as a :class:`RejectedLog` with the reason."""
-    from analysis.log_inputs import collect_logs
-
-    return collect_logs(paths)
 
 
 class LogFile:

@@ -24,9 +24,10 @@ import pandas as pd
 import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
-from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, find_logs, read_logs
+from analysis.log_inputs import find_logs
+from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
-from analysis.tpt_errors import MODEL_COLUMNS, model_columns, tpt_errors
+from analysis.tpt_errors import ADE_PREFIX, FDE_PREFIX, STANDING_MODELS, model_columns, obstacle_models, tpt_errors
 from fuzzynav.numerics.geometry import swept_distance, wrap_180
 from fuzzynav.numerics.portable_math import bearing_deg, dist, norm2
 
@@ -65,13 +66,21 @@ COLUMN_UNITS: dict[str, str] = {
     "jerk_mean_cm_s3": "cm/s^3", "jerk_max_cm_s3": "cm/s^3", "min_ttc_s": "s", "near_miss_steps": "steps",
     "stalled_time_s": "s", "collisions_wall": "contacts", "collisions_static_obstacle": "contacts",
     "personal_space_intrusion_s": "s",
-    # TPT prediction error per obstacle model (issue #17)
-    **{f"tpt_{kind}_cm_{model}": "cm" for model in MODEL_COLUMNS for kind in ("ade", "fde")},
+    # TPT prediction error per obstacle model (issue #17); another model's columns too (column_unit)
+    **{prefix + model: "cm" for model in STANDING_MODELS for prefix in (ADE_PREFIX, FDE_PREFIX)},
 }
 #: the standard metrics' columns, in table order (definitions and sources: README metric table)
 STANDARD_METRICS = ("spl", "path_irregularity_deg_per_m", "accel_mean_cm_s2", "accel_max_cm_s2", "jerk_mean_cm_s3",
                     "jerk_max_cm_s3", "min_ttc_s", "near_miss_steps", "stalled_time_s", "collisions_wall",
                     "collisions_static_obstacle", "personal_space_intrusion_s")
+
+
+def column_unit(column: str) -> str:
+    """The unit of a per-episode column: :data:`COLUMN_UNITS`, and ``cm`` for the TPT error columns of a model
+    outside :data:`analysis.tpt_errors.STANDING_MODELS` (``""`` for a column without a unit)."""
+    if column in COLUMN_UNITS:
+        return COLUMN_UNITS[column]
+    return "cm" if column.startswith((ADE_PREFIX, FDE_PREFIX)) else ""
 
 
 def turn_count(heading_changes_deg: np.ndarray, threshold_deg: float = 5.0) -> int:
@@ -262,7 +271,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     row["tpt_collisions_predicted"] = sum(1 for t in log.tpts.values() if any(chain.from_iterable(t["collide"][1:])))
     ade, fde, by_model = tpt_errors(log)
     row["tpt_ade_cm"], row["tpt_fde_cm"] = ade, fde
-    row.update(model_columns(by_model))
+    row.update(model_columns(by_model, obstacle_models(log.meta).values()))
     row["compute_time_us_median"], row["compute_time_us_p99"] = median_and_p99(
         [d["compute_time_us"] for d in log.decisions])
     return row
@@ -405,7 +414,8 @@ def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int)
 
 def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1
                   ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(one row per usable episode, logs left out with the reason), in the order of :func:`find_logs`.
+    """(one row per usable episode, logs left out with the reason), in the order of
+    :func:`analysis.log_inputs.find_logs`.
 
     ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes when there are many
     (:func:`analysis.logs.read_logs`); the result is the same as with ``jobs=1``."""

@@ -40,7 +40,7 @@ from analysis.overview import overview
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import write_tables
-from analysis.tpt_errors import MODEL_COLUMNS
+from analysis.tpt_errors import models_of_columns
 from analysis.trace import load_traces
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
@@ -446,7 +446,7 @@ def _crowd_sections(report: Report, df: pd.DataFrame, out: Path) -> None:
 def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
     """Rows (scenario, group, obstacle model, episodes, ADE, FDE) for the groups whose logs have obstacles of a
     model other than ``scripted``; empty when every obstacle is scripted."""
-    models = [m for m in MODEL_COLUMNS if f"tpt_ade_cm_{m}" in df.columns]
+    models = models_of_columns(df.columns)
     if not any(m != "scripted" and df[f"tpt_ade_cm_{m}"].notna().any() for m in models):
         return pd.DataFrame()
     rows = []

@@ -7,7 +7,7 @@ file's key-value metadata:
 - ``fuzzynav.schema_version``: :data:`SCHEMA_VERSION`, raised when a column is renamed, removed or changes meaning
   (adding a column does not raise it);
 - ``fuzzynav.table``: ``episodes``, ``groups`` or ``paired``;
-- ``fuzzynav.units``: JSON object column -> unit (:data:`analysis.metrics.COLUMN_UNITS`; ``""`` for labels, counts
+- ``fuzzynav.units``: JSON object column -> unit (:func:`analysis.metrics.column_unit`; ``""`` for labels, counts
   and ratios). In ``groups`` the ``mean``, ``ci_low`` and ``ci_high`` columns, in ``paired`` the ``mean A−B``,
   ``ci_low`` and ``ci_high`` columns are in the unit of the row's metric: ``fuzzynav.metric_units`` maps each metric
   to its unit.
@@ -24,7 +24,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from analysis.metrics import COLUMN_UNITS
+from analysis.metrics import column_unit
 
 SCHEMA_VERSION = "1"
 #: units of the groups table's own columns (``mean``/``ci_low``/``ci_high``: the unit of the row's metric)
@@ -38,8 +38,7 @@ TABLE_UNITS = {"groups": GROUP_UNITS, "paired": PAIRED_UNITS}
 
 def _units(df: pd.DataFrame, extra: dict[str, str]) -> dict[str, str]:
     """Unit of each column of ``df`` (``""`` for a label or a column without a unit)."""
-    known = {**COLUMN_UNITS, **extra}
-    return {str(c): known.get(str(c), "") for c in df.columns}
+    return {str(c): extra[str(c)] if str(c) in extra else column_unit(str(c)) for c in df.columns}
 
 
 def _arrow_ready(df: pd.DataFrame) -> pd.DataFrame:
@@ -69,7 +68,7 @@ def write_parquet(df: pd.DataFrame, path: Path, table: str, extra_metadata: dict
 
 def _metric_units(table: pd.DataFrame) -> dict[str, str]:
     """``fuzzynav.metric_units`` of a table of one row per metric: each metric's unit (``success``: ``""``)."""
-    units = {m: COLUMN_UNITS.get(m, "") for m in table["metric"].unique()} if "metric" in table else {}
+    units = {m: column_unit(str(m)) for m in table["metric"].unique()} if "metric" in table else {}
     return {"fuzzynav.metric_units": json.dumps(units)}
 
 

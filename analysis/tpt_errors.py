@@ -6,12 +6,16 @@ turn and slow down).
 An obstacle's model is the ``model`` of its entry in the logged scenario (metadata ``scenario_yaml``;
 ``scripted`` where the entry names none, or where the log has no readable scenario — every log written before
 obstacle models had only scripted obstacles; the log check refuses a scenario whose obstacles are not the log's).
+
+Per-model columns (:func:`model_columns`): ``tpt_ade_cm_<model>`` and ``tpt_fde_cm_<model>`` for each model of
+:data:`STANDING_MODELS`, in every row, and for every other model that a log's scenario names (a plug-in model), in
+the rows of the logs that name it (a table's other rows have NaN there, as for a model without predictions).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from itertools import chain
 from operator import itemgetter
 from typing import Any
@@ -22,11 +26,13 @@ from analysis.episode_check import parse_world
 from analysis.episode_log import EpisodeLog
 from fuzzynav.numerics import compiled
 from fuzzynav.numerics.portable_math import norm2
-from fuzzynav.pedestrians.base import DEFAULT_MODEL
+from fuzzynav.params.names import DEFAULT_MODEL, NAME
 
-#: the models whose errors have their own columns (``tpt_ade_cm_<model>``, ``tpt_fde_cm_<model>``): fuzzynav's
-#: built-ins; an obstacle of another model counts in ``tpt_ade_cm`` only
-MODEL_COLUMNS = ("scripted", "social_force", "orca", "random_walk")
+#: the models whose columns every metrics row has, NaN where the episode has no predictions of them: fuzzynav's
+#: built-in models when the per-model columns came (issue #17). The datasets' manifests hash these columns and a
+#: verify fails on a column that is no longer computed, so they stay even where no log has such obstacles
+STANDING_MODELS = ("scripted", "social_force", "orca", "random_walk")
+ADE_PREFIX, FDE_PREFIX = "tpt_ade_cm_", "tpt_fde_cm_"  # + the model's name: its columns
 _XY = itemgetter("x_cm", "y_cm")
 _kernel = compiled.load("analysis._json_checks")  # its table_pairs reads the tables' coordinates (None when not built)
 
@@ -132,10 +138,20 @@ def _mean(parts: list[np.ndarray]) -> float:
     return math.fsum(values) / len(values)
 
 
-def model_columns(by_model: Mapping[str, tuple[float, float]]) -> dict[str, Any]:
-    """The per-model columns of an episode's metrics row (NaN for models it has no predictions of)."""
+def model_columns(by_model: Mapping[str, tuple[float, float]], models: Iterable[str] = ()) -> dict[str, Any]:
+    """The per-model columns of an episode's metrics row: ``by_model`` (:func:`tpt_errors`) for the models of
+    :data:`STANDING_MODELS`, then for the other ``models`` (those the log's scenario names: :func:`obstacle_models`)
+    and the others of ``by_model``, by name; NaN for a model without predictions. A model whose name is not a
+    model's (:data:`fuzzynav.params.names.NAME`: only a hand-made log has one) has no columns: its obstacles count
+    in ``tpt_ade_cm`` and ``tpt_fde_cm`` only."""
+    others = sorted(m for m in {*models, *by_model} if m not in STANDING_MODELS and NAME.fullmatch(m))
     row: dict[str, Any] = {}
-    for model in MODEL_COLUMNS:
+    for model in (*STANDING_MODELS, *others):
         ade, fde = by_model.get(model, (math.nan, math.nan))
-        row[f"tpt_ade_cm_{model}"], row[f"tpt_fde_cm_{model}"] = ade, fde
+        row[ADE_PREFIX + model], row[FDE_PREFIX + model] = ade, fde
     return row
+
+
+def models_of_columns(columns: Iterable[object]) -> list[str]:
+    """The models that have per-model columns among ``columns`` (a metrics table's), in the columns' order."""
+    return [str(c)[len(ADE_PREFIX):] for c in columns if str(c).startswith(ADE_PREFIX)]

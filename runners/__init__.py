@@ -3,6 +3,6 @@
 import sys
 
 if sys.argv[:1] == ["-m"]:  # `python -m runners.<entry>`: runpy imports this package before the entry module
-    from runners import stop
+    from analysis import interrupts
 
-    stop.guard_startup()
+    interrupts.guard_startup()

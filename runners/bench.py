@@ -49,6 +49,7 @@ from fuzzynav.conf import CONF_DIR as CONF
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
 from fuzzynav.controller.fuzzy_spec import ControllerSpec
+from runners.stage_timers import stage_timers
 
 
 def _inputs(spec: ControllerSpec, n: int, seed: int) -> dict[str, np.ndarray]:
@@ -147,38 +148,6 @@ def bench_fuzzy(name: str, n_single: int, n_ref: int, batch: int, reps: int) -> 
     return result
 
 
-class _Timers:
-    """Wrap functions with accumulating timers (bench only: the library is not instrumented)."""
-
-    def __init__(self) -> None:
-        self.total: dict[str, float] = {}
-        self._undo: list = []
-
-    def wrap(self, owner, attr: str, stage: str) -> None:
-        original = getattr(owner, attr)
-
-        def timed(*args, **kwargs):
-            t = time.perf_counter()
-            try:
-                return original(*args, **kwargs)
-            finally:
-                self.total[stage] = self.total.get(stage, 0.0) + time.perf_counter() - t
-
-        setattr(owner, attr, timed)
-        self._undo.append((owner, attr, original))
-
-    def us_per_step(self, seconds: float, steps: int) -> dict[str, float]:
-        """µs per step of each stage, and ``rest`` (the run's ``seconds`` not in any stage), largest first."""
-        stages = {k: v for k, v in self.total.items() if not k.startswith("_")}
-        stages["rest"] = max(seconds - sum(stages.values()), 0.0)
-        return {k: v / steps * 1e6 for k, v in sorted(stages.items(), key=lambda kv: -kv[1])}
-
-    def restore(self) -> None:
-        for owner, attr, original in reversed(self._undo):
-            setattr(owner, attr, original)
-        self._undo.clear()
-
-
 def _scenario_and_config(name: str):
     from runners.run import episode_config, load_evaluator, load_scenario
 
@@ -227,32 +196,6 @@ def bench_simulation(episodes: int, reps: int) -> dict:
             "steps_per_s_without_logging": steps / t_plain, "steps_per_s_with_logging": steps / t_log,
             "logging_share_of_step": statistics.median(shares), "logging_share_per_pair": shares,
             "us_per_step_by_stage": timers.us_per_step(t_prof, steps)}
-
-
-def stage_timers(obstacles: bool = False) -> _Timers:
-    """Timers on the stages of a step (call :meth:`_Timers.restore` afterwards): sensors (sonar and laser), tracking
-    (perception), TPT, planner, controller, logging and, with ``obstacles``, the obstacle models' motion
-    (:meth:`fuzzynav.pedestrians.crowd.Crowd.step`); what is left of a run's time is ``rest``."""
-    from fuzzynav import episode as episode_mod
-    from fuzzynav.pedestrians.crowd import Crowd
-    from fuzzynav.planning import navigator as nav_mod
-    from fuzzynav.policies.fuzzy import FuzzyPolicy
-    from fuzzynav.sensing import laser as laser_mod
-    from fuzzynav.sensing.sonar import Sonar
-    from runners.mcap_log import EpisodeLogWriter
-
-    timers = _Timers()
-    timers.wrap(Sonar, "read", "sensors")
-    timers.wrap(laser_mod, "scan", "sensors")
-    timers.wrap(episode_mod, "perceive", "tracking")
-    timers.wrap(nav_mod, "build_tpt", "tpt")
-    timers.wrap(nav_mod, "find_new_path", "planner")
-    timers.wrap(nav_mod.Navigator, "_still_valid", "planner")
-    timers.wrap(FuzzyPolicy, "fuzzy", "controller")
-    timers.wrap(EpisodeLogWriter, "step", "logging")
-    if obstacles:
-        timers.wrap(Crowd, "step", "obstacles")
-    return timers
 
 
 def _own_compute(episodes: int, first_seed: int = 0) -> float:

@@ -71,7 +71,7 @@ with tempfile.TemporaryDirectory() as tmp:
         seconds, steps = run(False)
         plain.append(seconds)
         logged.append(run(True)[0])
-    # then one logged pass with runners.bench's wall-clock timers (the tree's own _Timers, the same at both commits)
+    # then one logged pass with the bench's wall-clock timers (the tree's own class, the same at both commits)
     # on the functions it times, by the same names at both commits; what is in none of them is "rest"
     import importlib
     # the same functions by their module at either layout (flat fuzzynav/ before its subpackages); chosen by the
@@ -84,9 +84,12 @@ with tempfile.TemporaryDirectory() as tmp:
     nav_mod = module("fuzzynav.planning.navigator", "fuzzynav.navigator")
     FuzzyPolicy = module("fuzzynav.policies.fuzzy", "fuzzynav.fuzzy_policy").FuzzyPolicy
     Sonar = module("fuzzynav.sensing.sonar", "fuzzynav.sonar").Sonar
-    from runners.bench import _Timers
+    if (tree / "runners" / "stage_timers.py").exists():
+        from runners.stage_timers import Timers
+    else:  # a tree from before runners/stage_timers.py (this checkout's would be imported): runners.bench's _Timers
+        from runners.bench import _Timers as Timers
     from runners.mcap_log import EpisodeLogWriter
-    timers = _Timers()
+    timers = Timers()
     for owner, attr, stage in ((Sonar, "read", "sensors"), (laser_mod, "scan", "sensors"),
                                (episode_mod, "perceive", "tracking"), (nav_mod, "build_tpt", "tpt"),
                                (nav_mod, "find_new_path", "planner"), (nav_mod.Navigator, "_still_valid", "planner"),

@@ -45,8 +45,9 @@ from fuzzynav.episode import Episode, EpisodeConfig, StepRecord
 from fuzzynav.numerics import portable_math
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_number
+from fuzzynav.params.names import AGENT, is_policy_id
 from fuzzynav.planning.navigator import checked_action
-from fuzzynav.policies.base import AGENT, Action, Observation, Policy, PolicyContext, is_policy_id, make_policy
+from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy
 from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
 from fuzzynav.sensing.laser import LaserScan
 from runners import config_plugins

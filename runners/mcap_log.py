@@ -32,7 +32,7 @@ from mcap.reader import make_reader
 
 from fuzzynav.episode import Episode, StepRecord
 from fuzzynav.numerics.portable_math import dist
-from fuzzynav.pedestrians.base import DEFAULT_MODEL
+from fuzzynav.params.names import DEFAULT_MODEL
 from runners.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
 from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
 from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS

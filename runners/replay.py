@@ -38,8 +38,8 @@ from analysis.logs import LogError, file_kind
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.controller.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState
+from fuzzynav.params.names import AGENT
 from fuzzynav.planning.navigator import ActivePlan, Decision, Navigator, Observation, build_navigator
-from fuzzynav.policies.base import AGENT
 from fuzzynav.sensing.laser import LaserConfig, beam_directions
 from fuzzynav.sensing.tracking import Track
 from runners.run import ConfigFileError, episode_config

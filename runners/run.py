@@ -27,10 +27,15 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from analysis import interrupts
+
+# the exception of a stop request (a signal, a sweep's stop file: runners.stop), re-exported from here
+from analysis.interrupts import Interrupted
 from fuzzynav import episode_identity
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.policies.base import DEFAULT_POLICY, policy_source_digest, split_navigator_section
+from fuzzynav.params.names import DEFAULT_POLICY
+from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.scenario import Scenario
 from runners import config_plugins, process_tree, schema, stop, sweep_resume, yaml_text
 from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
@@ -39,9 +44,6 @@ from runners.provenance import provenance
 # input loading and validation live in runners.run_inputs; these names are imported from here by the dataset,
 # bench and replay runners and the tests
 from runners.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
-
-# the stop requests (signals, a sweep's stop file) live in runners.stop
-from runners.stop import Interrupted
 
 __all__ = ["ConfigFileError", "Interrupted", "episode_config", "episode_metadata", "load_evaluator", "load_scenario",
            "log_name", "outcome_reason", "run_episode", "run_job"]
@@ -133,7 +135,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         outcome = episode.outcome or "error"
         reason = outcome_reason(outcome, scenario.max_steps)
     except KeyboardInterrupt as err:
-        outcome, reason = "interrupted", stop.reason_of(err)
+        outcome, reason = "interrupted", interrupts.reason_of(err)
         raise
     except LogWriteError:
         raise
@@ -217,9 +219,9 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
     try:
         results = run_job(cfg)
     except KeyboardInterrupt as err:
-        print(f"interrupted: the episode in flight was logged with outcome 'interrupted' ({stop.reason_of(err)})",
+        print(f"interrupted: the episode in flight was logged with outcome 'interrupted' ({interrupts.reason_of(err)})",
               file=sys.stderr)
-        sys.exit(stop.exit_code(err))
+        sys.exit(interrupts.exit_code(err))
     except OSError as err:  # a log that cannot be written (disk full, read-only): one line naming it
         if HydraConfig.get().mode == RunMode.MULTIRUN:
             raise  # the sweep's launcher reports it (hydra_plugins.fuzzynav_sweeper)

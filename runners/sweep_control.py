@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from analysis import interrupts
 from runners import process_tree, stop, sweep_lock
 from runners.sweep_paths import partial_logs, stop_file
 
@@ -59,7 +60,7 @@ class SweepRun:
         if self.signum is not None:
             return self.signum
         request = stop.read_sweep_stop(stop_file(self.sweep_dir))
-        return request[0] if request and request[0] in stop.SIGNAL_NAMES else None
+        return request[0] if request and request[0] in interrupts.SIGNAL_NAMES else None
 
 
 _CURRENT: list[SweepRun] = []
@@ -124,7 +125,7 @@ def install_handlers() -> None:
 
 def _on_signal(signum: int, frame: Any) -> None:
     run = current()
-    name = stop.SIGNAL_NAMES.get(signum, str(signum))
+    name = interrupts.SIGNAL_NAMES.get(signum, str(signum))
     if run is None or run.signum is not None:
         stop_now(signum, "before the sweep started" if run is None else f"second {name}")
     run.signum = signum

@@ -16,10 +16,12 @@ from typing import TYPE_CHECKING
 
 from omegaconf import DictConfig
 
+from analysis.interrupts import SIGNAL_NAMES
 from runners import sweep_control, sweep_resume
-from runners.sweep import count_episodes, write_summary
 from runners.sweep_outputs import write_report
 from runners.sweep_paths import job_logs, partial_logs
+from runners.sweep_size import count_episodes
+from runners.sweep_summary import write_summary
 
 if TYPE_CHECKING:
     from analysis.metrics import Analysis
@@ -104,7 +106,7 @@ def _report_incomplete(config: DictConfig, run: sweep_control.SweepRun, analysis
     total = count_episodes(config)
     not_run = f", {max(total - kept - len(fresh) - len(lost), 0)} not run (of {total})" if total is not None else ""
     signum = run.stop_signal()
-    what = f"stopped by {sweep_control.stop.SIGNAL_NAMES[signum]}" if signum is not None else "incomplete"
+    what = f"stopped by {SIGNAL_NAMES[signum]}" if signum is not None else "incomplete"
     summary = run.sweep_dir / "summary.csv"
     print(f"{what}: {len(fresh) - interrupted} episode(s) finished, {interrupted} interrupted, {len(lost)} lost"
           f"{not_run}" + (f"; every log is in {summary}" if summary_written and summary.exists() else ""))

@@ -15,7 +15,8 @@ import pytest
 import yaml
 
 from analysis import report
-from analysis.logs import RejectedLog, find_logs
+from analysis.log_inputs import find_logs
+from analysis.logs import RejectedLog
 from analysis.metrics import metrics_table
 from runners import replay
 from tests.conftest import ROOT, one_error_line

@@ -17,7 +17,7 @@ from analysis.log_check import MESSAGE_CHECKS, CheckError, check_message, messag
 from analysis.logs import LogError, LogFile
 from analysis.tpt_errors import obstacle_models, tpt_errors
 from fuzzynav.numerics.portable_math import norm2
-from fuzzynav.pedestrians.base import DEFAULT_MODEL
+from fuzzynav.params.names import DEFAULT_MODEL
 from tests.fuzz_mutations import mutations
 from tests.handmade import rewrite_log
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture

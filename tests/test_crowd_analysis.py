@@ -11,9 +11,12 @@ import pandas as pd
 import pytest
 
 from analysis.density import count_key, density_table
-from analysis.metrics import metrics_table
+from analysis.metrics import column_unit, metrics_table
+from analysis.report import tpt_error_table
+from analysis.tpt_errors import STANDING_MODELS, model_columns, models_of_columns
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
+from fuzzynav.pedestrians.base import MODELS
 from fuzzynav.scenarios.scenario import scenario_from_dict
 from runners.run import run_episode
 from tests.conftest import ROOT
@@ -49,6 +52,44 @@ def test_tpt_errors_are_split_by_the_obstacles_models(mixed_log):
     assert math.isnan(row["tpt_ade_cm_orca"]) and math.isnan(row["tpt_ade_cm_random_walk"])
     # the overall error lies between the models' (a mean of both sets of errors)
     assert row["tpt_ade_cm_scripted"] <= row["tpt_ade_cm"] <= row["tpt_ade_cm_social_force"]
+
+
+def _plugin_scenario():
+    return scenario_from_dict({
+        "name": "plugin_model", "bounds": [0, 0, 1200, 800],
+        "robot": {"start": [100, 400], "heading": 0, "goal": [1100, 400], "radius": 20},
+        "dynamic_obstacles": [
+            {"id": "walker", "radius": 20, "start": [750, 650], "velocity": [0, -25], "model": "test_plugin_walk"}],
+        "max_steps": 80})
+
+
+def test_a_model_from_outside_fuzzynav_has_its_own_columns(mixed_log, tmp_path, table1, monkeypatch):
+    """A model that is not one of fuzzynav's built-ins (here: the random walk registered under another name, as a
+    plug-in would be) gets its own TPT error columns from the logs that name it, NaN in the other logs' rows; the
+    built-in models' columns stay in every row (the datasets' manifests hash them)."""
+    monkeypatch.setitem(MODELS, "test_plugin_walk", MODELS["random_walk"])
+    cfg = episode_config_from_dict({"perception": {"mode": "ground_truth"}, "planner": {"strategy": "auto"},
+                                    "terminate_on_collision": False})
+    plugin_log = tmp_path / "plugin.mcap"
+    run_episode(_plugin_scenario(), FastEvaluator(table1), cfg, 1, plugin_log, "")  # not the mixed log's identity
+    table, left_out = metrics_table([str(mixed_log), str(plugin_log)])
+    assert left_out.empty, left_out.to_dict("records")
+    assert models_of_columns(table.columns) == [*STANDING_MODELS, "test_plugin_walk"]
+    assert column_unit("tpt_ade_cm_test_plugin_walk") == column_unit("tpt_fde_cm_test_plugin_walk") == "cm"
+    plugin, mixed = (table.set_index("log").loc[str(log)] for log in (plugin_log, mixed_log))
+    assert plugin["tpt_ade_cm_test_plugin_walk"] > 0 and plugin["tpt_ade_cm"] == plugin["tpt_ade_cm_test_plugin_walk"]
+    assert math.isnan(mixed["tpt_ade_cm_test_plugin_walk"]) and math.isnan(mixed["tpt_fde_cm_test_plugin_walk"])
+    assert all(math.isnan(plugin[f"tpt_ade_cm_{m}"]) for m in STANDING_MODELS)
+    by_model = tpt_error_table(table.assign(scenario_label=["mixed", "plugin"], variant="auto"))
+    assert "test_plugin_walk" in set(by_model["obstacle model"])
+
+
+def test_model_columns_of_a_row():
+    """The built-in models' columns always, other models' by name; a name no model can have gets none."""
+    row = model_columns({"social_force": (3.0, 4.0), "zeta": (1.0, 2.0), "Not A Name": (5.0, 6.0)}, ["alpha"])
+    assert models_of_columns(row) == [*STANDING_MODELS, "alpha", "zeta"]
+    assert row["tpt_ade_cm_social_force"] == 3.0 and row["tpt_fde_cm_zeta"] == 2.0
+    assert math.isnan(row["tpt_ade_cm_alpha"]) and math.isnan(row["tpt_fde_cm_orca"])
 
 
 def test_density_table_lines_up_groups_without_pooling():

@@ -42,8 +42,10 @@ def test_every_package_folder_is_packaged():
 
 
 def _run(cmd: list[str], cwd: Path, env: dict[str, str], timeout: float = 600) -> subprocess.CompletedProcess:
-    res = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
-    assert res.returncode == 0, f"{' '.join(cmd[:4])}... exit {res.returncode}\n{res.stdout[-2000:]}\n{res.stderr[-3000:]}"
+    res = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout,
+                         stdin=subprocess.DEVNULL)
+    assert res.returncode == 0, (f"{' '.join(cmd[:4])}... exit {res.returncode}\n{res.stdout[-2000:]}\n"
+                                 f"{res.stderr[-3000:]}")
     return res
 
 

@@ -14,7 +14,8 @@ import pandas as pd
 import pytest
 
 from analysis.episode_log import load_episode
-from analysis.logs import episode_summary, find_logs, is_complete
+from analysis.log_inputs import find_logs
+from analysis.logs import episode_summary, is_complete
 from analysis.metrics import metrics_table
 from tests.conftest import ROOT
 

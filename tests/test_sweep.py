@@ -8,8 +8,9 @@ import sys
 import pandas as pd
 import yaml
 
-from analysis.logs import episode_summary, find_logs
-from runners.sweep import count_episodes
+from analysis.log_inputs import find_logs
+from analysis.logs import episode_summary
+from runners.sweep_size import count_episodes
 from tests.conftest import CONF, ROOT
 
 
@@ -119,7 +120,7 @@ def test_hydra_basic_sweeper_still_selectable(tmp_path):
 
 def test_parallel_summary_equals_the_serial_one(tmp_path, monkeypatch):
     import analysis.logs
-    from runners.sweep import summarise
+    from runners.sweep_summary import summarise
     from tests.handmade import write_log
 
     poses = [(100.0 * k, 0.0, 0.0) for k in range(8)]

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
+from analysis import interrupts
 from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
@@ -68,12 +69,12 @@ def test_the_stop_file_ends_the_episode_in_flight_as_interrupted(tmp_path):
     restore = stop.install(sweep_dir)  # a job starting now looks at the stop file at its first check
     log = sweep_dir / "0" / "x.mcap"
     try:
-        with pytest.raises(stop.Interrupted) as raised:
+        with pytest.raises(interrupts.Interrupted) as raised:
             episode(log)
     finally:
         restore()
         stop.clear_sweep_stop(sweep_dir)
-    assert raised.value.signum == signal.SIGTERM and stop.exit_code(raised.value) == 143
+    assert raised.value.signum == signal.SIGTERM and interrupts.exit_code(raised.value) == 143
     assert is_complete(log) and not partial_path(log).exists()
     row = episode_summary(log)
     assert row["outcome"] == "interrupted" and row["steps"] == 1  # stopped after its first step
@@ -313,13 +314,13 @@ def test_a_time_limit_warning_between_two_episodes_ends_the_next_one_as_interrup
         with pytest.raises(KeyboardInterrupt):
             stop.check()  # ... which every step's check does
         log = tmp_path / "ep.mcap"
-        with pytest.raises(stop.Interrupted) as err:
+        with pytest.raises(interrupts.Interrupted) as err:
             episode(log)
         assert err.value.reason == stop.TIME_LIMIT_REASON
         summary = episode_summary(log)
         assert summary["outcome"] == "interrupted" and summary["steps"] == 1, summary
         stop._PENDING.append(signal.SIGTERM)
-        with pytest.raises(stop.Interrupted):
+        with pytest.raises(interrupts.Interrupted):
             stop.check_between_episodes()  # a signal still stops before the next episode
     finally:
         stop._TIME_LIMIT.clear()

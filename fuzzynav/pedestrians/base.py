@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -32,6 +31,7 @@ import numpy as np
 
 from fuzzynav.numerics.portable_math import sin_cos_deg
 from fuzzynav.params.checks import check_key, key_text, show
+from fuzzynav.params.names import NAME
 from fuzzynav.registry import load_plugins
 
 if TYPE_CHECKING:
@@ -39,9 +39,6 @@ if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle
     from fuzzynav.scenarios.world import World
 
-#: the model of an obstacle whose scenario entry names none: its scripted path (constant velocity or waypoints)
-DEFAULT_MODEL = "scripted"
-NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 MAX_ABS = 1e15  # a parameter's absolute value before its own range is checked
 
 

@@ -14,7 +14,8 @@ import numpy as np
 
 from fuzzynav.kinematics import RobotState
 from fuzzynav.params import limits
-from fuzzynav.pedestrians.base import DEFAULT_MODEL, CrowdView, ObstacleModel, model_config, model_factory, substeps
+from fuzzynav.params.names import DEFAULT_MODEL
+from fuzzynav.pedestrians.base import CrowdView, ObstacleModel, model_config, model_factory, substeps
 
 if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle

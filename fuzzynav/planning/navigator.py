@@ -33,6 +33,7 @@ import numpy as np
 from fuzzynav.kinematics import RobotLimits
 from fuzzynav.numerics.portable_math import dist
 from fuzzynav.params import limits
+from fuzzynav.params.names import NAME as MODE_NAME
 from fuzzynav.planning.planner import (
     Plan,
     PlannerConfig,
@@ -42,7 +43,6 @@ from fuzzynav.planning.planner import (
     plan_heading_change,
 )
 from fuzzynav.planning.tpt import TrajectoryPredictionTable, build_tpt
-from fuzzynav.policies.base import NAME as MODE_NAME
 from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy, one_line
 from fuzzynav.policies.fuzzy import NavigatorConfig, included_angle_deg
 

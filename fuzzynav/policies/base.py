@@ -38,7 +38,6 @@ import dataclasses
 import hashlib
 import importlib
 import inspect
-import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,23 +47,10 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from fuzzynav.kinematics import RobotLimits, RobotState
+from fuzzynav.params.names import AGENT, DEFAULT_POLICY, IMPORT_PATH, NAME
 from fuzzynav.params.parsing import from_dict
 from fuzzynav.registry import load_plugins
 from fuzzynav.sensing.tracking import Track
-
-#: the policy of a run when its ``navigator`` section names none: the paper's fuzzy controller
-DEFAULT_POLICY = "fuzzy"
-#: the policy name of episodes whose commands came from outside (a Gymnasium agent): reserved, never registered
-AGENT = "agent"
-NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
-"""A registered policy's name, and a mode name (:class:`Action`; the log's ``/planner/decision.mode``)."""
-IMPORT_PATH = re.compile(r"(?=.{3,200}$)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
-"""The import path of a ``_target_`` policy factory: dotted identifiers, at most 200 characters."""
-
-
-def is_policy_id(text: object) -> bool:
-    """Whether ``text`` names a policy as a configuration and a log do: a registered name or an import path."""
-    return isinstance(text, str) and bool(NAME.fullmatch(text) or IMPORT_PATH.fullmatch(text))
 
 
 @dataclass(frozen=True)

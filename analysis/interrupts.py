@@ -1,0 +1,116 @@
+"""Interrupts of a command-line entry point, ``python -m runners.<entry>`` and ``python -m analysis.<entry>``: the
+:class:`Interrupted` exception that a SIGINT or SIGTERM becomes, and the start-up guard that both packages install
+when they are imported by ``python -m`` (:func:`guard_startup`).
+
+It lives in the analysis because the analysis imports nothing of the runners (the runners import the analysis: a
+sweep writes its report); :mod:`runners.stop` builds the stop between two steps of an episode on it.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import os
+import signal
+import sys
+import threading
+from typing import Any
+
+SIGNAL_NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop request: ``signum`` is the signal behind it (the exit code is 128 + signum: 130 for SIGINT, 143 for
+    SIGTERM) and ``reason`` the words the log records."""
+
+    def __init__(self, signum: int = signal.SIGTERM, reason: str = "") -> None:
+        super().__init__(reason or describe(signum))
+        self.signum = signum
+        self.reason = reason or describe(signum)
+
+
+def describe(signum: int) -> str:
+    return "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated ({SIGNAL_NAMES.get(signum, signum)})"
+
+
+def exit_code(err: BaseException) -> int:
+    """The exit status of a process stopped by ``err``: 128 + the signal number (a plain KeyboardInterrupt is a
+    Ctrl-C: 130)."""
+    return 128 + (err.signum if isinstance(err, Interrupted) else signal.SIGINT)
+
+
+def reason_of(err: BaseException) -> str:
+    return err.reason if isinstance(err, Interrupted) else describe(signal.SIGINT)
+
+
+# -- start-up of a command-line entry point -----------------------------------------------------------------------
+_GUARDED: list[bool] = []  # guard_startup has run in this process
+
+
+def guard_startup() -> None:
+    """For ``python -m runners.<entry>`` and ``python -m analysis.report``, from their package's import on: a
+    SIGINT or SIGTERM raises :class:`Interrupted` (later handlers, such as :func:`install` during a job or the
+    sweep's, take over and restore this one), and an interrupt that nothing handled ends the process with one
+    line and exit 128 + signal instead of a traceback through the imports, Hydra or the checks. Without it,
+    SIGINT during the imports printed a 20-line traceback and SIGTERM killed the process without a word."""
+    if _GUARDED:
+        return
+    _GUARDED.append(True)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError):  # not the main thread: signals act as before
+            signal.signal(signum, _raise_interrupted)
+    previous = sys.excepthook
+
+    def excepthook(kind: type[BaseException], value: BaseException, tb: Any) -> None:
+        if not issubclass(kind, KeyboardInterrupt):
+            previous(kind, value, tb)
+            return
+        _exit_interrupted(value)
+
+    sys.excepthook = excepthook
+    # once the command has ended, a signal must not replace its exit status: from the threads' shutdown (the
+    # first step of the interpreter's exit) a signal is only noted, and after the exit handlers ignored, since
+    # the interpreter then puts back the default action, which killed the exiting process (status -2, no word)
+    threading._register_atexit(_while_exiting)  # type: ignore[attr-defined]
+    atexit.register(_ignore_signals)  # registered first, so run last of the exit handlers
+
+
+def _while_exiting() -> None:
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _on_signal_while_exiting)
+
+
+def _on_signal_while_exiting(signum: int, frame: Any) -> None:
+    """A signal while the exit handlers run: the first is ignored (the command has ended), a second one ends
+    the process at once, in case an exit handler hangs."""
+    if _EXIT_SIGNALS:
+        os._exit(128 + signum)
+    _EXIT_SIGNALS.append(signum)
+
+
+_EXIT_SIGNALS: list[int] = []
+
+
+def _ignore_signals() -> None:
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
+
+
+def _raise_interrupted(signum: int, frame: Any) -> None:
+    raise Interrupted(signum)
+
+
+def _exit_interrupted(err: BaseException) -> None:
+    """One line naming the command, the exit handlers (loky's workers, logging), exit 128 + signal. The
+    interpreter would otherwise end an unhandled interrupt by killing itself with SIGINT (status -2, not 130)."""
+    for signum in (signal.SIGINT, signal.SIGTERM):  # a second signal must not interrupt the clean-up
+        signal.signal(signum, signal.SIG_IGN)
+    spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+    command = f"python -m {spec.name}" if spec is not None else "the command"
+    with contextlib.suppress(BaseException):
+        sys.stdout.flush()
+    with contextlib.suppress(OSError):
+        os.write(2, f"{reason_of(err)}: {command} stopped before it finished\n".encode())
+    with contextlib.suppress(BaseException):
+        atexit._run_exitfuncs()
+    os._exit(exit_code(err))

@@ -1,0 +1,26 @@
+"""The names a configuration and a log use for a run's policy, its modes and its pedestrian models, and what a run
+is when it names none: facts of the run parameters and of the log format, shared by the simulator (the policy
+registry, :mod:`fuzzynav.policies.base`; the crowd, :mod:`fuzzynav.pedestrians`), the runners and the analysis
+(which checks the logs against them and imports nothing of the simulator's parts)."""
+
+from __future__ import annotations
+
+import re
+
+#: the policy of a run when its ``navigator`` section names none: the paper's fuzzy controller
+DEFAULT_POLICY = "fuzzy"
+#: the policy name of episodes whose commands came from outside (a Gymnasium agent): reserved, never registered
+AGENT = "agent"
+NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
+"""A registered policy's or pedestrian model's name, and a mode name (:class:`fuzzynav.policies.base.Action`; the
+log's ``/planner/decision.mode``)."""
+IMPORT_PATH = re.compile(r"(?=.{3,200}$)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+")
+"""The import path of a ``_target_`` policy factory: dotted identifiers, at most 200 characters."""
+
+#: the model of an obstacle whose scenario entry names none: its scripted path (constant velocity or waypoints)
+DEFAULT_MODEL = "scripted"
+
+
+def is_policy_id(text: object) -> bool:
+    """Whether ``text`` names a policy as a configuration and a log do: a registered name or an import path."""
+    return isinstance(text, str) and bool(NAME.fullmatch(text) or IMPORT_PATH.fullmatch(text))
