@@ -1,0 +1,148 @@
+"""The documentation: the site builds with ``mkdocs build --strict``, the README's example runs as shown, the
+README keeps CI's test command, and the performance page is generated from the benchmark's results."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from runners import bench_page
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+
+def _mkdocs() -> str | None:
+    """The mkdocs of this interpreter's environment (the dev extra), else one on PATH."""
+    here = Path(sys.executable).parent / "mkdocs"
+    return str(here) if here.exists() else shutil.which("mkdocs")
+
+
+def _fenced(text: str, language: str) -> list[str]:
+    return re.findall(rf"^```{language}\n(.*?)^```", text, re.S | re.M)
+
+
+def test_the_site_builds_strictly(tmp_path: Path):
+    mkdocs = _mkdocs()
+    if mkdocs is None:
+        message = "mkdocs is not installed (pip install -c constraints.txt -e '.[dev]')"
+        if os.environ.get("CI"):
+            pytest.fail(message, pytrace=False)
+        pytest.skip(message)
+    site = tmp_path / "site"
+    had_site = (ROOT / "site").exists()
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}  # Material's banner about its successor, not a build problem
+    proc = subprocess.run([mkdocs, "build", "--strict", "--site-dir", str(site)], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-6000:]
+    assert (site / "index.html").exists()
+    assert (site / "tutorials" / "policy" / "index.html").exists()
+    assert "Episode" in (site / "reference" / "episode" / "index.html").read_text()  # mkdocstrings rendered it
+    assert (ROOT / "site").exists() == had_site  # built into the temporary directory only
+
+
+def test_readme_is_short_and_keeps_ci_test_command():
+    text = README.read_text()
+    assert len(text.splitlines()) <= 300
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    command = ci.replace('"$PY"', "python3.11")
+    assert command in _fenced(text, "bash")[1], "the README's test command differs from .ci/run's"
+    image = re.search(r"!\[[^]]*\]\(([^)]+)\)", text).group(1)
+    assert (ROOT / image).is_file()
+    for link in re.findall(r"\]\((docs/[^)#]+)", text):
+        assert (ROOT / link).is_file(), link
+
+
+def test_readme_library_example_prints_what_it_says(tmp_path):  # from a folder outside the checkout
+    text = README.read_text()
+    code = _fenced(text, "python")[0]
+    expected = text[text.index(code) + len(code):]
+    expected = _fenced(expected, "text")[0]
+    proc = subprocess.run([sys.executable, "-"], input=code, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout == expected
+
+
+def _results() -> dict:
+    """A small bench.json of the form ``python -m runners.bench`` writes (made-up numbers)."""
+    stages = {"sensors": 150.0, "rest": 120.0, "logging": 110.0, "tracking": 50.0, "tpt": 5.0, "controller": 2.0}
+    fuzzy = {"controller": "table1", "compiled_kernel": True, "fast_us_per_decision": 1.2,
+             "batch_us_per_decision": 0.95, "max_disagreement_dtheta_deg": 1.7e-13, "max_disagreement_v_cm_s": 3.5e-14,
+             "python_path": {"single_us": 27.0, "batch_us_per_decision": 9.7, "max_disagreement_dtheta_deg": 1.7e-13,
+                             "max_disagreement_v_cm_s": 3.5e-14, "same_bits_as_kernel": True},
+             "peers": [{"engine": "ferrifuzz", "installed": False}], "skfuzzy_version": "0.5.0",
+             "skfuzzy_us_per_decision": 27000.0, "ratio": 22000.0}
+    return {
+        "machine": {"python": "3.11.9", "processor": "x86_64", "system": "Linux",
+                    "compiled_kernels": {"_mamdani": True, "_raycast": False}},
+        "quick": True,
+        "fuzzy": [fuzzy],
+        "simulation": {"scenario": "mixed", "steps": 960, "repetitions": 7, "steps_per_s_without_logging": 3500.0,
+                       "steps_per_s_with_logging": 2200.0, "logging_share_of_step": 0.36,
+                       "logging_share_per_pair": [0.36], "us_per_step_by_stage": stages},
+        "sweep": {"episodes": 100, "cores": 2, "rounds": 1, "own_compute_s_before": 1.6, "own_compute_s_after": 1.6,
+                  "ideal_s": 0.8, "shapes": [{"jobs": 4, "episodes_per_job": 25, "wall_over_all_cores": 1.6,
+                                               "rounds_over_all_cores": [1.6], "wall_s_to_summary": 3.0,
+                                               "all_cores_s": 1.9, "wall_over_ideal": 3.7, "wall_s_with_report": 3.5,
+                                               "wall_with_report_over_ideal": 4.3,
+                                               "phases_s": {"start-up": 1.0, "episodes": 1.5}}]},
+        "analysis": {"scenario": "overtaking", "episodes": 20, "seconds": 0.1, "episodes_per_s": 207.0,
+                     "episodes_per_s_best": 208.0, "repetitions": 3, "messages_per_s": 100000.0, "mean_steps": 100.0},
+        "memory": {"episodes": 60, "rss_mb_at_10pct": 240.0, "rss_mb_at_end": 240.5, "growth": 0.002},
+        "targets": [{"name": "analysis, one process", "value": 207.0, "threshold": 200.0, "higher_is_better": True,
+                     "unit": "episodes/s", "met": True, "note": ""},
+                    {"name": "single decision ours / ferrifuzz (table1)", "value": None, "threshold": 1.0,
+                     "higher_is_better": False, "unit": "", "met": False, "note": "ferrifuzz not installed"}],
+    }
+
+
+def test_the_performance_page_is_generated_from_bench_json(tmp_path: Path):
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps(_results()))
+    page = tmp_path / "performance.md"
+    assert bench_page.main([str(path), str(page)]) == 0
+    text = page.read_text()
+    assert text.startswith("# Performance\n")
+    assert "| analysis, one process | 207 episodes/s | >= 200 episodes/s | met |" in text
+    assert "| single decision ours / ferrifuzz (table1) | not measured | <= 1 | not measured |" in text
+    assert "1 of 2 targets met in this run." in text
+    assert "| with logging | 2200 |" in text
+    assert "fuzzynav (C kernel)" in text and "same bits" in text  # the benchmark's own fuzzy table
+    assert "| 4 × 25 | 1.60 |" in text
+    assert "207.0 episodes/s" in text and "+0.2%" in text
+    assert "| compiled kernels in use | 1 of 2 (mamdani) |" in text
+    for missing in ("Report", "Crowds", "Side by side with the targets' starting point"):
+        assert f"## {missing}\n\nNot measured in this run.\n" in text
+    assert "## What each number measures" in text
+
+
+def test_the_performance_page_refuses_what_is_not_bench_output(tmp_path: Path, capsys):
+    bad = tmp_path / "bench.json"
+    bad.write_text("[1, 2]")
+    assert bench_page.main([str(bad), str(tmp_path / "p.md")]) == 2
+    assert bench_page.main([str(tmp_path / "missing.json"), str(tmp_path / "p.md")]) == 2
+    assert not (tmp_path / "p.md").exists()
+    err = capsys.readouterr().err
+    assert err.count("error: ") == 2
+
+
+def test_the_committed_performance_page_is_a_generated_one():
+    text = (ROOT / "docs" / "performance.md").read_text()
+    assert "Generated by `python -m runners.bench_page" in text
+    assert "## What each number measures" in text
+
+
+def test_the_limits_page_shows_the_limits_the_code_applies():
+    from fuzzynav.params import limits
+
+    size_limits = limits.markdown_table().split("\n\n")[0]
+    page = (ROOT / "docs" / "troubleshooting.md").read_text()
+    missing = [line for line in size_limits.splitlines() if line not in page]
+    assert not missing, f"docs/troubleshooting.md differs from python -m fuzzynav.params.limits: {missing}"
