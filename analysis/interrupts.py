@@ -3,7 +3,7 @@
 when they are imported by ``python -m`` (:func:`guard_startup`).
 
 It lives in the analysis because the analysis imports nothing of the runners (the runners import the analysis: a
-sweep writes its report); :mod:`runners.stop` builds the stop between two steps of an episode on it.
+sweep writes its report); :mod:`runners.sweeping.stop` builds the stop between two steps of an episode on it.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
     python -m runners.bench --quick    # reduced sizes (under a minute; CI runs it, no thresholds)
 
 1. Fuzzy decision: our evaluator, the peer engines ferrifuzz and pyfuzzylite (when installed:
-   ``pip install -e '.[bench]'``; runners/bench_peers.py builds them from the same definition) and
+   ``pip install -e '.[bench]'``; runners/benchmarks/peers.py builds them from the same definition) and
    scikit-fuzzy's ControlSystemSimulation.compute() on the same seeded inputs — time per single decision,
    batch time per decision, each one's largest disagreement with scikit-fuzzy, and issue #19's target 2
    (ours / ferrifuzz, single and batch per core).
@@ -17,12 +17,12 @@
    time of each phase.
 4. Analysis: episodes/s and messages/s of the metrics table on logs of ~100-step episodes.
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
-6. Report: the time to write the report of 10,000 episodes (:mod:`runners.bench_report`).
+6. Report: the time to write the report of 10,000 episodes (:mod:`runners.benchmarks.report`).
 7. Crowds: ``crowd_crossing`` with 20 pedestrians of each obstacle model (scripted, social force, ORCA, random
-   walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.bench_crowd`).
+   walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.benchmarks.crowd`).
 8. Side by side with the commit issue #19 was filed against: CPU time per step on ``mixed`` with and without
-   logging, each tree in its own child process, alternated (:mod:`runners.bench_baseline`).
-9. Issue #19's targets, each with its value, threshold and verdict (:mod:`runners.bench_targets`).
+   logging, each tree in its own child process, alternated (:mod:`runners.benchmarks.baseline`).
+9. Issue #19's targets, each with its value, threshold and verdict (:mod:`runners.benchmarks.targets`).
 
 Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
 Writes ``bench.json`` (path with ``--out``).
@@ -31,7 +31,6 @@ Writes ``bench.json`` (path with ``--out``).
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import json
 import os
 import platform
@@ -42,160 +41,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import yaml
-from fuzzynav.conf import CONF_DIR as CONF
-
-from fuzzynav.controller.fuzzy_fast import FastEvaluator
-from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
-from fuzzynav.controller.fuzzy_spec import ControllerSpec
-from runners.stage_timers import stage_timers
-
-
-def _inputs(spec: ControllerSpec, n: int, seed: int) -> dict[str, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    return {v.name: rng.uniform(v.universe[0], v.universe[1], n) for v in spec.inputs}
-
-
-def _median_time(fn, reps: int) -> float:
-    fn()  # warm-up
-    times = []
-    for _ in range(reps):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
-
-
-def _peer_row(peer: str, spec: ControllerSpec, rows: list[dict[str, float]], inputs: dict[str, np.ndarray],
-              big: dict[str, np.ndarray], ref_out: np.ndarray, reps: int) -> dict:
-    """One peer engine on the same inputs: time per single decision (its own per-decision call, on inputs
-    prepared outside the timing), batch time per decision, and its largest disagreement with scikit-fuzzy."""
-    from runners.bench_peers import PEERS, PeerMissing, peer_version
-
-    cls = PEERS[peer]
-    try:
-        ev = cls(spec)
-    except PeerMissing:
-        return {"engine": peer, "installed": False}
-    prepared = [ev.snap(r) for r in rows]
-    single_s = _median_time(lambda: [ev.compute(r) for r in prepared], reps) / len(rows)
-    batch_s = _median_time(lambda: ev.evaluate(big), reps) / len(next(iter(big.values())))
-    batch_out = np.array(ev.evaluate(inputs))
-    single_out = np.array([ev.compute(r) for r in prepared]).T
-    worst = np.maximum(np.abs(batch_out - ref_out).max(axis=1),
-                       np.abs(single_out - ref_out[:, : len(rows)]).max(axis=1))
-    return {"engine": peer, "installed": True, "version": peer_version(cls.package), "single_us": single_s * 1e6,
-            "batch_us_per_decision": batch_s * 1e6,
-            "batch_cores": (os.cpu_count() or 1) if peer == "ferrifuzz" else 1,  # compute_batch uses all cores
-            "max_disagreement_dtheta_deg": float(worst[0]), "max_disagreement_v_cm_s": float(worst[1])}
-
-
-def bench_fuzzy(name: str, n_single: int, n_ref: int, batch: int, reps: int) -> dict:
-    """Single-decision time of our evaluator, scikit-fuzzy and the peer engines on the same seeded inputs,
-    batch time per decision, and each one's largest disagreement with scikit-fuzzy."""
-    with open(CONF / "controller" / f"{name}.yaml") as f:
-        spec = ControllerSpec.from_dict(yaml.safe_load(f))
-    fast, ref = FastEvaluator(spec), SkfuzzyEvaluator(spec)
-    plain = FastEvaluator(spec, use_kernel=False)  # the Python path: what an install without a C compiler runs
-    inputs = _inputs(spec, n_single, seed=1)
-    rows = [{k: float(v[i]) for k, v in inputs.items()} for i in range(n_single)]
-    big = _inputs(spec, batch, seed=2)
-    ref_out = np.array(ref.evaluate(inputs))  # (2, n)
-    # ours and the peers alternated, so that a slow spell of the machine hits them alike
-    fast_s, plain_s, peer_rows = [], [], {}
-    for _ in range(2):
-        fast_s.append(_median_time(lambda: [fast.evaluate(r) for r in rows], reps) / n_single)
-        plain_s.append(_median_time(lambda: [plain.evaluate(r) for r in rows], reps) / n_single)
-        for peer in ("ferrifuzz", "pyfuzzylite"):
-            row = _peer_row(peer, spec, rows if peer == "ferrifuzz" else rows[:n_ref], inputs, big, ref_out,
-                            max(1, reps // 2))
-            if peer in peer_rows and row.get("installed"):
-                for key in ("single_us", "batch_us_per_decision"):  # the better of the two rounds, as ours
-                    row[key] = min(row[key], peer_rows[peer][key])
-            peer_rows[peer] = row
-    fast_single = min(fast_s)
-    ref_rows = rows[:n_ref]
-    ref_s = _median_time(lambda: [ref.evaluate(r) for r in ref_rows], max(1, reps // 2)) / n_ref
-    batch_s = _median_time(lambda: fast.evaluate(big), reps)
-    batch_out = np.array(fast.evaluate(inputs))
-    single_out = np.array([fast.evaluate(r) for r in rows]).T
-    # the largest difference from scikit-fuzzy over both paths (single decisions and the batch)
-    worst = np.maximum(np.abs(batch_out - ref_out), np.abs(single_out - ref_out)).max(axis=1)
-    plain_batch_s = _median_time(lambda: plain.evaluate(big), reps)
-    plain_single = np.array([plain.evaluate(r) for r in rows]).T
-    plain_worst = np.maximum(np.abs(np.array(plain.evaluate(inputs)) - ref_out),
-                             np.abs(plain_single - ref_out)).max(axis=1)
-    result = {"controller": name, "fast_us_per_decision": fast_single * 1e6, "skfuzzy_us_per_decision": ref_s * 1e6,
-              "ratio": ref_s / fast_single, "batch_size": batch, "batch_decisions_per_s": batch / batch_s,
-              "batch_us_per_decision": batch_s / batch * 1e6,
-              "max_disagreement_dtheta_deg": float(worst[0]), "max_disagreement_v_cm_s": float(worst[1]),
-              "inputs_compared": n_single, "peers": list(peer_rows.values()),
-              "skfuzzy_version": importlib.metadata.version("scikit-fuzzy"),
-              # whether our rows above ran the compiled kernel; the Python path's own row, and whether its single
-              # decisions are the kernel's bits (they must be: the logs do not depend on the build)
-              "compiled_kernel": fast.uses_kernel,
-              "python_path": {"single_us": min(plain_s) * 1e6, "batch_us_per_decision": plain_batch_s / batch * 1e6,
-                              "max_disagreement_dtheta_deg": float(plain_worst[0]),
-                              "max_disagreement_v_cm_s": float(plain_worst[1]),
-                              "same_bits_as_kernel": bool(np.array_equal(plain_single, single_out))}}
-    ferri = peer_rows["ferrifuzz"]
-    if ferri.get("installed"):
-        # target 2 of issue #19: ours / ferrifuzz (<= 1 meets it); batch per core: its all-core time x cores
-        result["single_over_ferrifuzz"] = fast_single * 1e6 / ferri["single_us"]
-        result["batch_per_core_over_ferrifuzz"] = (batch_s / batch * 1e6) / (ferri["batch_us_per_decision"]
-                                                                           * ferri["batch_cores"])
-    return result
-
-
-def _scenario_and_config(name: str):
-    from runners.run import episode_config, load_evaluator, load_scenario
-
-    base = {"sensors": yaml.safe_load((CONF / "sensors" / "default.yaml").read_text()),
-            "navigator": yaml.safe_load((CONF / "navigator" / "fuzzy_tpt.yaml").read_text()),
-            "planner": yaml.safe_load((CONF / "planner" / "auto.yaml").read_text()),
-            "scenario": yaml.safe_load((CONF / "scenario" / f"{name}.yaml").read_text()),
-            "controller": yaml.safe_load((CONF / "controller" / "table1.yaml").read_text())}
-    return load_scenario(base), load_evaluator(base), episode_config(base)
-
-
-def bench_simulation(episodes: int, reps: int) -> dict:
-    """Steps/s on ``mixed`` (laser perception) with and without logging (medians of ``reps`` alternated
-    runs of ``episodes`` episodes each), logging's share of a step (median over the alternated pairs), and
-    the per-stage breakdown."""
-    import tempfile
-
-    from runners.run import run_episode
-
-    scenario, evaluator, cfg = _scenario_and_config("mixed")
-
-    def run(log: bool) -> tuple[float, int]:
-        t, steps = time.perf_counter(), 0
-        with tempfile.TemporaryDirectory() as tmp:
-            for seed in range(episodes):
-                path = Path(tmp) / f"{seed}.mcap" if log else None
-                steps += run_episode(scenario, evaluator, cfg, seed, path, "")["steps"]
-        return time.perf_counter() - t, steps
-
-    run(False)  # warm-up
-    run(True)
-    plain, logged = [], []
-    for _ in range(reps):  # alternated, so that a slow spell of the machine hits both alike
-        t_plain, steps = run(False)
-        plain.append(t_plain)
-        logged.append(run(True)[0])
-    t_plain, t_log = statistics.median(plain), statistics.median(logged)
-    # the share from each alternated pair, then the median: a slow spell of the machine hits a pair alike
-    shares = [(log_s - plain_s) / log_s for plain_s, log_s in zip(plain, logged, strict=True)]
-    timers = stage_timers()
-    try:
-        t_prof, _ = run(True)
-    finally:
-        timers.restore()
-    return {"scenario": "mixed", "episodes": episodes, "repetitions": reps, "steps": steps,
-            "steps_per_s_without_logging": steps / t_plain, "steps_per_s_with_logging": steps / t_log,
-            "logging_share_of_step": statistics.median(shares), "logging_share_per_pair": shares,
-            "us_per_step_by_stage": timers.us_per_step(t_prof, steps)}
+from runners.benchmarks.fuzzy import bench_fuzzy, print_fuzzy
+from runners.benchmarks.simulation import _scenario_and_config, bench_simulation
 
 
 def _own_compute(episodes: int, first_seed: int = 0) -> float:
@@ -375,38 +222,6 @@ def out_problem(out: Path) -> str | None:
     return None
 
 
-def print_fuzzy(rows: list[dict]) -> None:
-    """The peer table: per controller, ours, the peers and scikit-fuzzy on the same inputs; then target 2."""
-    print("fuzzy decision (median of repetitions, after warm-up; same seeded inputs for every engine)")
-    print(f"{'controller':<10} {'engine':<18} {'single µs':>10} {'batch µs/dec':>13} {'cores':>5} "
-          f"{'max |Δθ| deg':>13} {'max |Δv| cm/s':>14}")
-    for r in rows:
-        label = "fuzzynav (C kernel)" if r["compiled_kernel"] else "fuzzynav (Python)"
-        print(f"{r['controller']:<10} {label:<18} {r['fast_us_per_decision']:10.1f} "
-              f"{r['batch_us_per_decision']:13.2f} {1:5d} {r['max_disagreement_dtheta_deg']:13.2e} "
-              f"{r['max_disagreement_v_cm_s']:14.2e}")
-        if r["compiled_kernel"]:
-            p = r["python_path"]
-            same = "same bits" if p["same_bits_as_kernel"] else "BITS DIFFER FROM THE KERNEL"
-            print(f"{'':<10} {'fuzzynav (Python)':<18} {p['single_us']:10.1f} {p['batch_us_per_decision']:13.2f} "
-                  f"{1:5d} {p['max_disagreement_dtheta_deg']:13.2e} {p['max_disagreement_v_cm_s']:14.2e}  {same}")
-        for p in r["peers"]:
-            label = f"{p['engine']} {p.get('version', '')}".strip()
-            if not p["installed"]:
-                print(f"{'':<10} {label:<18} {'not installed':>10}")
-                continue
-            print(f"{'':<10} {label:<18} {p['single_us']:10.1f} {p['batch_us_per_decision']:13.2f} "
-                  f"{p['batch_cores']:5d} {p['max_disagreement_dtheta_deg']:13.2e} "
-                  f"{p['max_disagreement_v_cm_s']:14.2e}")
-        label = f"scikit-fuzzy {r['skfuzzy_version']}"
-        print(f"{'':<10} {label:<18} {r['skfuzzy_us_per_decision']:10.0f} {'–':>13} {1:5d} {'(reference)':>13}")
-    for r in rows:
-        if "single_over_ferrifuzz" in r:
-            print(f"target 2 ({r['controller']}): single decision ours / ferrifuzz = {r['single_over_ferrifuzz']:.2f} "
-                  f"(<= 1 meets it); batch per core ours / ferrifuzz = {r['batch_per_core_over_ferrifuzz']:.2f}; "
-                  f"scikit-fuzzy / ours = {r['ratio']:.0f}")
-        else:
-            print(f"target 2 ({r['controller']}): ferrifuzz not installed (pip install -e '.[bench]')")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -461,16 +276,16 @@ def main(argv: list[str] | None = None) -> int:
     mem = results["memory"]
     print(f"memory: RSS {mem['rss_mb_at_10pct']:.1f} MB after {mem['episodes'] // 10} episodes, "
           f"{mem['rss_mb_at_end']:.1f} MB after {mem['episodes']} ({mem['growth']:+.1%})")
-    from runners.bench_report import bench_report, summary_line  # the report for 10,000 episodes (#18)
+    from runners.benchmarks.report import bench_report, summary_line  # the report for 10,000 episodes (#18)
 
     results["report"] = bench_report(1000, 2) if args.quick else bench_report(10_000, 10)
     print(summary_line(results["report"]))
-    from runners.bench_crowd import bench_crowd, print_crowd  # 20 reactive pedestrians (#17)
+    from runners.benchmarks.crowd import bench_crowd, print_crowd  # 20 reactive pedestrians (#17)
 
     results["crowd"] = bench_crowd(2 if args.quick else 10)
     print_crowd(results["crowd"])
-    from runners.bench_baseline import bench_baseline, print_baseline  # target 3, side by side
-    from runners.bench_targets import print_targets, targets
+    from runners.benchmarks.baseline import bench_baseline, print_baseline  # target 3, side by side
+    from runners.benchmarks.targets import print_targets, targets
 
     results["baseline"] = bench_baseline(rounds=1, episodes=3, passes=1) if args.quick else bench_baseline()
     print_baseline(results["baseline"])

@@ -11,7 +11,7 @@ produces it (scenarios × variants × seeds, plus overrides for all runs, as Hyd
 ``conf/config.yaml``) and, once built, for each episode the SHA-256 of its message content (every topic and
 field except the timing field ``compute_time_us``; metadata excluded: it holds versions and the git commit),
 a short digest per topic and per step (so that a difference can be located without the original logs), the
-behaviour record of :class:`runners.log_fields.BehaviourRecord` (digests of the decision/plan/outcome values
+behaviour record of :class:`runners.logs.fields.BehaviourRecord` (digests of the decision/plan/outcome values
 and of all non-float values, the decision mode per step, the sum of each topic's floats), and the SHA-256 of
 the metrics table (compute-time columns excluded). ``keep_logs`` lists the seeds whose logs are committed in
 ``datasets/<name>/logs/``.
@@ -44,19 +44,19 @@ from typing import Any
 
 import pandas as pd
 import yaml
-from fuzzynav.conf import CONF_DIR as CONF
 
 from analysis.cli_args import MAX_JOBS, OneLineParser
 from analysis.cli_args import jobs as cli_jobs
 from analysis.logs import LogError, iter_messages
 from analysis.metrics import metrics_table
+from fuzzynav.conf import CONF_DIR as CONF
 from fuzzynav.params import limits
-from runners import config_plugins
-from runners.data_files import MANIFEST, DataFileError, check_data_file
-from runners.dataset_manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
-from runners.log_diff import EpisodeDiff, diff_logs, diff_records
-from runners.log_fields import TIMING_FIELDS, BehaviourRecord
-from runners.verify_report import detail_lines, episode_line, summary_lines
+from runners.configuration import plugins as config_plugins
+from runners.configuration.data_files import MANIFEST, DataFileError, check_data_file
+from runners.datasets.manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
+from runners.datasets.verify_report import detail_lines, episode_line, summary_lines
+from runners.logs.diff import EpisodeDiff, diff_logs, diff_records
+from runners.logs.fields import TIMING_FIELDS, BehaviourRecord
 
 ROOT = Path(__file__).resolve().parents[1]
 DATASETS = ROOT / "datasets"  # the default place of datasets; ``--root`` (tests: a temporary directory) changes it
@@ -69,7 +69,7 @@ def manifest_path(name: str, root: Path = DATASETS) -> Path:
 
 def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
     """The manifest of dataset ``name`` under ``root``, read as data and checked field by field
-    (:func:`runners.dataset_manifest.check_manifest`); :class:`DatasetError` naming the file and field."""
+    (:func:`runners.datasets.manifest.check_manifest`); :class:`DatasetError` naming the file and field."""
     path = manifest_path(name, root)
     if not path.exists():
         known = ", ".join(sorted(p.parent.name for p in root.glob("*/manifest.yaml"))) or "none"
@@ -142,10 +142,10 @@ def _check_override(text: Any, where: str) -> None:
 def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = None) -> None:
     """Check the manifest's sweep before any episode runs (one line naming the field): every override is one
     ``key=value`` of the run config (see :func:`_check_override`), every scenario a name, and each scenario,
-    variant, override and ``extra`` override composes and validates (:func:`runners.precheck.precheck`, as
+    variant, override and ``extra`` override composes and validates (:func:`runners.configuration.precheck.precheck`, as
     ``runners.run`` checks its command line) with the first scenario, variant and seed. Otherwise a bad entry
     was a traceback from every worker."""
-    from runners.precheck import precheck
+    from runners.configuration.precheck import precheck
 
     sweep = manifest["sweep"]
     common = sweep.get("overrides") or []
@@ -210,7 +210,7 @@ def _check_distinct_variants(path: Path, before: list[str], variants: list[list[
     from hydra import compose, initialize_config_dir
     from omegaconf import OmegaConf
 
-    from runners import schema
+    from runners.configuration import schema
 
     if len(variants) < 2:
         return
@@ -250,7 +250,7 @@ def _canonical(message: dict[str, Any]) -> bytes:
 
 def content_digests(path: Path) -> dict[str, Any]:
     """SHA-256 of the message content, 8-hex digests per topic and per log time (step), and the behaviour
-    record (:class:`runners.log_fields.BehaviourRecord`)."""
+    record (:class:`runners.logs.fields.BehaviourRecord`)."""
     whole = hashlib.sha256()
     topics: dict[str, Any] = {}
     steps: dict[int, Any] = {}
@@ -325,7 +325,7 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
     from hydra.core.global_hydra import GlobalHydra
     from omegaconf import OmegaConf
 
-    from runners import schema
+    from runners.configuration import schema
     from runners.run import episode_config, load_evaluator, load_scenario, run_episode
 
     schema.register()

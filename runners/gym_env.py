@@ -20,9 +20,10 @@ actually executed is in ``info["mode"]``: ``agent`` or a plan's ``wait``/``detou
 log content as ``python -m runners.run``.
 
 Configuration is composed from ``conf/`` with Hydra exactly as ``runners.run`` composes it, and checked by the
-same code (:func:`runners.precheck.precheck`, :func:`runners.run_inputs.load_run`): a bad argument is one
+same code (:func:`runners.configuration.precheck.precheck`, :func:`runners.configuration.run_inputs.load_run`): a bad
+argument is one
 ``ValueError`` naming the field. This module does no file I/O of its own (Hydra reads ``conf/``; a scenario
-path is read by ``runners.data_files``).
+path is read by ``runners.configuration.data_files``).
 
 Units: cm, s, degrees, cm/s (the reward is in metres).
 """
@@ -50,7 +51,7 @@ from fuzzynav.planning.navigator import checked_action
 from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy
 from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
 from fuzzynav.sensing.laser import LaserScan
-from runners import config_plugins
+from runners.configuration import plugins as config_plugins
 
 ENV_ID = "fuzzynav/Navigation-v0"
 
@@ -304,7 +305,7 @@ class ComposedRun:
         if self._fixed is not None:
             return self._fixed
         if self._generated is None or self._generated[0] != seed:
-            from runners.run_inputs import load_scenario
+            from runners.configuration.run_inputs import load_scenario
 
             self._generated = (seed, load_scenario(self.plain, seed))
         return self._generated[1]
@@ -324,14 +325,15 @@ class ComposedRun:
 
 def compose_run(scenario: str | Path | Scenario | None, overrides: Sequence[str] | None) -> ComposedRun:
     """Compose ``conf/`` with ``overrides`` (and ``scenario``) and check it exactly as ``python -m runners.run``
-    does (:func:`runners.precheck.precheck`, :func:`runners.run_inputs.load_run`); ``ValueError`` with one line
+    does (:func:`runners.configuration.precheck.precheck`, :func:`runners.configuration.run_inputs.load_run`);
+    ``ValueError`` with one line
     naming the field for any problem."""
     from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
-    from runners.data_files import DataFileError, check_data_file
-    from runners.precheck import precheck
+    from runners.configuration.data_files import DataFileError, check_data_file
+    from runners.configuration.precheck import precheck
+    from runners.configuration.run_inputs import ConfigFileError, load_run
     from runners.run import scenario_yaml, single_run_sweep
-    from runners.run_inputs import ConfigFileError, load_run
 
     if overrides is None:
         overrides = []
@@ -420,11 +422,12 @@ def _hydra_of_our_own() -> Iterator[None]:
 
 
 def _compose(overrides: list[str]) -> Any:
-    """The config composed from ``conf/`` as :func:`runners.precheck.precheck` composes it (Hydra's node included)."""
+    """The config composed from ``conf/`` as :func:`runners.configuration.precheck.precheck` composes it (Hydra's node
+    included)."""
     from hydra import compose, initialize_config_dir
 
-    from runners import schema
-    from runners.precheck import CONF
+    from runners.configuration import schema
+    from runners.configuration.precheck import CONF
 
     schema.register()
     config_plugins.register()  # other packages' config folders (entry points)

@@ -3,7 +3,7 @@
     from runners.gym_log import RecordMcap
     env = RecordMcap(gymnasium.make("fuzzynav/Navigation-v0", scenario="crossing_right"), "logs/")
 
-Each episode's log has the name, writer (:class:`runners.mcap_log.EpisodeLogWriter`), metadata and ending
+Each episode's log has the name, writer (:class:`runners.logs.mcap_log.EpisodeLogWriter`), metadata and ending
 messages that ``python -m runners.run`` writes for the same configuration and seed; driven by the configured
 policy through ``step_policy_action``, its message content is the same (``runners.dataset.content_digests``).
 An episode left unfinished by ``reset`` or ``close`` is finished as ``interrupted``; an exception inside a step
@@ -25,7 +25,7 @@ import gymnasium
 
 from fuzzynav.policies.base import Action
 from runners.gym_env import AGENT, NavigationEnv
-from runners.mcap_log import EpisodeLogWriter
+from runners.logs.mcap_log import EpisodeLogWriter
 from runners.run import episode_metadata, log_path, outcome_reason
 
 

@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 import yaml
-from fuzzynav.conf import CONF_DIR as CONF
 
 from analysis.cli_args import OneLineParser
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, file_kind
+from fuzzynav.conf import CONF_DIR as CONF
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.controller.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState

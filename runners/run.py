@@ -22,28 +22,32 @@ from pathlib import Path
 from typing import Any
 
 import hydra
-from fuzzynav.conf import CONF_DIR
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from analysis import interrupts
 
-# the exception of a stop request (a signal, a sweep's stop file: runners.stop), re-exported from here
+# the exception of a stop request (a signal, a sweep's stop file: runners.sweeping.stop), re-exported from here
 from analysis.interrupts import Interrupted
 from fuzzynav import episode_identity
+from fuzzynav.conf import CONF_DIR
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params.names import DEFAULT_POLICY
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.scenario import Scenario
-from runners import config_plugins, process_tree, schema, stop, sweep_resume, yaml_text
-from runners.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
-from runners.provenance import provenance
+from runners.configuration import plugins as config_plugins
+from runners.configuration import schema
 
-# input loading and validation live in runners.run_inputs; these names are imported from here by the dataset,
-# bench and replay runners and the tests
-from runners.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
+# input loading and validation live in runners.configuration.run_inputs; these names are imported from here by the
+# dataset, bench and replay runners and the tests
+from runners.configuration.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
+from runners.logs import yaml_text
+from runners.logs.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
+from runners.logs.provenance import provenance
+from runners.sweeping import process_tree, stop
+from runners.sweeping import resume as sweep_resume
 
 __all__ = ["ConfigFileError", "Interrupted", "episode_config", "episode_metadata", "load_evaluator", "load_scenario",
            "log_name", "outcome_reason", "run_episode", "run_job"]
@@ -115,9 +119,9 @@ def outcome_reason(outcome: str, max_steps: int) -> str:
 def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
                 log_path: Path | None, config_yaml: str, digest: str = "") -> dict[str, Any]:
     """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
-    with its traceback) instead of propagating. A stop request (:mod:`runners.stop`: Ctrl-C, SIGTERM, a sweep's
+    with its traceback) instead of propagating. A stop request (:mod:`runners.sweeping.stop`: Ctrl-C, SIGTERM, a sweep's
     stop file) finishes the log as ``interrupted`` and re-raises; a log that cannot be written raises
-    :class:`runners.mcap_log.LogWriteError` (not an episode outcome: nothing is left at ``log_path``)."""
+    :class:`runners.logs.mcap_log.LogWriteError` (not an episode outcome: nothing is left at ``log_path``)."""
     episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
     summary = {"scenario": scenario.name, "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy,
                "h_wait": ep_cfg.planner.h_wait, "controller": evaluator.spec.name,
@@ -154,7 +158,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
 def config_hash(config_yaml: str, seed: int) -> str:
     """The ``config_hash`` a log records (:func:`fuzzynav.episode_identity.config_hash`: resolved config minus
     ``resume``, seed, this fuzzynav version); an integrity check of the metadata, not the episode's identity."""
-    from runners.provenance import provenance
+    from runners.logs.provenance import provenance
 
     return episode_identity.config_hash(config_yaml, seed, provenance()["fuzzynav_version"])
 
@@ -162,7 +166,7 @@ def config_hash(config_yaml: str, seed: int) -> str:
 def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     """Run ``cfg.episodes`` episodes with consecutive seeds into Hydra's output directory. With ``resume=true`` an
     episode (:func:`fuzzynav.episode_identity.episode_key`: config, seed, fuzzynav version) whose log passes a full
-    verification and ended goal/collision/timeout is kept (:func:`runners.sweep_resume.keep`); the others run
+    verification and ended goal/collision/timeout is kept (:func:`runners.sweeping.resume.keep`); the others run
     again.
 
     A stop request ends the episode in flight as ``interrupted``: in a single run the stop is raised (the process
@@ -251,8 +255,8 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
 
 def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
     """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra.
-    ``on_config`` gets the first config the check composes (see :func:`runners.precheck.precheck`)."""
-    from runners.precheck import debug_requested, precheck
+    ``on_config`` gets the first config the check composes (see :func:`runners.configuration.precheck.precheck`)."""
+    from runners.configuration.precheck import debug_requested, precheck
 
     args = sys.argv[1:]
     if "--debug" in args:

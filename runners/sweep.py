@@ -11,8 +11,8 @@ writes ``summary.csv``, prints a table of outcomes per group — scenario, strat
 parameter the sweep varied (:mod:`analysis.run_parameters`) — and writes the analysis report from the same
 numbers into ``<sweep dir>/report/``.
 
-Faults (:mod:`runners.sweep_control`): the sweep owns its directory (a lock: a second sweep into it exits at once);
-``resume=true`` verifies and keeps each completed episode once (:mod:`runners.sweep_resume`); SIGINT/SIGTERM stop
+Faults (:mod:`runners.sweeping.control`): the sweep owns its directory (a lock: a second sweep into it exits at once);
+``resume=true`` verifies and keeps each completed episode once (:mod:`runners.sweeping.resume`); SIGINT/SIGTERM stop
 the jobs cleanly, write the summary of what completed and exit 130/143; a lost worker, a full disk or a job that
 failed ends the sweep with the summary, one line per failure and a non-zero exit. ``summary.csv`` and the report
 are written whole or not at all.
@@ -34,9 +34,12 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from analysis.logs import is_complete
-from runners import shm_leftovers, sweep_control, sweep_end, sweep_resume
-from runners.sweep_paths import job_logs
-from runners.sweep_size import count_episodes, count_jobs
+from runners.sweeping import control as sweep_control
+from runners.sweeping import end as sweep_end
+from runners.sweeping import resume as sweep_resume
+from runners.sweeping import shm_leftovers
+from runners.sweeping.paths import job_logs
+from runners.sweeping.size import count_episodes, count_jobs
 
 # a job's own directory: Hydra's job number or id, or the overrides that make the job (``${hydra.job.num}``,
 # ``${hydra:job.id}``, ``${hydra.job.override_dirname}``)
@@ -143,7 +146,7 @@ def _import_runner() -> int:
     import scipy.optimize  # noqa: F401
 
     import runners.run  # noqa: F401
-    from runners.process_tree import exit_with_parent
+    from runners.sweeping.process_tree import exit_with_parent
 
     exit_with_parent()  # a launcher killed with SIGKILL leaves no idle worker behind
 
@@ -212,7 +215,7 @@ def fault_tolerant_sweeper(config: DictConfig) -> None:
 
 
 class SweepProgress(Callback):
-    """Owns the sweep directory for the sweep (:mod:`runners.sweep_control`), prepares a resume, shows a progress
+    """Owns the sweep directory for the sweep (:mod:`runners.sweeping.control`), prepares a resume, shows a progress
     bar over episodes, and at the end writes the summary and the report and reports what went wrong. Hydra turns
     an exception raised in a callback into a warning: every failure here is one line on stderr and an exit
     status instead."""
@@ -246,7 +249,7 @@ class SweepProgress(Callback):
             sys.exit(1)
         prewarm_workers(config)
         if "SlurmLauncher" in str(config.hydra.launcher.get("_target_", "")):
-            from runners.sweep_slurm import use_squeue_without_sacct
+            from runners.sweeping.slurm import use_squeue_without_sacct
 
             use_squeue_without_sacct()  # else a job that died unnoticed by sacct-less Slurm is waited for forever
         total = count_episodes(config)

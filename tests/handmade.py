@@ -7,7 +7,7 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-from runners.mcap_log import SCHEMAS, TOPICS
+from runners.logs.mcap_log import SCHEMAS, TOPICS
 
 GOAL = (500.0, 500.0)
 
@@ -29,7 +29,7 @@ def _loop(points_cm) -> dict:
 
 def register_topic(writer: Writer, topic: str) -> int:
     """A JSON channel for one of fuzzynav's topics, declaring the schema the writer declares for it (name and
-    text, as ``runners.mcap_log`` embeds them); its channel id."""
+    text, as ``runners.logs.mcap_log`` embeds them); its channel id."""
     name = TOPICS[topic]
     schema = writer.register_schema(name, "jsonschema", json.dumps(SCHEMAS[name]()).encode())
     return writer.register_channel(topic, "json", schema)

@@ -1,5 +1,5 @@
 """The benchmark's peer engines are built from our definition: when installed, each agrees with scikit-fuzzy
-within its own discretisation (see runners/bench_peers.py); when not, the bench prints a row, never fails."""
+within its own discretisation (see runners/benchmarks/peers.py); when not, the bench prints a row, never fails."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from fuzzynav.controller.fuzzy_reference import SkfuzzyEvaluator
-from runners import bench, bench_peers
+from runners.benchmarks import fuzzy as bench
+from runners.benchmarks import peers as bench_peers
 
 # the largest disagreement with scikit-fuzzy each peer's discretisation allows here (measured on the bench's
 # inputs: ferrifuzz 0.39 / 0.040 (table1), 0.40 / 0.065 (listing); pyfuzzylite 0.019 / 0.0076, 0.15 / 0.022)

@@ -1,8 +1,9 @@
-"""runners.bench_report: the report stage (measured) and the whole report (read stage estimated) against the budget."""
+"""runners.benchmarks.report: the report stage (measured) and the whole report (read stage estimated) against the
+budget."""
 
 from __future__ import annotations
 
-from runners.bench_report import BUDGET_S, REPORT_BUDGET_S, budget_lines, summary_line
+from runners.benchmarks.report import BUDGET_S, REPORT_BUDGET_S, budget_lines, summary_line
 
 
 def _result(report_s: float, read_s: float) -> dict:
@@ -32,12 +33,13 @@ def test_the_whole_report_of_existing_logs_is_measured(tmp_path):
 
     from tests.conftest import ROOT
     out = tmp_path / "r.json"
-    res = subprocess.run([sys.executable, "-m", "runners.bench_report", "--logs", str(ROOT / "datasets" / "paper_fig5"
+    res = subprocess.run([sys.executable, "-m", "runners.benchmarks.report", "--logs", str(ROOT / "datasets" /
+    "paper_fig5"
                                                                                        / "logs"), "--out", str(out)],
                          cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     assert res.stdout.startswith("whole report of 21 logged episodes (0 left out): ") and "(measured)" in res.stdout
-    missing = subprocess.run([sys.executable, "-m", "runners.bench_report", "--logs", str(tmp_path / "none")],
+    missing = subprocess.run([sys.executable, "-m", "runners.benchmarks.report", "--logs", str(tmp_path / "none")],
                              cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert missing.returncode == 2 and "--logs: " in missing.stderr and "no such file" in missing.stderr
 
@@ -52,7 +54,7 @@ def test_bad_arguments_are_one_line_errors(tmp_path):
     for args, code, text in ((["--episodes", "0"], 2, "--episodes: must be in [1, 1,000,000], got 0"),
                              (["--seeds", "-3"], 2, "--seeds: must be in [1, 10,000], got -3"),
                              (["--logs", str(not_a_log)], 1, "--logs: no usable episode among them (1 left out)")):
-        res = subprocess.run([sys.executable, "-m", "runners.bench_report", *args], cwd=ROOT, capture_output=True,
+        res = subprocess.run([sys.executable, "-m", "runners.benchmarks.report", *args], cwd=ROOT, capture_output=True,
                              text=True, timeout=120)
         assert res.returncode == code and text in res.stderr and "Traceback" not in res.stderr, (args, res.stderr)
         assert text in res.stderr.strip().splitlines()[-1]  # one line (after argparse's usage)

@@ -1,4 +1,4 @@
-"""``runners.bench_sweep_rss``: the memory of a long sweep, sampled from outside (the real command, small)."""
+"""``runners.benchmarks.sweep_rss``: the memory of a long sweep, sampled from outside (the real command, small)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from runners.bench_sweep_rss import Sample, summary
+from runners.benchmarks.sweep_rss import Sample, summary
 from tests.conftest import ROOT
 
 
@@ -26,7 +26,7 @@ def test_the_summary_reads_workers_and_the_sweep_apart_by_episodes_logged():
 
 def test_the_command_runs_a_small_sweep_and_reports_every_worker(tmp_path):
     out = tmp_path / "rss.json"
-    res = subprocess.run([sys.executable, "-m", "runners.bench_sweep_rss", "--episodes", "20", "--jobs", "2",
+    res = subprocess.run([sys.executable, "-m", "runners.benchmarks.sweep_rss", "--episodes", "20", "--jobs", "2",
                           "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     result = json.loads(out.read_text())
@@ -36,9 +36,9 @@ def test_the_command_runs_a_small_sweep_and_reports_every_worker(tmp_path):
 
 
 def test_bad_arguments_are_one_line_errors():
-    res = subprocess.run([sys.executable, "-m", "runners.bench_sweep_rss", "--episodes", "5", "--jobs", "2"],
+    res = subprocess.run([sys.executable, "-m", "runners.benchmarks.sweep_rss", "--episodes", "5", "--jobs", "2"],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--episodes: at least 10 per job" in res.stderr
-    res = subprocess.run([sys.executable, "-m", "runners.bench_sweep_rss", "--jobs", "0"], cwd=ROOT,
+    res = subprocess.run([sys.executable, "-m", "runners.benchmarks.sweep_rss", "--jobs", "0"], cwd=ROOT,
                          capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--jobs: must be in [1, 7], got 0" in res.stderr

@@ -1,4 +1,5 @@
-"""runners.bench_targets (issue #19's targets from one bench run) and runners.bench_baseline's refusal paths."""
+"""runners.benchmarks.targets (issue #19's targets from one bench run) and runners.benchmarks.baseline's refusal
+paths."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ import copy
 
 import pytest
 
-from runners import bench_baseline
-from runners.bench_targets import Target, targets
+from runners.benchmarks import baseline as bench_baseline
+from runners.benchmarks.targets import Target, targets
 
 RESULTS = {
     "fuzzy": [{"controller": "table1", "peers": [{"engine": "ferrifuzz", "installed": True},

@@ -1,5 +1,5 @@
 """Data files (scenario and controller files, dataset manifests) are checked as text before a YAML loader builds
-them (runners/data_files.py): what the loaders would accept silently is one line naming the file, line and
+them (runners/configuration/data_files.py): what the loaders would accept silently is one line naming the file, line and
 field."""
 
 from __future__ import annotations
@@ -10,7 +10,13 @@ from pathlib import Path
 import pytest
 import yaml
 
-from runners.data_files import MANIFEST, SCENARIO_OR_CONTROLLER, DataFileError, check_data_file, check_data_text
+from runners.configuration.data_files import (
+    MANIFEST,
+    SCENARIO_OR_CONTROLLER,
+    DataFileError,
+    check_data_file,
+    check_data_text,
+)
 from tests.conftest import ROOT
 
 CONF = ROOT / "conf"

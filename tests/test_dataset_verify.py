@@ -20,9 +20,9 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 
 from runners import dataset
-from runners.log_diff import SUM_FIELD, UNCLASSIFIED, diff_logs, diff_records
-from runners.log_fields import BEHAVIOUR, DISCRETE, FLOAT, SUMMED_TOPICS, compare, expand_runs, parse_sums
-from runners.verify_report import summary_lines
+from runners.datasets.verify_report import summary_lines
+from runners.logs.diff import SUM_FIELD, UNCLASSIFIED, diff_logs, diff_records
+from runners.logs.fields import BEHAVIOUR, DISCRETE, FLOAT, SUMMED_TOPICS, compare, expand_runs, parse_sums
 
 TINY = {"name": "tiny", "description": "two short episodes for the verify tests", "version": 1,
         "sweep": {"scenarios": ["paper_fig5"], "variants": ["planner=auto_h2"], "seeds": [0, 2], "overrides": []},

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fuzzynav.numerics.portable_math import atan2_deg
-from runners.foxglove_scene import (
+from runners.logs.foxglove_scene import (
     BLUE,
     CYAN,
     HIT,

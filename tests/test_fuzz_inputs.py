@@ -46,8 +46,8 @@ from fuzzynav.controller.fuzzy_spec import sample_membership
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params import limits
 from fuzzynav.scenarios.scenario import scenario_from_dict
-from runners import run_inputs
-from runners.data_files import DataFileError, check_data_text
+from runners.configuration import run_inputs
+from runners.configuration.data_files import DataFileError, check_data_text
 from tests.conftest import CONF, ROOT
 from tests.fuzz_mutations import mutations, override, paths, text_mutation
 
@@ -80,7 +80,7 @@ def _default_config() -> dict[str, Any]:
     """The default run configuration as Hydra composes it, without scenario, controller and Hydra's node."""
     from hydra import compose, initialize_config_dir
 
-    from runners import schema
+    from runners.configuration import schema
 
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):

@@ -24,7 +24,7 @@ from analysis.run_parameters import (
     provenance_warning,
     short_names,
 )
-from runners.sweep_summary import summarise
+from runners.sweeping.summary import summarise
 from tests.conftest import ROOT
 from tests.handmade import write_log
 

@@ -14,8 +14,8 @@ from fuzzynav.episode import EpisodeConfig
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_config_fields, check_name, check_number, field_name
 from fuzzynav.policies.base import registered_policies
-from runners.data_files import DataFileError, check_data_text
-from runners.run_inputs import run_seeds
+from runners.configuration.data_files import DataFileError, check_data_text
+from runners.configuration.run_inputs import run_seeds
 
 
 def numeric_fields(cls: type, prefix: str = "") -> list[str]:

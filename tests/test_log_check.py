@@ -16,8 +16,8 @@ import pytest
 from analysis.log_check import MESSAGE_CHECKS, TOPIC_SCHEMAS, CheckError, check_message, config_hash
 from analysis.logs import LogFile
 from analysis.mcap_verify import McapError, read_mcap
-from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
+from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
+from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.conftest import ROOT
 from tests.log_surgery import chunk_payloads, message_paths, record_offsets
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
@@ -82,13 +82,13 @@ def test_every_field_the_check_demands_is_required_by_the_schema_and_typed_alike
 
 
 def test_the_topics_schemas_are_the_writers():
-    from runners.mcap_log import TOPICS
+    from runners.logs.mcap_log import TOPICS
 
     assert {t: s for t, s in TOPICS.items() if t in TOPIC_SCHEMAS} == TOPIC_SCHEMAS
 
 
 def test_config_hash_is_the_runs():
-    from runners.provenance import provenance
+    from runners.logs.provenance import provenance
     from runners.run import config_hash as run_hash
 
     text = "dt: 1.0\nresume: false\nplanner:\n  h_wait: 2\n"

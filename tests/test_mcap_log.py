@@ -14,8 +14,8 @@ from mcap.reader import make_reader
 from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
-from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.mcap_log import TOPICS
+from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
+from runners.logs.mcap_log import TOPICS
 from runners.run import run_episode
 from tests.conftest import ROOT, load_controller, load_scenario
 
@@ -141,7 +141,7 @@ def test_an_episode_that_raises_is_logged_as_error(tmp_path, monkeypatch):
 
 def test_log_writes_to_any_binary_stream():
     from fuzzynav.episode import Episode
-    from runners.mcap_log import EpisodeLogWriter
+    from runners.logs.mcap_log import EpisodeLogWriter
 
     buf = io.BytesIO()
     ep = Episode(load_scenario("head_on"), load_controller("table1"))
@@ -155,7 +155,7 @@ def test_log_writes_to_any_binary_stream():
 def test_one_open_log_per_process():
     """The writer's channels are shared in a process: a second log cannot open until the first is finished."""
     from fuzzynav.episode import Episode
-    from runners.mcap_log import EpisodeLogWriter
+    from runners.logs.mcap_log import EpisodeLogWriter
 
     ep = Episode(load_scenario("head_on"), load_controller("table1"))
     first = EpisodeLogWriter(io.BytesIO(), ep, {"seed": "0"}, "auto", "laser")

@@ -32,7 +32,7 @@ def _compose(*overrides: str) -> dict:
     from hydra import compose, initialize_config_dir
     from omegaconf import OmegaConf
 
-    from runners import schema
+    from runners.configuration import schema
 
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):

@@ -213,7 +213,7 @@ def test_kernel_rejects_mismatched_arrays():
 
 
 def crowd_inputs(n: int, max_steps: int) -> dict[str, Any]:
-    """runners.bench_crowd's inputs: crowd_crossing with ``n`` orca pedestrians, laser perception."""
+    """runners.benchmarks.crowd's inputs: crowd_crossing with ``n`` orca pedestrians, laser perception."""
     scenario = yaml.safe_load((CONF / "scenario" / "crowd_crossing.yaml").read_text())
     scenario["params"].update(n=n, model="orca", max_steps=max_steps)
     return {"sensors": yaml.safe_load((CONF / "sensors" / "default.yaml").read_text()),

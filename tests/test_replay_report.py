@@ -23,7 +23,7 @@ def fresh_log(tmp_path_factory):
     from hydra import compose, initialize_config_dir
     from omegaconf import OmegaConf
 
-    from runners import schema
+    from runners.configuration import schema
     from tests.conftest import CONF
 
     schema.register()

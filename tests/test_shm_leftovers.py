@@ -1,5 +1,5 @@
 """The loky/joblib entries a hard-stopped sweep leaves in /dev/shm are removed by the next sweep
-(runners/shm_leftovers.py; hostile14c flt_sigterm_twice_resume)."""
+(runners/sweeping/shm_leftovers.py; hostile14c flt_sigterm_twice_resume)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import os
 import subprocess
 import sys
 
-from runners.shm_leftovers import remove_stale
+from runners.sweeping.shm_leftovers import remove_stale
 
 
 def dead_pid() -> int:

@@ -38,9 +38,9 @@ import pytest
 
 from analysis.logs import LogFile, episode_summary, is_complete, read_metadata
 from fuzzynav.episode_identity import episode_key_of
-from runners import stop
 from runners.dataset import content_digests
-from runners.log_diff import diff_logs
+from runners.logs.diff import diff_logs
+from runners.sweeping import stop
 from tests.conftest import ROOT
 
 pytestmark = pytest.mark.slurm
@@ -126,7 +126,7 @@ SlurmdLogFile={root}/slurmd.log
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 JobAcctGatherType=jobacct_gather/none
-# no slurmdbd: sacct does not work here, as on small clusters (runners.sweep_slurm asks squeue instead)
+# no slurmdbd: sacct does not work here, as on small clusters (runners.sweeping.slurm asks squeue instead)
 AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/none
 SelectType=select/cons_tres
@@ -470,7 +470,7 @@ def test_job_states_come_from_squeue_when_sacct_does_not_work(tmp_path: Path, mo
                                                              accounting: bool) -> None:
     """Submitit's watcher with sacct (accounting) as it was; without, the same states from squeue (a cancelled task
     is done: the launcher reports it instead of waiting forever) and a poll at least once a minute."""
-    from runners.sweep_slurm import SQUEUE_DELAY_S, SqueueFallbackWatcher
+    from runners.sweeping.slurm import SQUEUE_DELAY_S, SqueueFallbackWatcher
 
     sacct = "JobID|State|NodeList\\n12_0|CANCELLED by 0|vm\\n12_[1-2]|PENDING|\\n" if accounting else \
         "!Slurm accounting storage is disabled"

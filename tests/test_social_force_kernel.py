@@ -259,7 +259,7 @@ def test_kernel_rejects_wrong_buffers() -> None:
 def _crowd_run(model: str, seed: int, n: int, steps: int) -> tuple[dict, list[bytes]]:
     """One crowd_crossing episode with ``n`` pedestrians of ``model`` (no log): its result and every
     social-force step's returned positions and velocities (as bytes)."""
-    import runners.bench_crowd as bench_crowd
+    import runners.benchmarks.crowd as bench_crowd
     from runners.run import episode_config, load_evaluator, load_scenario, run_episode
 
     base = bench_crowd._inputs(model, n)

@@ -10,7 +10,7 @@ import yaml
 
 from analysis.log_inputs import find_logs
 from analysis.logs import episode_summary
-from runners.sweep_size import count_episodes
+from runners.sweeping.size import count_episodes
 from tests.conftest import CONF, ROOT
 
 
@@ -74,7 +74,7 @@ def test_quick_sweep_end_to_end(tmp_path):
 def test_count_episodes_of_the_default_sweep():
     from hydra import compose, initialize_config_dir
 
-    from runners import schema
+    from runners.configuration import schema
 
     schema.register()
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
@@ -120,7 +120,7 @@ def test_hydra_basic_sweeper_still_selectable(tmp_path):
 
 def test_parallel_summary_equals_the_serial_one(tmp_path, monkeypatch):
     import analysis.logs
-    from runners.sweep_summary import summarise
+    from runners.sweeping.summary import summarise
     from tests.handmade import write_log
 
     poses = [(100.0 * k, 0.0, 0.0) for k in range(8)]

@@ -24,9 +24,12 @@ from analysis.logs import episode_summary, is_complete, iter_messages, read_meta
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode_identity import episode_key, episode_key_of
-from runners import stop, sweep_control, sweep_lock, sweep_resume
-from runners.mcap_log import SDK_LOGGER, EpisodeLogWriter, LogWriteError, partial_path
+from runners.logs.mcap_log import SDK_LOGGER, EpisodeLogWriter, LogWriteError, partial_path
 from runners.run import run_episode
+from runners.sweeping import control as sweep_control
+from runners.sweeping import lock as sweep_lock
+from runners.sweeping import resume as sweep_resume
+from runners.sweeping import stop
 from tests.conftest import ROOT, load_controller, load_scenario
 from tests.tmpfs import tmpfs_mounter
 
@@ -45,7 +48,7 @@ def tmpfs(tmp_path):
 
 
 def test_the_lock_names_its_holder_and_dies_with_it(tmp_path):
-    code = ("import sys, time; from pathlib import Path; from runners.sweep_lock import acquire; "
+    code = ("import sys, time; from pathlib import Path; from runners.sweeping.lock import acquire; "
             "acquire(Path(sys.argv[1])); print('held', flush=True); time.sleep(60)")
     holder = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
@@ -133,7 +136,7 @@ def test_a_full_disk_is_one_error_naming_the_log(tmpfs):
 def test_summary_and_report_are_written_whole_or_not_at_all(tmp_path, monkeypatch):
     import analysis.report as report_module
     from analysis.metrics import analyse_logs
-    from runners.sweep_outputs import write_report, write_whole
+    from runners.sweeping.outputs import write_report, write_whole
 
     for seed in (0, 1):
         episode(tmp_path / "0" / f"s{seed}.mcap", seed)
@@ -171,12 +174,12 @@ def test_a_failing_end_of_sweep_exits_non_zero_with_one_line(tmp_path, monkeypat
     """Hydra turns an exception raised in a callback into a warning (and the sweep would exit 0 without a
     summary): the callback makes it one line and exit status 1."""
     import runners.sweep
-    import runners.sweep_end
+    import runners.sweeping.end
 
     def broken(config, run, plan):
         raise failure
 
-    monkeypatch.setattr(runners.sweep_end, "end_of_sweep", broken)
+    monkeypatch.setattr(runners.sweeping.end, "end_of_sweep", broken)
     monkeypatch.setattr(sweep_control, "_CURRENT", [sweep_control.SweepRun(tmp_path, time.time())])
     config = OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path)}}})
     with pytest.raises(SystemExit) as exited:
@@ -250,7 +253,7 @@ def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
     fifo = tmp_path / "1" / "x.mcap"
     fifo.parent.mkdir()
     os.mkfifo(fifo)
-    code = ("import sys; from pathlib import Path; from runners.sweep_resume import prepare; "
+    code = ("import sys; from pathlib import Path; from runners.sweeping.resume import prepare; "
             "plan = prepare(Path(sys.argv[1])); print(plan.kept, plan.rerun, plan.unreadable); "
             "print(*plan.skipped, sep='\\n')")
     try:
@@ -268,7 +271,8 @@ def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
 def test_a_launcher_killed_with_sigkill_leaves_no_process(tmp_path, phase):
     """issue 14: kill -9 of the sweep's launching process left its loky workers (which ignore SIGTERM when idle)
     and their resource trackers alive for ever, holding the caller's pipes. Workers now end within a second of
-    their launcher (runners.process_tree.exit_with_parent): with episodes in flight, and idle after their jobs."""
+    their launcher (runners.sweeping.process_tree.exit_with_parent): with episodes in flight, and idle after their
+    jobs."""
     from tests.test_sweep_faults import SEARCH, group, partials, running, wait_for
 
     sweep_dir = tmp_path / "s"
@@ -295,7 +299,7 @@ def test_a_launcher_killed_with_sigkill_leaves_no_process(tmp_path, phase):
 
 def test_a_sweep_that_wrote_no_log_does_not_report_success(tmp_path):
     """issue 14: a sweep with no log at all wrote an empty summary and report and exited 0."""
-    from runners import sweep_end
+    from runners.sweeping import end as sweep_end
 
     run = sweep_control.SweepRun(tmp_path, time.time())
     sweep_end.end_of_sweep(OmegaConf.create({}), run, None)

@@ -1,4 +1,4 @@
-"""runners.yaml_text: libyaml's text where it is PyYAML's, PyYAML's elsewhere (the same text either way)."""
+"""runners.logs.yaml_text: libyaml's text where it is PyYAML's, PyYAML's elsewhere (the same text either way)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from runners import yaml_text
+from runners.logs import yaml_text
 
 LIBYAML = pytest.mark.skipif(getattr(yaml, "CSafeDumper", None) is None, reason="PyYAML without libyaml")
 
@@ -43,7 +43,7 @@ def test_other_strings_and_lone_scalars_take_pyyaml(data):
 
 
 def test_every_configured_scenario_is_written_as_pyyaml_writes_it():
-    from runners.bench_crowd import _inputs
+    from runners.benchmarks.crowd import _inputs
     from runners.run import load_scenario, scenario_data, scenario_yaml
     from tests.conftest import ROOT
 

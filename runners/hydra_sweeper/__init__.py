@@ -12,7 +12,7 @@ package; ``pyproject.toml`` maps this directory there) and selected in ``conf/co
    composes 9 configs up front instead of 21.
 2. A launcher that raises (a worker process killed: loky's ``TerminatedWorkerError``, a Submitit job that
    vanished) or a job that fails (a log that cannot be written) does not end the sweep with a traceback: the
-   failure is noted as one line (:mod:`runners.sweep_control`) and the sweep ends normally, so that its end
+   failure is noted as one line (:mod:`runners.sweeping.control`) and the sweep ends normally, so that its end
    writes the summary of the episodes that completed and says how to resume. After a stop request (a signal, or a
    job's stop file) no new job or batch is handed out.
 
@@ -35,9 +35,10 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.utils import JobStatus
 from omegaconf import OmegaConf
 
-from runners import sweep_control, sweep_resume
-from runners.config_plugins import PluginConfigSearchPath  # found here by Hydra's scan of hydra_plugins
-from runners.precheck import representative_jobs
+from runners.configuration.plugins import PluginConfigSearchPath  # found here by Hydra's scan of hydra_plugins
+from runners.configuration.precheck import representative_jobs
+from runners.sweeping import control as sweep_control
+from runners.sweeping import resume as sweep_resume
 
 __all__ = ["FaultTolerantSweeper", "FuzzynavSweeper", "PluginConfigSearchPath", "representative_jobs"]
 

@@ -1,5 +1,6 @@
 """Wall-clock timers on the stages of a simulation step, for the benchmarks (:mod:`runners.bench`,
-:mod:`runners.bench_crowd`, :mod:`runners.bench_baseline`'s child): the library itself is not instrumented, the
+:mod:`runners.benchmarks.crowd`, :mod:`runners.benchmarks.baseline`'s child): the library itself is not instrumented,
+the
 timed functions are wrapped for the measurement and restored afterwards."""
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from fuzzynav.planning import navigator as nav_mod
 from fuzzynav.policies.fuzzy import FuzzyPolicy
 from fuzzynav.sensing import laser as laser_mod
 from fuzzynav.sensing.sonar import Sonar
-from runners.mcap_log import EpisodeLogWriter
+from runners.logs.mcap_log import EpisodeLogWriter
 
 
 class Timers:

@@ -27,7 +27,7 @@ SWEEP_FIELDS = ("scenarios", "variants", "seeds", "overrides")
 #: what ``build`` writes for each episode besides ``step_digests`` (:func:`runners.dataset.content_digests`)
 EPISODE_FIELDS = ("outcome", "steps", "sha256", "decision_digest", "discrete_digest", "modes", "float_sums", "topics")
 ENTRY_FIELDS = (*EPISODE_FIELDS, "step_digests")
-#: the fields every entry has; the behaviour record (:class:`runners.log_fields.BehaviourRecord`) is newer
+#: the fields every entry has; the behaviour record (:class:`runners.logs.fields.BehaviourRecord`) is newer
 ENTRY_REQUIRED = ("outcome", "steps", "sha256", "topics", "step_digests")
 BEHAVIOUR_RECORD = ("decision_digest", "discrete_digest", "modes", "float_sums")
 DIGEST = re.compile(r"[0-9a-f]{8}")
@@ -189,7 +189,7 @@ def _check_entry(entry: Any, where: str, path: Path) -> None:
 
 def _check_record(entry: dict[str, Any], fail: Callable[[str, str], NoReturn]) -> None:
     """The behaviour record's run-length encoded modes and float sums, in the form their readers
-    (:func:`runners.log_fields.expand_runs`, :func:`runners.log_fields.parse_sums`) take."""
+    (:func:`runners.logs.fields.expand_runs`, :func:`runners.logs.fields.parse_sums`) take."""
     runs = [MODE_RUN.fullmatch(w) for w in entry["modes"].split()] if isinstance(entry["modes"], str) else [None]
     if not all(runs):
         fail("modes", "expected runs MODE*COUNT separated by spaces")

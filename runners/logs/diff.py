@@ -1,5 +1,5 @@
 """How a regenerated episode differs from its recording: a changed decision, plan or outcome, another discrete
-change, or floating-point values only (see :mod:`runners.log_fields`), with the largest absolute difference
+change, or floating-point values only (see :mod:`runners.logs.fields`), with the largest absolute difference
 per numeric field.
 
 Two sources: the recorded log itself (:func:`diff_logs`, message by message: every field is measured), or,
@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.logs import iter_messages
-from runners.log_fields import BEHAVIOUR, DISCRETE, FLOAT, compare, expand_runs, kind_of, parse_sums
+from runners.logs.fields import BEHAVIOUR, DISCRETE, FLOAT, compare, expand_runs, kind_of, parse_sums
 
 UNCLASSIFIED = "unclassified"
 SUM_FIELD = "sum of floats"  # the field name of a difference measured on a manifest's per-topic float sum
@@ -76,7 +76,7 @@ def _keyed(path: Path) -> Iterator[tuple[tuple[int, str, int], dict[str, Any]]]:
 
 
 class _Collector:
-    """Receives the differences of one message pair after another (see :func:`runners.log_fields.compare`)."""
+    """Receives the differences of one message pair after another (see :func:`runners.logs.fields.compare`)."""
 
     def __init__(self, diff: EpisodeDiff) -> None:
         self.diff = diff
@@ -146,7 +146,7 @@ def _first_mode_change(old: str, new: str) -> str:
 def diff_records(expected: dict[str, Any], got: dict[str, Any]) -> EpisodeDiff:
     """Classify a difference from manifest entries only (the recorded log is not kept): ``expected`` from the
     manifest, ``got`` from the regenerated episode (both with ``outcome``, ``steps`` and, in manifests built
-    since they exist, the fields of :class:`runners.log_fields.BehaviourRecord`)."""
+    since they exist, the fields of :class:`runners.logs.fields.BehaviourRecord`)."""
     if expected.get("outcome") != got.get("outcome") or expected.get("steps") != got.get("steps"):
         note = "" if "modes" not in expected else _first_mode_change(expected["modes"], got["modes"])
         return EpisodeDiff(kind=BEHAVIOUR, source="manifest", note=note)

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from fuzzynav.conf import CONF_DIR as CONF
 
-from runners.stage_timers import stage_timers
+from fuzzynav.conf import CONF_DIR as CONF
+from runners.benchmarks.stage_timers import stage_timers
 
 MODELS = ("scripted", "social_force", "orca", "random_walk")
 
@@ -33,7 +33,7 @@ def _inputs(model: str, n: int) -> dict[str, Any]:
 def bench_crowd(episodes: int, n: int = 20, max_steps: int = 60) -> list[dict[str, Any]]:
     """For each model: steps/s with logging over ``episodes`` episodes (seeds 0..episodes-1, at most ``max_steps``
     steps each, after a warm-up episode), then, in a second timed pass, the µs per step by stage
-    (:func:`runners.stage_timers.stage_timers`; ``obstacles`` is the model's
+    (:func:`runners.benchmarks.stage_timers.stage_timers`; ``obstacles`` is the model's
     :meth:`fuzzynav.pedestrians.crowd.Crowd.step`)."""
     from runners.run import episode_config, load_evaluator, load_scenario, run_episode
 

@@ -20,7 +20,7 @@ import socket
 import time
 from pathlib import Path
 
-from runners.sweep_paths import lock_file
+from runners.sweeping.paths import lock_file
 
 _HELD: dict[Path, int] = {}  # sweep dir (resolved) -> open descriptor holding its lock, in this process
 

@@ -1,7 +1,7 @@
 """How long the analysis report takes, measured on real logs and on a 10,000-episode table built from them.
 
-``python -m runners.bench_report [--episodes 10000] [--seeds 10]`` (also called by :mod:`runners.bench`);
-``python -m runners.bench_report --logs DIR``: the whole report of existing logs, measured (e.g. of a sweep of
+``python -m runners.benchmarks.report [--episodes 10000] [--seeds 10]`` (also called by :mod:`runners.bench`);
+``python -m runners.benchmarks.report --logs DIR``: the whole report of existing logs, measured (e.g. of a sweep of
 10,000 episodes: ``python -m runners.sweep episodes=477 hydra.sweep.dir=DIR`` makes 10,017).
 
 1. **Real episodes**: the default sweep (3 scenarios x 7 strategy settings, ``--seeds`` seeds each: 210 episodes
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import pandas as pd
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BUDGET_S = 60.0
 """The whole report (read and report stages) of 10,000 episodes on a 2-core machine (#18 item 5)."""
 REPORT_BUDGET_S = 15.0

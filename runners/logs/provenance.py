@@ -7,7 +7,7 @@ from functools import cache
 from importlib import metadata
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LIBRARIES = ("numpy", "scikit-fuzzy", "shapely", "mcap", "foxglove-sdk", "scipy", "hydra-core")
 
 

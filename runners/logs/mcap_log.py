@@ -33,9 +33,9 @@ from mcap.reader import make_reader
 from fuzzynav.episode import Episode, StepRecord
 from fuzzynav.numerics.portable_math import dist
 from fuzzynav.params.names import DEFAULT_MODEL
-from runners.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
-from runners.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.fuzzynav_schemas import FUZZYNAV_SCHEMAS
+from runners.logs.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
+from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
+from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 
 TOPICS = {
     "/scene": "foxglove.SceneUpdate",
@@ -443,7 +443,7 @@ def _policy_fields(fields: Mapping[str, Any]) -> dict[str, Any]:
 
 def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:
     """The ``fuzzynav.run`` metadata record: config, seed, scenario, versions, git commit (all strings)."""
-    from runners.provenance import provenance
+    from runners.logs.provenance import provenance
 
     meta = {"config": config_yaml, "seed": str(seed), "scenario": scenario, **provenance()}
     for key, value in (extra or {}).items():

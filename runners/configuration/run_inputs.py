@@ -1,7 +1,8 @@
 """The inputs of a run, loaded and validated in one place: the composed config's run settings (seed,
 episodes), the episode configuration, the controller and the scenario(s).
 
-Used by ``runners.run`` (in each job) and by the command-line check (:mod:`runners.precheck`, before anything
+Used by ``runners.run`` (in each job) and by the command-line check (:mod:`runners.configuration.precheck`, before
+anything
 runs), and by the dataset and bench runners through ``runners.run``. Every problem is one exception whose
 message is one line naming the file (or the config key) and the field:
 
@@ -228,7 +229,7 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
         check_job_dir(cfg.hydra)
         check_output_dirs(cfg.hydra)
     plain = plain_config(cfg)
-    if not isinstance(plain.get("resume", False), bool):  # untyped in the schema (see runners.schema)
+    if not isinstance(plain.get("resume", False), bool):  # untyped in the schema (see runners.configuration.schema)
         raise ValueError(f"resume: expected true or false, got {show(plain.get('resume'))}")
     seeds = run_seeds(plain)
     ep_cfg = episode_config(plain)

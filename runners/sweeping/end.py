@@ -17,11 +17,12 @@ from typing import TYPE_CHECKING
 from omegaconf import DictConfig
 
 from analysis.interrupts import SIGNAL_NAMES
-from runners import sweep_control, sweep_resume
-from runners.sweep_outputs import write_report
-from runners.sweep_paths import job_logs, partial_logs
-from runners.sweep_size import count_episodes
-from runners.sweep_summary import write_summary
+from runners.sweeping import control as sweep_control
+from runners.sweeping import resume as sweep_resume
+from runners.sweeping.outputs import write_report
+from runners.sweeping.paths import job_logs, partial_logs
+from runners.sweeping.size import count_episodes
+from runners.sweeping.summary import write_summary
 
 if TYPE_CHECKING:
     from analysis.metrics import Analysis

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from runners.foxglove_schemas import time_schema
+from runners.logs.foxglove_schemas import time_schema
 
 
 def _n(desc: str) -> dict:

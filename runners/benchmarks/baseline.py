@@ -6,7 +6,8 @@ The earlier commit's ``fuzzynav``, ``runners``, ``analysis`` and ``conf`` are ta
 (``git archive``, into a temporary directory) and imported from there, with this environment's libraries; each
 tree runs in its own child process, the trees alternating round by round (the first in one round is the second in
 the next), so that a slow spell of the machine hits both alike. A child runs its own tree's ``mixed`` scenario
-(``runners.bench._scenario_and_config``, ``runners.run.run_episode``: the same API at both commits) and reports
+(``_scenario_and_config`` of ``runners.benchmarks.simulation``, earlier ``runners.bench``, and
+``runners.run.run_episode``: the same API at both commits) and reports
 CPU seconds per step (``time.process_time``: time the machine gives to other work is not counted), the best of
 three passes over the same seeds, without and with logging, then the wall time per step by stage in one more
 logged pass (the stages ``runners.bench`` times, by the same function names at both commits). The ratio of a round
@@ -31,7 +32,7 @@ from typing import Any
 
 from analysis.cli_args import OneLineParser
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: the commit issue #19 was filed against (its numbers: ~670 µs per logged step on ``mixed``); pure Python/numpy
 ISSUE_19_COMMIT = "c90ff8656d1b33455b27065835ab322b90ef7e3c"
 _TREE_PARTS = ("fuzzynav", "runners", "analysis", "conf")
@@ -54,7 +55,10 @@ def only_the_trees():
                    and not Path(module.__file__).resolve().is_relative_to(tree))
     if stray:
         raise SystemExit(f"modules not from the tree {tree}: {', '.join(stray)}")
-from runners.bench import _scenario_and_config
+import importlib
+# the same API at every commit, where the tree has it (runners/benchmarks/ since runners/ has subpackages)
+simulation = "runners.benchmarks.simulation" if (tree / "runners" / "benchmarks").is_dir() else "runners.bench"
+_scenario_and_config = importlib.import_module(simulation)._scenario_and_config
 from runners.run import run_episode
 only_the_trees()
 scenario, evaluator, cfg = _scenario_and_config("mixed")
@@ -84,11 +88,16 @@ with tempfile.TemporaryDirectory() as tmp:
     nav_mod = module("fuzzynav.planning.navigator", "fuzzynav.navigator")
     FuzzyPolicy = module("fuzzynav.policies.fuzzy", "fuzzynav.fuzzy_policy").FuzzyPolicy
     Sonar = module("fuzzynav.sensing.sonar", "fuzzynav.sonar").Sonar
-    if (tree / "runners" / "stage_timers.py").exists():
-        from runners.stage_timers import Timers
-    else:  # a tree from before runners/stage_timers.py (this checkout's would be imported): runners.bench's _Timers
-        from runners.bench import _Timers as Timers
-    from runners.mcap_log import EpisodeLogWriter
+    # the bench's timers and the log writer where the tree has them (runners/ in subpackages, stage_timers.py on its
+    # own, or runners.bench's _Timers before that; importing one the tree lacks would take this checkout's)
+    if (tree / "runners" / "benchmarks" / "stage_timers.py").exists():
+        Timers = importlib.import_module("runners.benchmarks.stage_timers").Timers
+    elif (tree / "runners" / "stage_timers.py").exists():
+        Timers = importlib.import_module("runners.stage_timers").Timers
+    else:
+        Timers = importlib.import_module("runners.bench")._Timers
+    writer_module = "runners.logs.mcap_log" if (tree / "runners" / "logs").is_dir() else "runners.mcap_log"
+    EpisodeLogWriter = importlib.import_module(writer_module).EpisodeLogWriter
     timers = Timers()
     for owner, attr, stage in ((Sonar, "read", "sensors"), (laser_mod, "scan", "sensors"),
                                (episode_mod, "perceive", "tracking"), (nav_mod, "build_tpt", "tpt"),
@@ -231,9 +240,9 @@ def _count(text: str) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m runners.bench_baseline [--commit C] [--rounds N] [--episodes N] [--passes N]``: the side-by-side
+    """``python -m runners.benchmarks.baseline [--commit C] [--rounds N] [--episodes N] [--passes N]``: the side-by-side
     step measurement alone (exit 1 when it could not be measured)."""
-    parser = OneLineParser(prog="python -m runners.bench_baseline", description=__doc__.split("\n\n")[0],
+    parser = OneLineParser(prog="python -m runners.benchmarks.baseline", description=__doc__.split("\n\n")[0],
                            formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--commit", default=ISSUE_19_COMMIT, help="the earlier commit (default: issue #19's)")
     parser.add_argument("--rounds", type=_count, default=5)

@@ -7,8 +7,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from runners.log_diff import SUM_FIELD, UNCLASSIFIED, Change, EpisodeDiff
-from runners.log_fields import BEHAVIOUR, DISCRETE, FLOAT
+from runners.logs.diff import SUM_FIELD, UNCLASSIFIED, Change, EpisodeDiff
+from runners.logs.fields import BEHAVIOUR, DISCRETE, FLOAT
 
 LABELS = {BEHAVIOUR: "decision/plan/outcome changed", DISCRETE: "other discrete values changed, decisions the same",
           FLOAT: "float-only", UNCLASSIFIED: "unclassified"}

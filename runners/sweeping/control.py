@@ -1,10 +1,11 @@
 """The launching process of a sweep: owning the directory, stopping on a signal, noting what went wrong.
 
 :func:`begin` (called when the sweep starts, by its callback or else by fuzzynav's sweeper) takes the directory's
-lock (:mod:`runners.sweep_lock`), removes what a killed earlier sweep left (partial logs, a stop file) and routes
+lock (:mod:`runners.sweeping.lock`), removes what a killed earlier sweep left (partial logs, a stop file) and routes
 SIGINT/SIGTERM to :func:`_on_signal`:
 
-- the first signal asks every job to stop through the sweep's stop file (:mod:`runners.stop`): episodes in flight
+- the first signal asks every job to stop through the sweep's stop file (:mod:`runners.sweeping.stop`): episodes in
+flight
   end their current step and are logged ``interrupted``, jobs not started yet do nothing, the launcher stops
   handing out jobs (:class:`StoppableJobs`), and the end of the sweep writes the summary of what completed and
   exits 130 (SIGINT) or 143 (SIGTERM);
@@ -30,8 +31,9 @@ from pathlib import Path
 from typing import Any
 
 from analysis import interrupts
-from runners import process_tree, stop, sweep_lock
-from runners.sweep_paths import partial_logs, stop_file
+from runners.sweeping import lock as sweep_lock
+from runners.sweeping import process_tree, stop
+from runners.sweeping.paths import partial_logs, stop_file
 
 
 @dataclass
@@ -72,7 +74,7 @@ def current() -> SweepRun | None:
 
 def begin(sweep_dir: Path) -> SweepRun:
     """Start (once per process) the sweep into ``sweep_dir``: lock, clean up, route the signals. Raises
-    :class:`runners.sweep_lock.SweepLockError` or ``OSError`` (see :func:`io_line`)."""
+    :class:`runners.sweeping.lock.SweepLockError` or ``OSError`` (see :func:`io_line`)."""
     run = current()
     if run is not None:
         return run
@@ -171,7 +173,7 @@ class StoppableJobs(list):
 
 def io_line(err: OSError, default_path: Path | str | None = None) -> str:
     """One line for an I/O error: the path (the error's own, else ``default_path``) and what is wrong."""
-    from runners.mcap_log import LogWriteError
+    from runners.logs.mcap_log import LogWriteError
 
     if isinstance(err, LogWriteError):
         return str(err)

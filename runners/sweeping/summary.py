@@ -1,5 +1,5 @@
 """A sweep's summary: one row per episode log (``summary.csv``) and the outcomes per group (scenario label ×
-variant), printed at the end of a sweep (:mod:`runners.sweep_end`), from the analysis of its logs."""
+variant), printed at the end of a sweep (:mod:`runners.sweeping.end`), from the analysis of its logs."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from runners.sweep_outputs import write_whole
+from runners.sweeping.outputs import write_whole
 
 if TYPE_CHECKING:  # pandas and the analysis are imported where the summary is written, not with this module
     import pandas as pd

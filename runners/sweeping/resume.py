@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from fuzzynav.episode_identity import episode_key_of
-from runners.sweep_paths import holding_dir, job_logs
+from runners.sweeping.paths import holding_dir, job_logs
 
 FINAL_OUTCOMES = ("goal", "collision", "timeout")  # the outcomes a resume keeps; error/interrupted run again
 INDEX = "index.json"

@@ -1,7 +1,7 @@
 """Memory over a long sweep: the resident set (RSS) of the sweep's processes while ``runners.sweep`` runs thousands
 of episodes, sampled from outside through ``/proc``.
 
-``python -m runners.bench_sweep_rss [--episodes 10000] [--scenario head_on] [--jobs 2]``
+``python -m runners.benchmarks.sweep_rss [--episodes 10000] [--scenario head_on] [--jobs 2]``
 
 The sweep is the real command (``python -m runners.sweep scenario=<s> planner=<jobs strategies>
 episodes=<per job>``): each job runs its episodes one after the other in one worker process, so a per-episode leak
@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STRATEGIES = ("auto_h2", "wait", "detour", "none", "auto_h1", "auto_h3", "auto_h4")
 SAMPLE_S = 0.5
 
@@ -148,7 +148,8 @@ def summary(samples: list[Sample], root: int, episodes: int, **facts) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m runners.bench_sweep_rss", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m runners.benchmarks.sweep_rss",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("--episodes", type=int, default=10_000, help="episodes in all (default 10000)")
     parser.add_argument("--scenario", default="head_on", help="scenario of every episode (default head_on)")
     parser.add_argument("--jobs", type=int, default=2, help="jobs (worker processes), one strategy each (default 2)")

@@ -1,8 +1,9 @@
 """Where a sweep keeps its control files: ``<sweep dir>/.fuzzynav/``.
 
-``lock``: the owner of the sweep directory (:mod:`runners.sweep_lock`); ``stop``: present while the sweep is asked
-to stop (:mod:`runners.stop`); ``resume/``: complete logs set aside by a resume until a job of the sweep takes them
-back (:mod:`runners.sweep_resume`). Everything lives in the sweep directory itself, so that the jobs see it wherever
+``lock``: the owner of the sweep directory (:mod:`runners.sweeping.lock`); ``stop``: present while the sweep is asked
+to stop (:mod:`runners.sweeping.stop`); ``resume/``: complete logs set aside by a resume until a job of the sweep takes
+them
+back (:mod:`runners.sweeping.resume`). Everything lives in the sweep directory itself, so that the jobs see it wherever
 they run (worker processes, Submitit processes, cluster nodes on a shared file system).
 """
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 CONTROL_DIR = ".fuzzynav"
-PARTIAL_SUFFIX = ".partial"  # logs being written: runners.mcap_log.partial_path
+PARTIAL_SUFFIX = ".partial"  # logs being written: runners.logs.mcap_log.partial_path
 
 
 def control_dir(sweep_dir: Path) -> Path:

@@ -1,15 +1,15 @@
 """The size of a sweep before it runs: its jobs (the product of the sizes of its sweeps, the preset's and the
 command line's) and its episodes (jobs × ``episodes``); :mod:`runners.sweep` shows the progress against it and
-:mod:`runners.sweep_end` counts the episodes that were not run."""
+:mod:`runners.sweeping.end` counts the episodes that were not run."""
 
 from __future__ import annotations
 
-from fuzzynav.conf import CONF_DIR
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ValueType
 from omegaconf import DictConfig
 
-from runners.config_plugins import plugin_config_dirs
+from fuzzynav.conf import CONF_DIR
+from runners.configuration.plugins import plugin_config_dirs
 
 
 def count_episodes(config: DictConfig) -> int | None:

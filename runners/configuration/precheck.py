@@ -4,10 +4,11 @@ Hydra reports composition errors on several lines; researchers launching thousan
 ``error: config: planner.h_wiat: Key 'h_wiat' not in 'PlannerConfigSchema'`` and a non-zero exit before
 anything starts. Three stages, each stopping at the first problem:
 
-1. the scenario and controller files the overrides select are checked as data (:mod:`runners.data_files`:
+1. the scenario and controller files the overrides select are checked as data (:mod:`runners.configuration.data_files`:
    size, tags, aliases, interpolations) before Hydra's YAML loader sees them, since that loader can hang;
 2. the config is composed (Hydra: unknown keys, wrong types);
-3. the composed config is loaded and validated like a job does (:func:`runners.run_inputs.load_run`: ranges,
+3. the composed config is loaded and validated like a job does (:func:`runners.configuration.run_inputs.load_run`:
+ranges,
    the controller, the scenario for the first seed, the launcher's ``n_jobs``).
 
 For a sweep, every value of a swept override is composed once (the other swept keys at their first value), one
@@ -25,15 +26,16 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import yaml
-from fuzzynav.conf import CONF_DIR as CONF
 from hydra import compose, initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ChoiceSweep, Glob, Override, ValueType
 from omegaconf import DictConfig
 
-from runners import config_plugins, schema
-from runners.data_files import DataFileError, check_data_file
-from runners.run_inputs import DATA_GROUPS, ConfigFileError, load_run
+from fuzzynav.conf import CONF_DIR as CONF
+from runners.configuration import plugins as config_plugins
+from runners.configuration import schema
+from runners.configuration.data_files import DataFileError, check_data_file
+from runners.configuration.run_inputs import DATA_GROUPS, ConfigFileError, load_run
 
 
 def _value_kind(value: object) -> object:
@@ -95,7 +97,7 @@ def _unavailable_search_path(caught: Sequence[warnings.WarningMessage]) -> str |
 
 def _search_dirs(parsed: Sequence[Override]) -> list[Path]:
     """Config directories in Hydra's order: ``conf/``, the ``file://`` entries of ``hydra.searchpath``, then other
-    packages' config folders (:mod:`runners.config_plugins`)."""
+    packages' config folders (:mod:`runners.configuration.plugins`)."""
     dirs = [CONF]
     for o in parsed:
         if o.get_key_element() == "hydra.searchpath" and isinstance(o.value(), list):

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.interrupts import Interrupted, describe
-from runners.sweep_paths import stop_file
+from runners.sweeping.paths import stop_file
 
 STOP_POLL_S = 0.25  # how often (at most) a running job looks for the stop file: a stat per 0.25 s, not per step
 

@@ -3,7 +3,7 @@
 Hydra creates ``hydra.run.dir`` and writes its ``.hydra/`` snapshot before the run starts; on a read-only or full
 file system that is a Python traceback. :class:`OutputDirCheck` (a Hydra callback, ``conf/config.yaml``) creates the
 directory first and writes a small probe file in it, so that the problem is one line naming the directory and exit
-status 1. Sweeps check their directory when they take its lock (:mod:`runners.sweep_control`).
+status 1. Sweeps check their directory when they take its lock (:mod:`runners.sweeping.control`).
 """
 
 from __future__ import annotations

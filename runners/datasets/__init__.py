@@ -1,0 +1,1 @@
+"""Recorded datasets (``python -m runners.dataset``): the manifest and the verification report."""
