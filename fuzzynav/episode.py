@@ -28,7 +28,14 @@ from fuzzynav.numerics.geometry import swept_distance, wrap_360
 from fuzzynav.numerics.portable_random import NormalStream
 from fuzzynav.params.checks import check_config_fields
 from fuzzynav.pedestrians.crowd import Crowd, check_crowd_work
-from fuzzynav.planning.navigator import ActivePlan, Decision, Navigator, NavigatorConfig, Observation, build_navigator
+from fuzzynav.planning.layer import (
+    ActivePlan,
+    Decision,
+    FuzzyPolicyConfig,
+    Observation,
+    PlanningLayer,
+    build_planning_layer,
+)
 from fuzzynav.planning.planner import PlannerConfig
 from fuzzynav.policies.base import Policy
 from fuzzynav.scenarios.scenario import Scenario
@@ -46,7 +53,7 @@ OUTCOMES = ("goal", "collision", "timeout")
 class EpisodeConfig:
     """Everything but the scenario and the controller definition. ``dt`` in seconds. ``policy`` names the
     navigation policy (registered name or import path, :mod:`fuzzynav.policies.base`) and ``navigator`` holds its
-    parameters (for ``fuzzy``, a :class:`NavigatorConfig`)."""
+    parameters (for ``fuzzy``, a :class:`FuzzyPolicyConfig`)."""
 
     dt: float = 1.0
     robot: RobotLimits = field(default_factory=RobotLimits)
@@ -54,7 +61,7 @@ class EpisodeConfig:
     laser: LaserConfig = field(default_factory=LaserConfig)
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
-    navigator: Any = field(default_factory=NavigatorConfig)
+    navigator: Any = field(default_factory=FuzzyPolicyConfig)
     terminate_on_collision: bool = True
     policy: str = "fuzzy"
 
@@ -66,14 +73,14 @@ class EpisodeConfig:
         self._check_speeds_fit_robot()
 
     def _check_speeds_fit_robot(self) -> None:
-        """Every speed the navigator commands or the planner plans with must be one the robot drives
+        """Every speed the policy commands or the planner plans with must be one the robot drives
         (``robot.v_min`` .. ``robot.v_max``, cm/s): the robot clamps a command into that range, so a planned
         move at 1e-300 cm/s, or a direct speed of 5 under v_min 10, would be driven at another speed than the
         table predicted, and the plan's collision check would be about a motion that never happens."""
         lo, hi = self.robot.v_min, self.robot.v_max
         speeds = [(f"planner.successor_speeds[{i}]", v) for i, v in enumerate(self.planner.successor_speeds)]
         speeds += [("planner.cruise_speed", self.planner.cruise_speed)]
-        if isinstance(self.navigator, NavigatorConfig):
+        if isinstance(self.navigator, FuzzyPolicyConfig):
             speeds += [("navigator.direct_speed_cm_s", self.navigator.direct_speed_cm_s)]
         for field_, v in speeds:
             if not lo <= v <= hi:
@@ -142,10 +149,10 @@ class Episode:
         r = scenario.robot.radius
         self.sonar = Sonar(self.config.sonar, r)
         if policy is None:
-            self.navigator = build_navigator(self.config.policy, self.config.navigator, self.config.planner,
+            self.navigator = build_planning_layer(self.config.policy, self.config.navigator, self.config.planner,
                                              self.config.robot, r, self.config.dt, self.config.sonar.front, evaluator)
         else:
-            self.navigator = Navigator(policy, self.config.planner, self.config.robot, r, self.config.dt)
+            self.navigator = PlanningLayer(policy, self.config.planner, self.config.robot, r, self.config.dt)
         self.reset()
 
     def reset(self) -> None:

@@ -47,7 +47,7 @@ from fuzzynav.numerics import portable_math
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_number
 from fuzzynav.params.names import AGENT, is_policy_id
-from fuzzynav.planning.navigator import checked_action
+from fuzzynav.planning.layer import checked_action
 from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy
 from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
 from fuzzynav.sensing.laser import LaserScan
@@ -82,7 +82,7 @@ class AgentPolicy:
         self.pending = None
 
     def act(self, observation: Observation) -> Action:
-        """The command set for this step (the navigator calls this once per step)."""
+        """The command set for this step (the planning layer calls this once per step)."""
         if self.pending is None:
             raise RuntimeError("AgentPolicy.act: no command was set for this step (drive the episode through "
                                "NavigationEnv.step or step_policy_action)")

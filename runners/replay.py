@@ -6,13 +6,13 @@
     python -m runners.replay LOG.mcap --verify              # re-decide every step; exit 1 at the first change
     python -m runners.replay LOG.mcap --controller listing planner.h_wait=4    # counterfactual replay
 
-``--verify`` rebuilds the navigator from the configuration recorded in the log and feeds it the recorded
-inputs of each step (robot state, sonar, tracks, static laser returns), carrying its own plan from step to
-step; it reports the first step whose decision (mode, Δθ, v, and the planner's tc/tS/tG) differs from the
+``--verify`` rebuilds the planning layer (the policy and wait/detour) from the configuration recorded in the log
+and feeds it the recorded inputs of each step (robot state, sonar, tracks, static laser returns), carrying its own
+plan from step to step; it reports the first step whose decision (mode, Δθ, v, and the planner's tc/tS/tG) differs from the
 recorded one. With ``--controller`` (a name in conf/controller/ or a YAML file) and/or ``key=value``
 overrides of the recorded config (e.g. ``planner.h_wait=4``), the same recorded inputs go through the
-changed navigator and every step where its decision diverges is printed (open loop: the recorded inputs do
-not react to the new decisions); ``--verify`` cannot be combined with them. Only what the navigator decides
+changed planning layer and every step where its decision diverges is printed (open loop: the recorded inputs do
+not react to the new decisions); ``--verify`` cannot be combined with them. Only what the planning layer decides
 with can be overridden (keys in controller, planner, navigator, robot, and dt), each key once: the scenario,
 the seed, perception and the sensors shaped the recorded inputs, which stay as they were.
 """
@@ -39,7 +39,7 @@ from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.controller.fuzzy_spec import ControllerSpec, ControllerSpecError
 from fuzzynav.kinematics import RobotState
 from fuzzynav.params.names import AGENT
-from fuzzynav.planning.navigator import ActivePlan, Decision, Navigator, Observation, build_navigator
+from fuzzynav.planning.layer import ActivePlan, Decision, Observation, PlanningLayer, build_planning_layer
 from fuzzynav.sensing.laser import LaserConfig, beam_directions
 from fuzzynav.sensing.tracking import Track
 from runners.run import ConfigFileError, episode_config
@@ -51,7 +51,7 @@ MAX_SNAPSHOTS = 100  # --steps: snapshots drawn in one PNG
 MAX_CONTROLLER_BYTES = 1 << 20  # --controller: a controller file is a few KB
 NAVIGATOR_SOURCES = {"controller": "controller", "planner": "planner", "policy": "navigator", "params": "navigator",
                      "limits": "robot", "dt": "dt", "front_sector_deg": "sensors.sonar.front"}
-"""Per argument of :func:`build_navigator` (but ``robot_radius``, which the log's /robot/state gives), the part
+"""Per argument of :func:`build_planning_layer` (but ``robot_radius``, which the log's /robot/state gives), the part
 of the run config :func:`navigator_for` builds it from (a test keeps this in step with both). Nothing else
 reaches a replayed decision, so an override of any other key is refused."""
 RECORDED_INPUT_SOURCES = ("sensors.sonar.front",)  # the sector the recorded front readings were taken over: the
@@ -130,13 +130,13 @@ def parse_override(item: str) -> tuple[str, Any]:
         raise ReplayError(f"override {key}: the value is not valid YAML ({getattr(err, 'problem', err)})") from None
 
 
-def navigator_for(config: dict[str, Any], robot_radius: float) -> Navigator:
-    """The navigator a run with this (recorded) configuration used; ``robot_radius`` in cm. The whole config is
-    validated as ``runners.run`` validates it (the sonar sectors are checked together, say), but the navigator
+def navigator_for(config: dict[str, Any], robot_radius: float) -> PlanningLayer:
+    """The planning layer a run with this (recorded) configuration used; ``robot_radius`` in cm. The whole config is
+    validated as ``runners.run`` validates it (the sonar sectors are checked together, say), but the planning layer
     gets only the parts :data:`NAVIGATOR_SOURCES` names."""
     ep = episode_config(config)
     evaluator = FastEvaluator(ControllerSpec.from_dict(config["controller"]))
-    return build_navigator(policy=ep.policy, params=ep.navigator, planner=ep.planner, limits=ep.robot,
+    return build_planning_layer(policy=ep.policy, params=ep.navigator, planner=ep.planner, limits=ep.robot,
                            robot_radius=robot_radius, dt=ep.dt, front_sector_deg=ep.sonar.front, controller=evaluator)
 
 
@@ -218,7 +218,7 @@ def replayable_steps(log: EpisodeLog) -> int:
 
 
 def replay(log: EpisodeLog, config: dict[str, Any], stop_at_first: bool) -> list[Divergence]:
-    """Feed the recorded inputs of every step to a navigator built from ``config``."""
+    """Feed the recorded inputs of every step to a planning layer built from ``config``."""
     navigator = navigator_for(config, log.robot_radius)
     navigator.reset(int(log.meta.get("seed", "0")))  # as the episode did: a policy's randomness comes from it
     goal = log.goal
@@ -347,10 +347,10 @@ def _run(args: argparse.Namespace) -> int:
 
 def _decide_again(log: EpisodeLog, path: Path, args: argparse.Namespace, overrides: list[tuple[str, Any]],
                   counterfactual: bool) -> int:
-    """``--verify`` and counterfactual replays: the recorded inputs through a navigator rebuilt from the
+    """``--verify`` and counterfactual replays: the recorded inputs through a planning layer rebuilt from the
     recorded (or changed) config."""
     if log.goal is None:
-        raise ReplayError(f"{path}: the first /scene has no goal: the navigator cannot be rebuilt")
+        raise ReplayError(f"{path}: the first /scene has no goal: the planning layer cannot be rebuilt")
     if log.meta.get("policy") == AGENT:
         raise ReplayError(f"{path}: an agent's episode (Gymnasium): its actions came from outside and cannot be "
                           "decided again")
@@ -366,7 +366,7 @@ def _decide_again(log: EpisodeLog, path: Path, args: argparse.Namespace, overrid
         # recorded config that lacks a section or has one of another type (hand-written or old logs)
         which = "changed" if counterfactual else "recorded"
         kind = f"{type(err).__name__}: " if type(err) in (KeyError, TypeError, AttributeError) else ""
-        raise ReplayError(f"{path}: cannot rebuild the navigator from the {which} config: {kind}{err}") from None
+        raise ReplayError(f"{path}: cannot rebuild the planning layer from the {which} config: {kind}{err}") from None
     steps = replayable_steps(log)
     if counterfactual:
         print(f"counterfactual replay of {steps} recorded steps: {len(diffs)} decisions differ")

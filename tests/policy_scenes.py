@@ -10,7 +10,7 @@ import numpy as np
 
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.numerics.geometry import segment_point_distance
-from fuzzynav.planning.navigator import Observation
+from fuzzynav.planning.layer import Observation
 from fuzzynav.policies.base import Policy, PolicyContext
 from fuzzynav.sensing.tracking import Track
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fuzzynav.kinematics import RobotState
-from fuzzynav.planning.navigator import Observation
+from fuzzynav.planning.layer import Observation
 from fuzzynav.policies.apf import ApfConfig, ApfPolicy, apf_command, attractive_force, obstacle_discs, repulsive_force
 from fuzzynav.policies.base import Policy, make_policy
 from fuzzynav.sensing.tracking import Track

@@ -9,7 +9,7 @@ import pytest
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.numerics.geometry import segment_point_distance, swept_distance
 from fuzzynav.numerics.portable_math import dist
-from fuzzynav.planning.navigator import Observation
+from fuzzynav.planning.layer import Observation
 from fuzzynav.policies.base import Policy, PolicyContext, make_policy
 from fuzzynav.policies.dwa import DWAConfig, DWAPolicy, _segment_distances, evaluate, speed_window
 from fuzzynav.sensing.tracking import Track

@@ -19,7 +19,7 @@ import pytest
 
 gymnasium = pytest.importorskip("gymnasium")
 
-from fuzzynav.planning.navigator import PLAN_MODES  # noqa: E402
+from fuzzynav.planning.layer import PLAN_MODES  # noqa: E402
 from fuzzynav.policies.base import Action, make_policy  # noqa: E402
 from runners.dataset import content_digests  # noqa: E402
 from runners.gym_env import ENV_ID, NavigationEnv  # noqa: E402  (importing it registers fuzzynav/Navigation-v0)

@@ -125,12 +125,12 @@ def test_same_config_and_seed_give_the_same_messages_across_processes(tmp_path):
 
 
 def test_an_episode_that_raises_is_logged_as_error(tmp_path, monkeypatch):
-    import fuzzynav.planning.navigator as nav
+    import fuzzynav.planning.layer as nav
 
     def broken(self, obs, active):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(nav.Navigator, "decide", broken)
+    monkeypatch.setattr(nav.PlanningLayer, "decide", broken)
     path = tmp_path / "err.mcap"
     summary = run_episode(load_scenario("head_on"), FastEvaluator(load_controller("table1")),
                           episode_config_from_dict({}), 0, path, "")

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.kinematics import RobotLimits, RobotState
-from fuzzynav.planning.navigator import ActivePlan, Navigator, NavigatorConfig, Observation, build_navigator
+from fuzzynav.planning.layer import ActivePlan, FuzzyPolicyConfig, Observation, PlanningLayer, build_planning_layer
 from fuzzynav.planning.planner import PlannerConfig, find_new_path
 from fuzzynav.planning.tpt import build_tpt
 from fuzzynav.sensing.tracking import Track
@@ -40,9 +40,9 @@ def test_swept_rows_after_a_marked_predicted_row_keep_the_papers_window():
     assert [k for k in range(1, 10) if tpt.collide[k, 0]] == [6, 7, 8]
 
 
-def _navigator(**planner) -> Navigator:
-    return build_navigator("fuzzy", NavigatorConfig(), PlannerConfig(**planner), RobotLimits(), robot_radius=20.0,
-                           controller=EVALUATOR)
+def _navigator(**planner) -> PlanningLayer:
+    return build_planning_layer("fuzzy", FuzzyPolicyConfig(), PlannerConfig(**planner), RobotLimits(),
+                                robot_radius=20.0, controller=EVALUATOR)
 
 
 def _observation(v: float, tracks: tuple[Track, ...]) -> Observation:

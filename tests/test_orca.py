@@ -21,7 +21,7 @@ from fuzzynav.numerics.orca_lp import (
     violation,
 )
 from fuzzynav.numerics.portable_math import dist
-from fuzzynav.planning.navigator import Observation
+from fuzzynav.planning.layer import Observation
 from fuzzynav.policies.base import Policy, PolicyContext, make_policy
 from fuzzynav.policies.orca import OrcaConfig, OrcaPolicy, nearest_static_points, orca_lines, velocity_command
 from fuzzynav.sensing.tracking import Track

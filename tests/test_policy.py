@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
-from fuzzynav.planning.navigator import Observation
+from fuzzynav.planning.layer import Observation
 from fuzzynav.policies.base import POLICIES, Action, Policy, PolicyContext, make_policy, register_policy
 from fuzzynav.policies.direct import DirectPolicy, direct_command
 

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from analysis.episode_log import load_episode
-from fuzzynav.planning.navigator import build_navigator
+from fuzzynav.planning.layer import build_planning_layer
 from runners import replay
 from tests.conftest import one_error_line
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
@@ -107,7 +107,7 @@ def test_an_override_the_navigator_reads_is_replayed(overrides, capsys, tmp_path
 
 
 def test_the_navigator_sources_name_every_argument_of_the_navigator():
-    params = set(inspect.signature(build_navigator).parameters)
+    params = set(inspect.signature(build_planning_layer).parameters)
     assert set(replay.NAVIGATOR_SOURCES) | {"robot_radius"} == params
 
 
@@ -119,7 +119,7 @@ def _arguments(monkeypatch, config: dict[str, Any]) -> dict[str, Any]:
     def capture(**kwargs: Any) -> None:
         seen.update(kwargs, controller=kwargs["controller"].spec)
 
-    monkeypatch.setattr(replay, "build_navigator", capture)
+    monkeypatch.setattr(replay, "build_planning_layer", capture)
     replay.navigator_for(config, 20.0)
     return seen
 

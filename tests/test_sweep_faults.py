@@ -213,7 +213,7 @@ def _flip_a_byte_inside_a_chunk(path: Path) -> None:
 
 def _rewrite_as_error(path: Path, monkeypatch) -> None:
     """The same episode (same config hash and seed), logged again as ended by a transient MemoryError."""
-    import fuzzynav.planning.navigator as nav
+    import fuzzynav.planning.layer as nav
     from fuzzynav.controller.fuzzy_fast import FastEvaluator
     from runners.run import episode_config, run_episode
 
@@ -222,7 +222,7 @@ def _rewrite_as_error(path: Path, monkeypatch) -> None:
     def out_of_memory(self, *args, **kwargs):
         raise MemoryError("transient")
 
-    monkeypatch.setattr(nav.Navigator, "decide", out_of_memory)
+    monkeypatch.setattr(nav.PlanningLayer, "decide", out_of_memory)
     plain = yaml.safe_load(meta["config"])
     row = run_episode(load_scenario(meta["scenario"]), FastEvaluator(load_controller(meta["controller"])),
                       episode_config(plain), int(meta["seed"]), path, meta["config"], meta["config_hash"])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fuzzynav.kinematics import RobotState
-from fuzzynav.planning.navigator import Observation
+from fuzzynav.planning.layer import Observation
 from fuzzynav.policies.base import Policy, make_policy
 from fuzzynav.policies.vfh import (
     VfhConfig,

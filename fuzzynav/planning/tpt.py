@@ -1,7 +1,7 @@
 """Trajectory Prediction Table (paper section III.C, Table 2).
 
 Row ``k`` (k = 1 .. n_traj) is the prediction for time ``now + k·dt``; row 0 holds the present. The
-robot is predicted to move straight towards the target at ``speed`` — the speed the navigator will command
+robot is predicted to move straight towards the target at ``speed`` — the speed the policy will command
 next if no plan intervenes (stopping on the target); every tracked obstacle at constant velocity.
 ``collide[k, j]`` is True when robot and obstacle j are closer than the sum of their radii plus
 ``safety_margin_cm`` at step k, as in the paper's table. With ``swept`` (default, ours) a collision that

@@ -6,7 +6,7 @@ A policy maps what the robot senses at one step to the command of that step::
     policy.reset(seed)                                  # before each episode
     action = policy.act(observation)                    # every step: Action(mode, dtheta_deg, v_cm_s, fields)
 
-The observation is the same for every policy (:class:`fuzzynav.planning.navigator.Observation`): the robot's state
+The observation is the same for every policy (:class:`fuzzynav.planning.layer.Observation`): the robot's state
 (odometry: x, y in cm, heading in degrees, last speed in cm/s), the goal (cm), the three sonar readings (left,
 front, right; cm), the perceived moving obstacles (tracks: position cm, velocity cm/s, radius cm; from the
 laser tracker, or the truth under ``perception=ground_truth``) and the static laser returns (world points, cm).

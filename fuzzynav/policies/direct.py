@@ -2,7 +2,7 @@
 
 Each step the robot turns towards the goal (the robot clamps the turn to its limit) and drives at
 ``speed_cm_s``, slowing to land on the goal. Parameters (``conf/navigator/direct.yaml``): ``speed_cm_s``
-(default 25 cm/s, the navigator's direct speed). Units: cm, s, degrees, cm/s.
+(default 25 cm/s, the fuzzy policy's direct speed). Units: cm, s, degrees, cm/s.
 """
 
 from __future__ import annotations

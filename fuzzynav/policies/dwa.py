@@ -101,7 +101,7 @@ class DWAConfig:
     beta_clearance: float = ranged(0.2, Range(0, 1e6, "", "DWA: weight of the clearance term"))
     gamma_velocity: float = ranged(0.2, Range(0, 1e6, "", "DWA: weight of the velocity term"))
     # paper: dist is a large constant when no obstacle is on the trajectory; chosen 100 cm (2.5 robot
-    # diameters, the navigator's static_near_cm): obstacles farther than that do not change the choice
+    # diameters, the fuzzy policy's static_near_cm): obstacles farther than that do not change the choice
     clearance_cap_cm: float = ranged(100.0, Range(0, 10_000, "cm", "DWA: " + WHY_REACH, lo_open=True))
     # chosen: 10 cm, the planner's safety_margin_cm (tracks are estimates: a few cm off in position and
     # speed); the paper's robot stops at the obstacle itself

@@ -15,7 +15,7 @@ Our choices where the paper is silent (README, "Navigation loop"):
   per step), slowing to land on the goal; ``direct_needs_clear_path`` first checks that move against the
   static laser returns.
 
-Modes: ``direct`` and ``fuzzy``. Parameters: :class:`NavigatorConfig` (``conf/navigator/fuzzy_tpt.yaml``).
+Modes: ``direct`` and ``fuzzy``. Parameters: :class:`FuzzyPolicyConfig` (``conf/navigator/fuzzy_tpt.yaml``).
 Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
 """
 
@@ -36,7 +36,7 @@ from fuzzynav.policies.base import Action, Observation, PolicyContext, register_
 
 
 @dataclass(frozen=True)
-class NavigatorConfig:
+class FuzzyPolicyConfig:
     """When static navigation uses the fuzzy controller (see the module docstring)."""
 
     static_near_cm: float = ranged(100.0, Range(0, 10_000, "cm", WHY_REACH))
@@ -69,13 +69,13 @@ class FuzzyPolicy:
     """The paper's static navigation (see the module docstring); the controller comes from the context."""
 
     name = "fuzzy"
-    config_class = NavigatorConfig
+    config_class = FuzzyPolicyConfig
 
     def __init__(self, params: Mapping[str, Any], context: PolicyContext) -> None:
         if context.controller is None:
             raise ValueError("controller: the fuzzy policy needs a fuzzy controller (the controller group)")
 
-        self.config: NavigatorConfig = from_dict(NavigatorConfig, params, "navigator")
+        self.config: FuzzyPolicyConfig = from_dict(FuzzyPolicyConfig, params, "navigator")
         self.evaluator = context.controller
         self.limits = context.limits
         self.robot_radius = context.robot_radius

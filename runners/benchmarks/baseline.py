@@ -58,7 +58,7 @@ def only_the_trees():
 import importlib
 # the same API at every commit, where the tree has it (runners/benchmarks/ since runners/ has subpackages)
 simulation = "runners.benchmarks.simulation" if (tree / "runners" / "benchmarks").is_dir() else "runners.bench"
-_scenario_and_config = importlib.import_module(simulation)._scenario_and_config
+_scenario_and_config = importlib.import_module(simulation)._scenario_and_config  # the same API at every commit
 from runners.run import run_episode
 only_the_trees()
 scenario, evaluator, cfg = _scenario_and_config("mixed")
@@ -78,30 +78,27 @@ with tempfile.TemporaryDirectory() as tmp:
     # then one logged pass with the bench's wall-clock timers (the tree's own class, the same at both commits)
     # on the functions it times, by the same names at both commits; what is in none of them is "rest"
     import importlib
-    # the same functions by their module at either layout (flat fuzzynav/ before its subpackages); chosen by the
-    # tree's folders, since importing a name the tree lacks would take this checkout's module
-    nested = (tree / "fuzzynav" / "sensing").is_dir()
-    def module(new, old):
-        return importlib.import_module(new if nested else old)
-    episode_mod = module("fuzzynav.episode", "fuzzynav.episode")
+    # the same functions in whichever module the tree has them (the layout changed: flat fuzzynav/ and runners/,
+    # then subpackages); chosen by the tree's files, since importing a module the tree lacks would take this
+    # checkout's
+    def module(*candidates):
+        for name in candidates:
+            if (tree / (name.replace(".", "/") + ".py")).exists():
+                return importlib.import_module(name)
+        raise SystemExit(f"the tree {tree} has none of {', '.join(candidates)}")
+    episode_mod = module("fuzzynav.episode")
     laser_mod = module("fuzzynav.sensing.laser", "fuzzynav.laser")
-    nav_mod = module("fuzzynav.planning.navigator", "fuzzynav.navigator")
+    nav_mod = module("fuzzynav.planning.layer", "fuzzynav.planning.navigator", "fuzzynav.navigator")
+    layer_class = getattr(nav_mod, "PlanningLayer", None) or nav_mod.Navigator
     FuzzyPolicy = module("fuzzynav.policies.fuzzy", "fuzzynav.fuzzy_policy").FuzzyPolicy
     Sonar = module("fuzzynav.sensing.sonar", "fuzzynav.sonar").Sonar
-    # the bench's timers and the log writer where the tree has them (runners/ in subpackages, stage_timers.py on its
-    # own, or runners.bench's _Timers before that; importing one the tree lacks would take this checkout's)
-    if (tree / "runners" / "benchmarks" / "stage_timers.py").exists():
-        Timers = importlib.import_module("runners.benchmarks.stage_timers").Timers
-    elif (tree / "runners" / "stage_timers.py").exists():
-        Timers = importlib.import_module("runners.stage_timers").Timers
-    else:
-        Timers = importlib.import_module("runners.bench")._Timers
-    writer_module = "runners.logs.mcap_log" if (tree / "runners" / "logs").is_dir() else "runners.mcap_log"
-    EpisodeLogWriter = importlib.import_module(writer_module).EpisodeLogWriter
+    timers_module = module("runners.benchmarks.stage_timers", "runners.stage_timers", "runners.bench")
+    Timers = getattr(timers_module, "Timers", None) or timers_module._Timers
+    EpisodeLogWriter = module("runners.logs.mcap_log", "runners.mcap_log").EpisodeLogWriter
     timers = Timers()
     for owner, attr, stage in ((Sonar, "read", "sensors"), (laser_mod, "scan", "sensors"),
                                (episode_mod, "perceive", "tracking"), (nav_mod, "build_tpt", "tpt"),
-                               (nav_mod, "find_new_path", "planner"), (nav_mod.Navigator, "_still_valid", "planner"),
+                               (nav_mod, "find_new_path", "planner"), (layer_class, "_still_valid", "planner"),
                                (FuzzyPolicy, "fuzzy", "controller"), (EpisodeLogWriter, "step", "logging")):
         timers.wrap(owner, attr, stage)
     t = time.perf_counter()

@@ -9,7 +9,7 @@ import time
 
 from fuzzynav import episode as episode_mod
 from fuzzynav.pedestrians.crowd import Crowd
-from fuzzynav.planning import navigator as nav_mod
+from fuzzynav.planning import layer as nav_mod
 from fuzzynav.policies.fuzzy import FuzzyPolicy
 from fuzzynav.sensing import laser as laser_mod
 from fuzzynav.sensing.sonar import Sonar
@@ -58,7 +58,7 @@ def stage_timers(obstacles: bool = False) -> Timers:
     timers.wrap(episode_mod, "perceive", "tracking")
     timers.wrap(nav_mod, "build_tpt", "tpt")
     timers.wrap(nav_mod, "find_new_path", "planner")
-    timers.wrap(nav_mod.Navigator, "_still_valid", "planner")
+    timers.wrap(nav_mod.PlanningLayer, "_still_valid", "planner")
     timers.wrap(FuzzyPolicy, "fuzzy", "controller")
     timers.wrap(EpisodeLogWriter, "step", "logging")
     if obstacles:

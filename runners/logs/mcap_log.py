@@ -62,7 +62,7 @@ _WRITE_OPTIONS = MCAPWriteOptions(chunk_size=CHUNK_BYTES, compression=MCAPCompre
                                   compression_level=ZSTD_LEVEL)
 
 def _r(x: float) -> float:
-    """Full precision: replay --verify feeds these numbers back to the navigator, and a rounded input can flip
+    """Full precision: replay --verify feeds these numbers back to the planning layer, and a rounded input can flip
     a decision that sits on a boundary (e.g. the crisp included angle at exactly 90°)."""
     return float(x)
 
@@ -435,8 +435,8 @@ def _errno_of(text: str) -> int | None:
 
 def _policy_fields(fields: Mapping[str, Any]) -> dict[str, Any]:
     """A policy's own values of one step for the log, in key order: numbers as floats (like every logged number),
-    booleans and strings as they are (the navigator has checked them:
-    ``fuzzynav.planning.navigator.checked_action``)."""
+    booleans and strings as they are (the planning layer has checked them:
+    ``fuzzynav.planning.layer.checked_action``)."""
     return {key: value if isinstance(value, str) else bool(value) if isinstance(value, bool | np.bool_)
             else _r(float(value)) for key, value in sorted(fields.items())}
 

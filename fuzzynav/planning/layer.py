@@ -13,7 +13,7 @@ other (DWA, APF, VFH, ORCA, direct, your own); the wait/detour layer below runs 
   when the plan would now come closer than ``plan_check_margin_cm`` (5 cm, half the planning margin, so
   that noisy re-estimates do not discard a good plan) or the robot is more than ``plan_tolerance_cm`` off
   it (``replan_every_step`` re-plans on every step instead).
-- The table predicts the robot at the speed the navigator will command next if no plan intervenes — the
+- The table predicts the robot at the speed the policy will command next if no plan intervenes — the
   policy's (for ``fuzzy``: the direct speed or the fuzzy controller's; ``planner.predict_speed = command``);
   a table that assumed the present speed would predict a motion the robot does not make (``present``: the
   present speed, or ``cruise_speed`` when standing).
@@ -44,13 +44,21 @@ from fuzzynav.planning.planner import (
 )
 from fuzzynav.planning.tpt import TrajectoryPredictionTable, build_tpt
 from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy, one_line
-from fuzzynav.policies.fuzzy import NavigatorConfig, included_angle_deg
+from fuzzynav.policies.fuzzy import FuzzyPolicyConfig, included_angle_deg
 
 PLAN_MODES = ("wait", "detour", "evade", "stop")
 """The modes of a step that follows a plan of the wait/detour layer; any other mode is the policy's own."""
 
-__all__ = ["PLAN_MODES", "ActivePlan", "Decision", "Navigator", "NavigatorConfig", "Observation", "build_navigator",
-           "included_angle_deg"]
+__all__ = [
+    "PLAN_MODES",
+    "ActivePlan",
+    "Decision",
+    "FuzzyPolicyConfig",
+    "Observation",
+    "PlanningLayer",
+    "build_planning_layer",
+    "included_angle_deg",
+]
 
 
 @dataclass(frozen=True)
@@ -84,7 +92,7 @@ class Decision:
     fields: Mapping[str, Any] = field(default_factory=dict)
 
 
-class Navigator:
+class PlanningLayer:
     """Decides one step at a time: the policy's command, overridden by a plan of the wait/detour layer when
     the table predicts a collision. Holds no state between steps but the policy's own (the active plan is
     passed in and out)."""
@@ -240,11 +248,11 @@ def _utf8(text: str) -> bool:
     return True
 
 
-def build_navigator(policy: str, params: Any, planner: PlannerConfig, limits: RobotLimits, robot_radius: float,
+def build_planning_layer(policy: str, params: Any, planner: PlannerConfig, limits: RobotLimits, robot_radius: float,
                     dt: float = 1.0, front_sector_deg: tuple[float, float] = (-30.0, 30.0),
-                    controller: Any = None) -> Navigator:
-    """The navigator of a run: policy ``policy`` (a registered name or an import path) with ``params`` (its
+                    controller: Any = None) -> PlanningLayer:
+    """The planning layer of a run: policy ``policy`` (a registered name or an import path) with ``params`` (its
     ``navigator`` section, or the checked config), under the wait/detour layer ``planner``, for a robot of
     ``robot_radius`` cm with ``limits``; ``controller`` is the fuzzy controller for policies that use one."""
     context = PolicyContext(limits, robot_radius, dt, front_sector_deg, controller)
-    return Navigator(make_policy(policy, params, context), planner, limits, robot_radius, dt, name=policy)
+    return PlanningLayer(make_policy(policy, params, context), planner, limits, robot_radius, dt, name=policy)
