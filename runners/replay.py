@@ -8,8 +8,8 @@
 
 ``--verify`` rebuilds the planning layer (the policy and wait/detour) from the configuration recorded in the log
 and feeds it the recorded inputs of each step (robot state, sonar, tracks, static laser returns), carrying its own
-plan from step to step; it reports the first step whose decision (mode, Δθ, v, and the planner's tc/tS/tG) differs from the
-recorded one. With ``--controller`` (a name in conf/controller/ or a YAML file) and/or ``key=value``
+plan from step to step; it reports the first step whose decision (mode, Δθ, v, and the planner's tc/tS/tG)
+differs from the recorded one. With ``--controller`` (a name in conf/controller/ or a YAML file) and/or ``key=value``
 overrides of the recorded config (e.g. ``planner.h_wait=4``), the same recorded inputs go through the
 changed planning layer and every step where its decision diverges is printed (open loop: the recorded inputs do
 not react to the new decisions); ``--verify`` cannot be combined with them. Only what the planning layer decides
