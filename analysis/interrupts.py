@@ -47,6 +47,19 @@ def reason_of(err: BaseException) -> str:
 _GUARDED: list[bool] = []  # guard_startup has run in this process
 
 
+def _interrupt_in_chain(err: BaseException | None) -> BaseException | None:
+    """The interrupt behind ``err``: itself, or one it was raised while handling. A signal that lands inside a
+    library's clean-up (OmegaConf's flag restore during Hydra's config store, say) can leave it half-done, and the
+    error that follows hides the interrupt behind it."""
+    seen: set[int] = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
+
+
 def guard_startup() -> None:
     """For ``python -m runners.<entry>`` and ``python -m analysis.report``, from their package's import on: a
     SIGINT or SIGTERM raises :class:`Interrupted` (later handlers, such as :func:`install` during a job or the
@@ -62,10 +75,11 @@ def guard_startup() -> None:
     previous = sys.excepthook
 
     def excepthook(kind: type[BaseException], value: BaseException, tb: Any) -> None:
-        if not issubclass(kind, KeyboardInterrupt):
+        interrupt = _interrupt_in_chain(value)
+        if interrupt is None:
             previous(kind, value, tb)
             return
-        _exit_interrupted(value)
+        _exit_interrupted(interrupt)
 
     sys.excepthook = excepthook
     # once the command has ended, a signal must not replace its exit status: from the threads' shutdown (the

@@ -35,7 +35,9 @@ _API = {
     "make_policy": "fuzzynav.policies.base",
     "registered_policies": "fuzzynav.policies.base",
     "register_obstacle_model": "fuzzynav.pedestrians.base",
+    "registered_models": "fuzzynav.pedestrians.base",
     "register_generator": "fuzzynav.scenarios.generator",
+    "registered_generators": "fuzzynav.scenarios.generator",
 }
 
 __all__ = sorted(_API)

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzzynav.kinematics import RobotState
-from fuzzynav.pedestrians.base import model_factory
+from fuzzynav.pedestrians.base import model_factory, registered_models
 from fuzzynav.pedestrians.crowd import Crowd
 from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
 from fuzzynav.pedestrians.random_walk import RandomWalkConfig
@@ -26,7 +26,7 @@ from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict, valid
 from fuzzynav.scenarios.world import World
 from tests.conftest import load_controller
 
-MODEL_NAMES = ["scripted", "social_force", "orca", "random_walk"]
+MODEL_NAMES = sorted(registered_models())  # every model found, plug-ins included
 CONFIGS = {"social_force": SocialForceConfig, "orca": PedestrianOrcaConfig, "random_walk": RandomWalkConfig}
 PARAM_NAMES = sorted({f for c in CONFIGS.values() for f in c.__dataclass_fields__})
 ROBOT = RobotState(100.0, 400.0, 0.0, 0.0)

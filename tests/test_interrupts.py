@@ -67,3 +67,18 @@ def test_sigterm_during_start_up_is_one_line_and_exit_143(entry, tmp_path):
         assert code >= 0, (code, err[-3000:])
         return
     assert len(lines) == 1 and "terminated (SIGTERM)" in lines[0], err[-3000:]
+
+
+def test_an_error_raised_while_an_interrupt_unwinds_still_exits_as_interrupted():
+    """A signal landing inside a library's clean-up (OmegaConf restoring its flags while Hydra stores the config
+    schema) can leave it half-done, so another error follows with the interrupt as its context: still one line
+    and exit 130, not that error's traceback."""
+    code = ("from analysis import interrupts\n"
+            "interrupts.guard_startup()\n"
+            "try:\n"
+            "    raise KeyboardInterrupt()\n"
+            "except KeyboardInterrupt:\n"
+            "    raise AttributeError('half-done clean-up')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130, proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr

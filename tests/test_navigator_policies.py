@@ -17,9 +17,10 @@ from hypothesis import strategies as st
 
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.episode import Episode, EpisodeConfig
+from fuzzynav.params.names import DEFAULT_POLICY
 from fuzzynav.planning.planner import PlannerConfig, find_new_path
 from fuzzynav.planning.tpt import build_tpt
-from fuzzynav.policies.base import Action, Observation
+from fuzzynav.policies.base import Action, Observation, registered_policies
 from fuzzynav.sensing.tracking import Track
 from tests.conftest import CONF, ROOT, load_controller, load_scenario, one_error_line
 
@@ -101,7 +102,7 @@ _VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10**9, 10**9), st.flo
                     st.text(max_size=12), st.lists(st.integers(), max_size=3))
 _KEYS = st.one_of(st.sampled_from(["policy", "_target_", "alpha_heading", "speed_cm_s", "static_near_cm",
                                    "smoothing_l", "reciprocity", "turn_samples", "margin_cm"]), st.text(max_size=8))
-_POLICIES = st.sampled_from(["fuzzy", "dwa", "apf", "vfh", "orca", "direct"])
+_POLICIES = st.sampled_from(sorted(registered_policies()))  # every one found, plug-ins included
 
 
 @settings(max_examples=300, deadline=None)
@@ -114,7 +115,7 @@ def test_any_navigator_section_is_read_or_refused_in_one_line(policy, extra):
         text = str(err)
         assert "\n" not in text and text.startswith(("navigator", "controller")), text
         return
-    assert ep.policy in ("fuzzy", "dwa", "apf", "vfh", "orca", "direct")
+    assert ep.policy in registered_policies()
 
 
 class _Returns:
@@ -199,7 +200,7 @@ def test_an_injected_policy_is_reset_with_the_episodes_seed():
     assert seen == [7]
 
 
-@pytest.mark.parametrize("policy", ["dwa", "apf", "vfh", "orca", "direct"])
+@pytest.mark.parametrize("policy", sorted(set(registered_policies()) - {DEFAULT_POLICY}))
 def test_each_baseline_is_deterministic_for_a_seed_in_a_whole_episode(policy):
     cfg = episode_config_from_dict({"navigator": {"policy": policy}, "planner": {"strategy": "none"}})
 

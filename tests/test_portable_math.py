@@ -117,9 +117,18 @@ def test_normal_stream_gives_the_same_values_whatever_the_request_sizes(sizes):
 # Everything called per step (sensors, tracking, fuzzy evaluation, TPT, planner, kinematics, contacts),
 # the scenario generators and the log writer. fuzzy_reference.py is scikit-fuzzy, used by tests and the
 # bench only; portable_math.py is where the replacements live.
-SIMULATION_PATH = [*sorted(p for p in (ROOT / "fuzzynav").glob("*.py")
+SIMULATION_PATH = [*sorted(p for p in (ROOT / "fuzzynav").rglob("*.py")  # every subpackage
                           if p.name not in {"portable_math.py", "fuzzy_reference.py"}),
-                   ROOT / "runners" / "mcap_log.py"]
+                   ROOT / "runners" / "logs" / "mcap_log.py"]
+
+
+def test_the_simulation_path_is_the_whole_simulator():
+    """The rule above reads every module of fuzzynav's subpackages (a flat glob would miss them)."""
+    names = {p.relative_to(ROOT / "fuzzynav").as_posix() for p in SIMULATION_PATH if p.is_relative_to(ROOT /
+    "fuzzynav")}
+    assert {"episode.py", "sensing/laser.py", "planning/tpt.py", "pedestrians/social_force.py",
+            "policies/dwa.py", "numerics/geometry.py", "scenarios/generators/crowds.py"} <= names
+    assert all(p.is_file() for p in SIMULATION_PATH)
 FORBIDDEN_NUMPY = {"sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "hypot", "sinh", "cosh", "tanh",
                    "exp", "exp2", "expm1", "log", "log2", "log10", "log1p", "power", "float_power", "cbrt",
                    "dot", "vdot", "inner", "outer", "matmul", "einsum", "tensordot", "linalg", "radians",

@@ -115,9 +115,19 @@ def register_obstacle_model(name: str) -> Callable[[ObstacleModelFactory], Obsta
     return add
 
 
+def registered_models() -> dict[str, ObstacleModelFactory]:
+    """Every registered obstacle model by name: fuzzynav's own and other packages' (their entry points)."""
+    _load_models()
+    return dict(MODELS)
+
+
+def _load_models() -> None:
+    load_plugins("fuzzynav.pedestrians", ENTRY_POINT_GROUP, lambda n, f: register_obstacle_model(n)(f), MODELS.get)
+
+
 def model_factory(name: Any, field: str) -> ObstacleModelFactory:
     """The factory of model ``name``; ``ValueError`` naming ``field`` for an unknown one."""
-    load_plugins("fuzzynav.pedestrians", ENTRY_POINT_GROUP, lambda n, f: register_obstacle_model(n)(f), MODELS.get)
+    _load_models()
     if not isinstance(name, str) or name not in MODELS:
         raise ValueError(f"{field}: unknown obstacle model {show(name)} (known: {', '.join(sorted(MODELS))})")
     return MODELS[name]
