@@ -10,9 +10,9 @@ Each raises :class:`CheckError` (:mod:`analysis.json_checks`) with the field and
   record; a ``config_hash`` that is a SHA-256 must be the hash of the config and seed (as ``runners.run``
   computes it), so a damaged or edited record is caught even in logs without a data-section CRC.
 * :func:`check_message` — per topic, the fields of a message that the analysis uses: present, of the JSON type
-  the topic's schema gives (``runners/logs/fuzzynav_schemas.py``, ``runners/logs/foxglove_schemas.py``; a test keeps the
-  two in agreement), finite, and in their documented range (cm quantities within ±``MAX_CM``, headings in
-  [0, 360] degrees, ...). Hand-written rather than jsonschema (a dev dependency only): 3-20 µs per message
+  the topic's schema gives (:mod:`analysis.log_format`; a test keeps the two in agreement), finite, and in their
+  documented range (cm quantities within ±``MAX_CM``, headings in [0, 360] degrees, ...). Hand-written rather
+  than jsonschema (a dev dependency only): 3-20 µs per message
   (:mod:`analysis.json_checks`), where jsonschema's validators take 0.2-1.5 ms, 60-160 times as long (measured
   on a paper_fig5 log), which would bring the analysis from above 50 to about 6 episodes/s.
 * :func:`analysis.episode_check.check_episode` — the messages together (its own module).

@@ -29,11 +29,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from analysis import report
+from analysis.log_format import FOXGLOVE_SCHEMAS, FUZZYNAV_SCHEMAS
 from analysis.logs import LogError, episode_summary
 from analysis.metrics import metrics_table
 from runners import replay
-from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.log_surgery import DROP, Twice, message_paths, rewrite
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 

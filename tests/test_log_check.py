@@ -14,10 +14,9 @@ from typing import Any
 import pytest
 
 from analysis.log_check import MESSAGE_CHECKS, TOPIC_SCHEMAS, CheckError, check_message, config_hash
+from analysis.log_format import FOXGLOVE_SCHEMAS, FUZZYNAV_SCHEMAS
 from analysis.logs import LogFile
 from analysis.mcap_verify import McapError, read_mcap
-from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.conftest import ROOT
 from tests.log_surgery import chunk_payloads, message_paths, record_offsets
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
