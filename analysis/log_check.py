@@ -9,12 +9,14 @@ Each raises :class:`CheckError` (:mod:`analysis.json_checks`) with the field and
   bombs) whose step length ``dt`` (s) is positive, and whose copies of the shown parameters agree with the
   record; a ``config_hash`` that is a SHA-256 must be the hash of the config and seed (as ``runners.run``
   computes it), so a damaged or edited record is caught even in logs without a data-section CRC.
-* :func:`check_message` — per topic, the fields of a message that the analysis uses: present, of the JSON type
-  the topic's schema gives (``runners/logs/fuzzynav_schemas.py``, ``runners/logs/foxglove_schemas.py``; a test keeps the
-  two in agreement), finite, and in their documented range (cm quantities within ±``MAX_CM``, headings in
-  [0, 360] degrees, ...). Hand-written rather than jsonschema (a dev dependency only): 3-20 µs per message
-  (:mod:`analysis.json_checks`), where jsonschema's validators take 0.2-1.5 ms, 60-160 times as long (measured
-  on a paper_fig5 log), which would bring the analysis from above 50 to about 6 episodes/s.
+* :func:`check_message` — per topic, the fields of a message that the analysis reads (:data:`READ`): present, of
+  the JSON type the topic's schema gives (:mod:`analysis.log_format`, the schemas the writer embeds in every log),
+  finite, and in their range (:data:`RANGES`: cm quantities within ±``MAX_CM``, headings in [0, 360] degrees,
+  ...). The checks are built from the schemas at import (:mod:`analysis.schema_checks`: JSON type -> rule of
+  :mod:`analysis.json_checks`), not validated with jsonschema (a dev dependency only): 3-20 µs per message, where
+  jsonschema's validators take 0.2-1.5 ms, 60-160 times as long (measured on a paper_fig5 log), which would bring
+  the analysis from above 50 to about 6 episodes/s. What the schema describes and the analysis does not read is
+  :data:`UNREAD`; what the schema requires and the analysis takes as optional, :data:`LENIENT`.
 * :func:`analysis.episode_check.check_episode` — the messages together (its own module).
 """
 
@@ -39,28 +41,19 @@ from analysis.json_checks import (
     are_points,
     are_tables,
     array,
-    boolean,
-    boolean_rows,
-    integer,
     kind_of,
-    matching,
-    nullable,
     number,
-    numbers,
-    obj,
-    one_of,
-    point_rows,
-    points,
-    string,
     with_batch,
 )
+from analysis.log_format import SCHEMAS, TOPICS
+from analysis.schema_checks import Ranges, build_check, field_paths
 from fuzzynav.episode_identity import POLICY_SOURCE, config_hash  # what runners.run records: one definition
 from fuzzynav.params import limits
 from fuzzynav.params import names as policy_names
 from fuzzynav.params.names import DEFAULT_POLICY
 
-__all__ = ["MESSAGE_CHECKS", "TOPIC_SCHEMAS", "CheckError", "check_message", "check_metadata", "config_hash",
-           "messages_acceptable"]
+__all__ = ["LENIENT", "MESSAGE_CHECKS", "RANGES", "READ", "TOPIC_SCHEMAS", "UNREAD", "CheckError", "check_message",
+           "check_metadata", "config_hash", "messages_acceptable"]
 
 MAX_US = 1e12  # compute time of one decision (µs): 11 days
 MIN_DT_S, MAX_DT_S = limits.MIN_DT_S, limits.MAX_DT_S  # the step lengths (s) a run accepts: one definition
@@ -70,23 +63,81 @@ NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}")  # safe as a label and a
 MAX_SEED = 2**53 - 1  # the analysis's tables hold seeds as float64: larger ones would merge
 STRATEGIES = ("auto", "wait", "detour", "none")
 PERCEPTIONS = ("laser", "ground_truth")
-OUTCOMES = ("goal", "collision", "timeout", "error", "interrupted")
 FINISHED = ("goal", "collision", "timeout")  # outcomes whose log must hold every step
-MODE = policy_names.NAME  # a plan's (wait, detour, evade, stop) or the policy's own mode: one definition
-PLAN_STRATEGIES = ("wait", "detour", "evade", "stop")
 TIME_TOLERANCE_NS = 1000  # log times are round(step * dt * 1e9): 1 µs of slack for the float product
 YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
-CM, SPEED = number(), number()
-POSITIVE_CM = number(1e-9, MAX_CM)
-READING = number(0.0, MAX_CM)
-HEADING = number(0.0, 360.0)
-STEP = integer()
-_POINT = obj(x=number(-MAX_CM / 100, MAX_CM / 100), y=number(-MAX_CM / 100, MAX_CM / 100))  # m
+POSITIVE_CM = number(1e-9, MAX_CM)  # a radius (episode_check's too)
+MAX_M = MAX_CM / 100  # the Foxglove topics' lengths are metres
 
-_TPT_SCALARS = obj(step=STEP, n_traj=integer(1, 1_000_000), dt_s=number(MIN_DT_S, MAX_DT_S),
-                   robot_radius_cm=POSITIVE_CM, obstacle_ids=array(integer()), obstacle_radii_cm=numbers(0.0))
-_TPT_TABLES = obj(robot_cm=points(1), obstacles_cm=point_rows(1), collide=boolean_rows(1))
+READ: dict[str, tuple[str, ...]] = {
+    "/robot/state": ("step", "x_cm", "y_cm", "heading_deg", "v_cm_s", "next_x_cm", "next_y_cm", "next_heading_deg",
+                     "radius_cm", "contact_static", "contact_dynamic", "distance_to_goal_cm"),
+    "/obstacles/truth": ("step", *(f"obstacles.{name}" for name in ("id", "x_cm", "y_cm", "next_x_cm", "next_y_cm",
+                                                                     "radius_cm", "vx_cm_s", "vy_cm_s"))),
+    "/planner/decision": ("step", "mode", "new_plan", "left_cm", "front_cm", "right_cm", "angle_deg", "dtheta_deg",
+                          "v_cm_s", "strategy", *(f"planning.{name}" for name in ("strategy", "tc", "tS", "tG",
+                                                                                    "wait_time", "h_wait", "reason")),
+                          "compute_time_us"),
+    "/tpt": ("step", "n_traj", "dt_s", "robot_radius_cm", "obstacle_ids", "obstacle_radii_cm", "robot_cm",
+             "obstacles_cm", "collide"),
+    "/episode": ("outcome", "steps", "time_s", "contacts", "reason"),
+    "/tracks": ("step", "moving_beams", *(f"tracks.{name}" for name in ("id", "x_cm", "y_cm", "vx_cm_s", "vy_cm_s",
+                                                                       "radius_cm"))),
+    "/sonar": ("step", "left_cm", "front_cm", "right_cm"),
+    "/laser": ("ranges", "intensities"),
+    "/log": ("level", "message"),
+    # the first /scene: walls, static obstacles and goal (foxglove.SceneUpdate, metres)
+    "/scene": ("entities.id", "entities.lines.points.x", "entities.lines.points.y",
+               "entities.cylinders.pose.position.x", "entities.cylinders.pose.position.y", "entities.cylinders.size.x"),
+}
+"""Per topic, the fields the analysis reads (metrics, episode loading, replay, rendering), dotted, arrays
+transparent: each is demanded and checked as its schema (:mod:`analysis.log_format`) types it, within
+:data:`RANGES`. The schema's other fields (:data:`UNREAD`) and fields it does not describe are not read, so not
+checked; a field read that the schema does not describe or require is an error at import."""
+
+LENIENT = {"/planner/decision": ("policy", "policy_fields")}
+"""Fields the schema requires that the analysis takes as optional: logs written before policies could be chosen
+have neither (:func:`_check_decision` checks them when present)."""
+
+RANGES = Ranges(
+    numbers=[
+        # Foxglove topics: metres
+        (r"^/laser ranges\[\]$", 0.0, MAX_M),
+        (r"^/laser intensities\[\]$", 0.0, MAX_CM),
+        (r"^/scene .*\.size\.[xyz]$", 0.0, MAX_M),
+        (r"^/scene ", -MAX_M, MAX_M),
+        # fuzzynav topics: units in the names
+        (r"(^| |\.|_)radius_cm$", 1e-9, MAX_CM),  # a disc's radius is positive
+        (r"_radii_cm\[\]$", 0.0, MAX_CM),
+        (r" (left|front|right|distance_to_goal)_cm$", 0.0, MAX_CM),  # sonar readings and distances
+        (r"^/planner/decision v_cm_s$", 0.0, MAX_CM),  # the commanded speed
+        (r"heading_deg$", 0.0, 360.0),
+        (r"^/planner/decision angle_deg$", 0.0, 180.0),  # the included angle
+        (r" dt_s$", MIN_DT_S, MAX_DT_S),
+        (r"(_us| time_s)$", 0.0, MAX_US),
+        (r"_(cm|cm_s|deg)(\[\])*$", -MAX_CM, MAX_CM),  # positions, velocities, the steering increment
+    ],
+    integers=[(r" n_traj$", 1, 1_000_000), (r" moving_beams\[\]$", 0, 2**31)],  # others: [0, 2**63 - 1]
+    min_items=[(r"^/laser ranges$", 1), (r"^/tpt (robot_cm|obstacles_cm|collide)$", 1)])
+"""The ranges of the numbers read (finite, and within what the quantity can be; cm quantities within
+±``MAX_CM``), of the integers (and the schema's minimum; steps, counts and ids are not negative), and the least
+lengths of arrays, by ``"<topic> <path>"`` (:class:`analysis.schema_checks.Ranges`)."""
+
+
+def _derived(topic: str, paths: tuple[str, ...]) -> Check:
+    return build_check(topic, SCHEMAS[TOPICS[topic]](), paths, RANGES)
+
+
+def _enum(schema: dict, field: str) -> tuple[str, ...]:
+    return tuple(schema["properties"][field]["enum"])
+
+
+OUTCOMES = _enum(SCHEMAS["fuzzynav.Episode"](), "outcome")
+PLAN_STRATEGIES = _enum(SCHEMAS["fuzzynav.Decision"]()["properties"]["planning"]["oneOf"][0], "strategy")
+
+_TPT_SCALARS = _derived("/tpt", READ["/tpt"][:6])
+_TPT_TABLES = _derived("/tpt", READ["/tpt"][6:])
 
 
 def check_tpt(v: Any) -> None:
@@ -137,13 +188,7 @@ def _all_lists(values: list[Any]) -> bool:
 
 with_batch(check_tpt, _tpts_acceptable)
 
-_DECISION = obj(
-    step=STEP, mode=matching(MODE, "a mode such as fuzzy or wait"), new_plan=boolean, left_cm=READING,
-    front_cm=READING, right_cm=READING,
-    angle_deg=number(0.0, 180.0), dtheta_deg=number(), v_cm_s=READING, strategy=string,
-    planning=nullable(obj(strategy=one_of(*PLAN_STRATEGIES), tc=STEP, tS=STEP, tG=STEP, wait_time=STEP,
-                          h_wait=STEP, reason=string)),
-    compute_time_us=number(0.0, MAX_US))
+_DECISION = _derived("/planner/decision", READ["/planner/decision"])
 
 
 def _check_decision(v: Any) -> None:
@@ -183,32 +228,25 @@ def _decisions_acceptable(vs: list[Any]) -> bool:
 with_batch(_check_decision, _decisions_acceptable)
 
 
-MESSAGE_CHECKS: dict[str, Check] = {
-    "/robot/state": obj(step=STEP, x_cm=CM, y_cm=CM, heading_deg=HEADING, v_cm_s=SPEED, next_x_cm=CM,
-                        next_y_cm=CM, next_heading_deg=HEADING, radius_cm=POSITIVE_CM, contact_static=boolean,
-                        contact_dynamic=array(string), distance_to_goal_cm=READING),
-    "/obstacles/truth": obj(step=STEP, obstacles=array(obj(id=string, x_cm=CM, y_cm=CM, next_x_cm=CM, next_y_cm=CM,
-                                                           radius_cm=POSITIVE_CM, vx_cm_s=SPEED, vy_cm_s=SPEED))),
-    "/planner/decision": _check_decision,
-    "/tpt": check_tpt,
-    "/episode": obj(outcome=one_of(*OUTCOMES), steps=STEP, time_s=number(0.0, MAX_US), contacts=STEP,
-                    reason=string),
-    "/tracks": obj(step=STEP, moving_beams=array(integer(0, 2**31)), tracks=array(obj(
-        id=integer(), x_cm=CM, y_cm=CM, vx_cm_s=SPEED, vy_cm_s=SPEED, radius_cm=POSITIVE_CM))),
-    "/sonar": obj(step=STEP, left_cm=READING, front_cm=READING, right_cm=READING),
-    "/laser": obj(ranges=numbers(0.0, MAX_CM / 100, min_items=1), intensities=numbers(0.0, MAX_CM)),
-    "/log": obj(level=integer(), message=string),
-    # the first /scene: walls, static obstacles and goal (foxglove.SceneUpdate, metres)
-    "/scene": obj(entities=array(obj(
-        id=string, lines=array(obj(points=array(_POINT))),
-        cylinders=array(obj(pose=obj(position=_POINT), size=obj(x=number(0.0, MAX_CM / 100))))))),
-}
-"""Per topic, the fields the analysis reads (metrics, episode loading, replay, rendering)."""
+MESSAGE_CHECKS: dict[str, Check] = {topic: _derived(topic, paths) for topic, paths in READ.items()}
+MESSAGE_CHECKS.update({"/planner/decision": _check_decision, "/tpt": check_tpt})
+"""Per topic, the check of a message: :data:`READ`'s fields as the schema types them, within :data:`RANGES`; the
+TPT's shape and the decision's policy besides."""
 
-TOPIC_SCHEMAS = {"/scene": "foxglove.SceneUpdate", "/laser": "foxglove.LaserScan", "/log": "foxglove.Log",
-                 "/sonar": "fuzzynav.Sonar", "/tracks": "fuzzynav.Tracks", "/robot/state": "fuzzynav.RobotState",
-                 "/obstacles/truth": "fuzzynav.ObstaclesTruth", "/tpt": "fuzzynav.TPT",
-                 "/planner/decision": "fuzzynav.Decision", "/episode": "fuzzynav.Episode"}
+
+
+def _unread(topic: str) -> tuple[str, ...]:
+    read = (*READ[topic], *LENIENT.get(topic, ()))
+    unread = [p for p in field_paths(SCHEMAS[TOPICS[topic]]())
+              if not any(p == r or p.startswith(f"{r}.") or r.startswith(f"{p}.") for r in read)]
+    return tuple(p for p in unread if not any(p.startswith(f"{q}.") for q in unread))
+
+
+UNREAD = {topic: _unread(topic) for topic in READ}
+"""Per topic, the fields its schema describes that the analysis does not read, so does not check (a field
+named here is not read at any depth)."""
+
+TOPIC_SCHEMAS = {topic: TOPICS[topic] for topic in READ}
 """The schema each topic read must declare (a JSON schema of this name; fuzzynav's writer declares every one)."""
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-from runners.logs.mcap_log import SCHEMAS, TOPICS
+from analysis.log_format import SCHEMAS, TOPICS
 
 GOAL = (500.0, 500.0)
 

@@ -29,11 +29,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from analysis import report
+from analysis.log_format import SCHEMAS, TOPICS
 from analysis.logs import LogError, episode_summary
 from analysis.metrics import metrics_table
 from runners import replay
-from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.log_surgery import DROP, Twice, message_paths, rewrite
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
@@ -266,11 +265,6 @@ def test_bad_metadata_is_refused(baselines, tmp_path, data):
 
 
 # -- message mutations ----------------------------------------------------------------------------------------
-TOPICS = {"/robot/state": "fuzzynav.RobotState", "/obstacles/truth": "fuzzynav.ObstaclesTruth",
-          "/planner/decision": "fuzzynav.Decision", "/tpt": "fuzzynav.TPT", "/episode": "fuzzynav.Episode",
-          "/scene": "foxglove.SceneUpdate", "/sonar": "fuzzynav.Sonar", "/tracks": "fuzzynav.Tracks",
-          "/laser": "foxglove.LaserScan", "/log": "foxglove.Log", "/robot/pose": "foxglove.PoseInFrame"}
-SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
 _BY_TYPE = {"string": "abc", "number": 1.5, "integer": 7, "boolean": True, "array": [1.5], "object": {"x": 1},
             "null": None}
 # arrays whose length another array or the schema ties down: dropping an item makes the message inconsistent

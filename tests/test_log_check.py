@@ -1,6 +1,6 @@
-"""The hand-written log checks agree with the JSON schemas the logs embed, and with the writer: every field they
-demand is one the schema requires, of the schema's type; the config hash is the one ``runners.run`` computes; the
-verified reader reads a truncated log up to its last whole record and refuses damage in a closed one."""
+"""The log checks (built from the schemas) agree with the JSON schemas the logs embed, and with the writer: every
+field they demand is one the schema requires, of the schema's type; the config hash is the one ``runners.run``
+computes; the verified reader reads a truncated log up to its last whole record and refuses damage in a closed one."""
 
 from __future__ import annotations
 
@@ -14,15 +14,13 @@ from typing import Any
 import pytest
 
 from analysis.log_check import MESSAGE_CHECKS, TOPIC_SCHEMAS, CheckError, check_message, config_hash
+from analysis.log_format import SCHEMAS
 from analysis.logs import LogFile
 from analysis.mcap_verify import McapError, read_mcap
-from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 from tests.conftest import ROOT
 from tests.log_surgery import chunk_payloads, message_paths, record_offsets
 from tests.valid_logs import recorded_logs  # noqa: F401 - the session fixture
 
-SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
 OTHER_TYPE = {"number": "text", "integer": "text", "string": 1.5, "boolean": 1, "array": {}, "object": []}
 
 

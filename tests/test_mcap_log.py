@@ -11,11 +11,10 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
+from analysis.log_format import FOXGLOVE_SCHEMAS, TOPICS
 from analysis.logs import episode_summary, is_complete, iter_messages, read_metadata
 from fuzzynav.config import episode_config_from_dict
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
-from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.logs.mcap_log import TOPICS
 from runners.run import run_episode
 from tests.conftest import ROOT, load_controller, load_scenario
 

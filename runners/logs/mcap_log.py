@@ -3,7 +3,8 @@
 One file per episode, written with the Foxglove SDK's MCAP writer (Rust: per message about half the time of
 the pure-Python ``mcap`` writer, which the analysis uses to read) on channels of a context of our own, so one
 log is open at a time per process. Foxglove topics use metres and radians (true scale in the 3D panel);
-fuzzynav topics use cm, cm/s and degrees (said in their field names). See ``TOPICS`` and the schema modules.
+fuzzynav topics use cm, cm/s and degrees (said in their field names). The topics and their schemas:
+:mod:`analysis.log_format` (the one definition of the log format, which the analysis's checks come from).
 
 Messages are deterministic: the same config and seed give the same bytes, except the ``compute_time_us``
 field of ``/planner/decision``. Log time is simulation time (step * dt) in nanoseconds from 0. Messages are
@@ -30,27 +31,12 @@ import orjson
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from mcap.reader import make_reader
 
+from analysis.log_format import SCHEMAS, TOPICS
 from fuzzynav.episode import Episode, StepRecord
 from fuzzynav.numerics.portable_math import dist
 from fuzzynav.params.names import DEFAULT_MODEL
 from runners.logs.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
-from runners.logs.foxglove_schemas import FOXGLOVE_SCHEMAS
-from runners.logs.fuzzynav_schemas import FUZZYNAV_SCHEMAS
 
-TOPICS = {
-    "/scene": "foxglove.SceneUpdate",
-    "/robot/pose": "foxglove.PoseInFrame",
-    "/laser": "foxglove.LaserScan",
-    "/log": "foxglove.Log",
-    "/sonar": "fuzzynav.Sonar",
-    "/tracks": "fuzzynav.Tracks",
-    "/obstacles/truth": "fuzzynav.ObstaclesTruth",
-    "/robot/state": "fuzzynav.RobotState",
-    "/tpt": "fuzzynav.TPT",
-    "/planner/decision": "fuzzynav.Decision",
-    "/episode": "fuzzynav.Episode",
-}
-SCHEMAS = {**FOXGLOVE_SCHEMAS, **FUZZYNAV_SCHEMAS}
 RUN_METADATA = "fuzzynav.run"
 LOG_INFO, LOG_WARNING, LOG_ERROR = 2, 3, 4
 CHUNK_BYTES = 32 * 1024  # small chunks: a killed run loses at most the last ~32 KB of messages

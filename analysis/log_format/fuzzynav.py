@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from runners.logs.foxglove_schemas import time_schema
+from analysis.log_format.foxglove import time_schema
 
 
 def _n(desc: str) -> dict:
