@@ -195,6 +195,10 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
 
     ``on_config`` is called with the first composed config, Hydra's node included (the sweep uses it to start
     its worker processes while the rest is checked and Hydra starts)."""
+    try:  # other packages' config folders: a broken entry point is one line here, not a traceback inside Hydra
+        config_plugins.plugin_config_dirs()
+    except config_plugins.PluginConfigError as err:
+        return f"config: {err}"
     overrides = [a for a in args if not a.startswith("-")]
     parser = OverridesParser.create()
     try:
