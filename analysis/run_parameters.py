@@ -34,6 +34,8 @@ from typing import Any
 
 import yaml
 
+from fuzzynav.episode_identity import POLICY_SOURCE
+
 EPISODE_PARAMETERS = ("scenario", "policy", "strategy", "h_wait", "seed", "controller", "perception")
 """Columns of every per-episode table, in this order (from the metadata; ``seed`` says which episode)."""
 SHOWN = ("scenario", "policy", "strategy", "h_wait", "controller", "perception")
@@ -78,8 +80,9 @@ def is_success(outcome: str | None, contacts: float | None, time_to_goal_s: floa
 
 
 def is_provenance(key: str) -> bool:
-    """Metadata keys that say which code wrote the log (versions, git commit)."""
-    return key in ("fuzzynav_version", "git_commit") or key.endswith("_version")
+    """Metadata keys that say which code wrote the log (versions, git commit, the digest of a plug-in's source):
+    logs that differ in one are never pooled."""
+    return key in ("fuzzynav_version", "git_commit", POLICY_SOURCE) or key.endswith("_version")
 
 
 def _flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -16,8 +16,11 @@ is therefore one module (plus its YAML); no list in fuzzynav names it.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import inspect
 import pkgutil
+import sys
 from collections.abc import Callable
 from importlib import metadata
 from types import ModuleType
@@ -26,9 +29,28 @@ from typing import Any
 _LOADED: set[tuple[str, str]] = set()
 
 
-def _one_line(err: BaseException) -> str:
+def _one_line(err: BaseException, with_type: bool = True) -> str:
     text = " ".join(str(err).split())[:200]
+    if not with_type:
+        return text or type(err).__name__
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def source_digest(obj: Any) -> str:
+    """SHA-256 of the source file of the module that defines plug-in ``obj`` ('' for fuzzynav's own, whose code the
+    fuzzynav version identifies, and for a module without a readable source file): part of an episode's identity,
+    so that a resumed sweep re-runs the episodes of a plug-in whose code changed instead of keeping their logs."""
+    name = getattr(obj, "__module__", None)
+    if not isinstance(name, str) or name == "fuzzynav" or name.startswith("fuzzynav."):
+        return ""
+    module = sys.modules.get(name)
+    try:
+        source = inspect.getsourcefile(module) if module is not None else None
+        with open(source, "rb") as f:  # type: ignore[arg-type]
+            data = f.read()
+    except (OSError, TypeError):
+        return ""
+    return hashlib.sha256(data).hexdigest() if data else ""
 
 
 def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
@@ -47,14 +69,21 @@ def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
             if not info.name.startswith("_"):
                 importlib.import_module(f"{package}.{info.name}")
         for entry in metadata.entry_points(group=group):
+            where = f"entry point {entry.name[:40]!r} of group {group!r} ({entry.value[:80]})"
             try:
                 obj = entry.load()
-            except Exception as err:  # another package's code: any failure is that plug-in's error
-                raise ValueError(f"entry point {entry.name!r} of group {group!r} ({entry.value}): loading it "
-                                 f"failed: {_one_line(err)}") from None
+            except KeyboardInterrupt:
+                raise
+            except BaseException as err:  # another package's code (SystemExit included): that plug-in's error
+                raise ValueError(f"{where}: loading it failed: {_one_line(err)}") from None
             if isinstance(obj, ModuleType) or registered(entry.name) is obj:
                 continue
-            register(entry.name, obj)
+            if not callable(obj):
+                raise ValueError(f"{where}: names {type(obj).__name__}, not a factory or a module")
+            try:
+                register(entry.name, obj)
+            except ValueError as err:  # a bad or taken name, a config_class that is not a dataclass
+                raise ValueError(f"{where}: {_one_line(err, with_type=False)}") from None
     except BaseException:
         _LOADED.discard(key)  # a later lookup tries again and reports the same error
         raise

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
 import logging
 import os
 import signal
@@ -35,6 +36,7 @@ from fuzzynav.conf import CONF_DIR
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params.names import DEFAULT_POLICY
+from fuzzynav.pedestrians.base import model_source_digest
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.scenario import Scenario
 from runners.configuration import plugins as config_plugins
@@ -98,11 +100,24 @@ def scenario_yaml(scenario: Scenario) -> str:
     return yaml_text.dump(scenario_data(scenario))
 
 
+def code_source(policy: str, scenario: Scenario) -> str:
+    """The digest of the code outside fuzzynav that an episode runs (part of its identity, recorded as
+    ``policy_source_sha256``): the policy's source (:func:`fuzzynav.policies.base.policy_source_digest`), combined
+    with the sources of the other packages' pedestrian models its scenario uses; '' when it runs fuzzynav's code
+    only. A resumed sweep thus re-runs the episodes whose plug-ins changed instead of keeping their old logs."""
+    policy_digest = policy_source_digest(policy)
+    models = sorted({d.model for d in scenario.dynamic_obstacles if d.model})
+    parts = [f"{name}={digest}" for name in models if (digest := model_source_digest(name))]
+    if not parts:
+        return policy_digest
+    return hashlib.sha256(";".join([f"policy={policy_digest}", *parts]).encode()).hexdigest()
+
+
 def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
                      config_yaml: str, digest: str = "") -> dict[str, str]:
     """The ``fuzzynav.run`` metadata of an episode's log (also written by the Gymnasium environment's
     ``runners.gym_log.RecordMcap``, so that both logs are the same)."""
-    source = policy_source_digest(ep_cfg.policy)
+    source = code_source(ep_cfg.policy, scenario)
     return run_metadata(config_yaml, seed, scenario.name, {
         "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
         "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
@@ -191,10 +206,10 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
         out_dir = Path(runtime.output_dir)
         config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
         version = provenance()["fuzzynav_version"]
-        source = policy_source_digest(ep_cfg.policy)  # a _target_ policy's code is part of its episodes' identity
         for seed in seeds:
             stop.check_between_episodes()
             scenario = inputs.scenarios[seed]
+            source = code_source(ep_cfg.policy, scenario)  # plug-ins' code is part of their episodes' identity
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
             key = episode_identity.episode_key(config_yaml, seed, version, source)  # whatever the seed batching

@@ -46,3 +46,62 @@ def test_a_broken_entry_point_is_one_line(group, command, tmp_path):
     assert "Traceback" not in proc.stderr and len(lines) == 1, proc.stderr[-2000:]
     assert "entry point 'broken'" in lines[0] and group in lines[0], lines[0]
     assert not (ROOT / "outputs").exists() or not any((ROOT / "outputs").rglob(tmp_path.name))
+
+
+def _package_with_module(tmp_path: Path, entry_points: str, module: str) -> dict[str, str]:
+    site = tmp_path / "site"
+    info = site / "hplug-0.1.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hplug\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(entry_points)
+    (site / "hplug_mod.py").write_text(module)
+    return {**os.environ, "PYTHONPATH": str(site)}
+
+
+@pytest.mark.parametrize("module, entry, says", [
+    ("raise SystemExit(0)\n", "evil = hplug_mod:P", "loading it failed: SystemExit"),
+    ("class E(BaseException):\n    pass\nraise E('custom')\n", "evil = hplug_mod:P", "loading it failed: E: custom"),
+    ("P = 42\n", "evil = hplug_mod:P", "names int, not a factory"),
+    ("class P:\n    config_class = dict\n", "evil = hplug_mod:P", "config_class must be a dataclass"),
+    ("class P:\n    pass\n", "Upper = hplug_mod:P", "expected a lowercase letter"),
+    ("class P:\n    pass\n", "dwa = hplug_mod:P", "'dwa' is already registered"),
+])
+def test_a_bad_policy_plug_in_is_one_line_naming_its_entry_point(tmp_path, module, entry, says):
+    env = _package_with_module(tmp_path, f"[fuzzynav.policies]\n{entry}\n", module)
+    for args in (["-m", "runners.run", "navigator=dwa", f"hydra.run.dir={tmp_path / 'run'}"],
+                 ["-m", "fuzzynav.policies"]):
+        proc = subprocess.run([sys.executable, *args], cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=300, stdin=subprocess.DEVNULL)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2 and len(lines) == 1, (args, proc.returncode, proc.stderr[-2000:])
+        assert "entry point" in lines[0] and says in lines[0], lines[0]
+
+
+def test_resume_reruns_the_episodes_of_a_plug_in_whose_code_changed(tmp_path):
+    """The code of another package's policy is part of its episodes' identity, as a ``_target_`` policy's is: a
+    resumed sweep after the code changed runs them again instead of keeping logs of the old code."""
+    from analysis.episode_log import load_episode
+
+    module = ("from fuzzynav.policies.base import Action\nSPEED = 10.0\n\n\nclass Slow:\n    name = 'slowpol'\n\n"
+              "    def __init__(self, params, context):\n        pass\n\n    def reset(self, seed):\n        pass\n\n"
+              "    def act(self, observation):\n        return Action('slow', 0.0, SPEED, {})\n")
+    env = _package_with_module(tmp_path, "[fuzzynav.policies]\nslowpol = hplug_mod:Slow\n", module)
+    sweep = tmp_path / "sweep"
+    args = [sys.executable, "-m", "runners.sweep", "sweep=quick", "scenario=head_on", "planner=none",
+            "navigator=direct", "navigator.policy=slowpol", "episodes=1", f"hydra.sweep.dir={sweep}"]
+
+    def speeds() -> set[float]:
+        (log,) = [p for p in sweep.rglob("*.mcap")  # not the copy a resume set aside
+                  if not {".fuzzynav", "earlier"} & set(p.relative_to(sweep).parts)]
+        return {d["v_cm_s"] for d in load_episode(log).decisions}
+
+    subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300, check=True)
+    assert speeds() == {10.0}
+    (tmp_path / "site" / "hplug_mod.py").write_text(module.replace("SPEED = 10.0", "SPEED = 30.0"))
+    resumed = subprocess.run([*args, "resume=true"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                             timeout=300, check=True)
+    assert speeds() == {30.0}
+    # the old code's log is set aside in the sweep directory; counted with the new code's, it is named as written by
+    # different code (as logs of two fuzzynav versions are), and --split-provenance keeps them apart
+    out = resumed.stdout + resumed.stderr
+    assert "written by different code" in out and "policy_source_sha256" in out, out[-2000:]

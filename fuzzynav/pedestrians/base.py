@@ -32,7 +32,7 @@ import numpy as np
 from fuzzynav.numerics.portable_math import sin_cos_deg
 from fuzzynav.params.checks import check_key, key_text, show
 from fuzzynav.params.names import NAME
-from fuzzynav.registry import load_plugins
+from fuzzynav.registry import load_plugins, source_digest
 
 if TYPE_CHECKING:
     from fuzzynav.kinematics import RobotState
@@ -119,6 +119,13 @@ def registered_models() -> dict[str, ObstacleModelFactory]:
     """Every registered obstacle model by name: fuzzynav's own and other packages' (their entry points)."""
     _load_models()
     return dict(MODELS)
+
+
+def model_source_digest(name: str) -> str:
+    """SHA-256 of the source of model ``name``'s module when another package registered it ('' for fuzzynav's own
+    and for unknown names): part of the identity of the episodes whose scenario uses it."""
+    _load_models()
+    return source_digest(MODELS[name]) if name in MODELS else ""
 
 
 def _load_models() -> None:

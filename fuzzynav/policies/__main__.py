@@ -4,6 +4,7 @@ parameters' defaults and documented ranges, as Markdown tables (the ``navigator`
 from __future__ import annotations
 
 import dataclasses
+import sys
 
 from fuzzynav.params.limits import declared_ranges, range_table
 from fuzzynav.policies.base import registered_policies
@@ -26,4 +27,8 @@ def policy_tables() -> str:
 
 
 if __name__ == "__main__":
-    print(policy_tables())
+    try:
+        print(policy_tables())
+    except ValueError as err:  # a broken plug-in of another package: one line naming its entry point
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)

@@ -49,7 +49,7 @@ import numpy as np
 from fuzzynav.kinematics import RobotLimits, RobotState
 from fuzzynav.params.names import AGENT, DEFAULT_POLICY, IMPORT_PATH, NAME
 from fuzzynav.params.parsing import from_dict
-from fuzzynav.registry import load_plugins
+from fuzzynav.registry import load_plugins, source_digest
 from fuzzynav.sensing.tracking import Track
 
 
@@ -115,10 +115,16 @@ def register_policy(name: str) -> Callable[[PolicyFactory], PolicyFactory]:
     may carry ``config_class``, the frozen dataclass of its parameters (checked when a configuration is read)."""
 
     def add(factory: PolicyFactory) -> PolicyFactory:
-        if not NAME.fullmatch(name) or name == AGENT:
-            raise ValueError(f"policy name {name!r}: lowercase letters, digits and _, not {AGENT!r} (reserved)")
+        if not isinstance(name, str) or not NAME.fullmatch(name):
+            raise ValueError(f"policy name {str(name)[:40]!r}: expected a lowercase letter, then up to 31 lowercase "
+                             "letters, digits or _")
+        if name == AGENT:
+            raise ValueError(f"policy name {AGENT!r} is reserved (the commands of a Gymnasium agent)")
         if name in POLICIES and POLICIES[name] is not factory:
-            raise ValueError(f"policy {name!r} is already registered ({POLICIES[name]!r})")
+            raise ValueError(f"policy {name!r} is already registered ({POLICIES[name]!r:.80})")
+        config_class = getattr(factory, "config_class", None)
+        if config_class is not None and not (isinstance(config_class, type) and dataclasses.is_dataclass(config_class)):
+            raise ValueError(f"policy {name!r}: config_class must be a dataclass, got {config_class!r:.60}")
         POLICIES[name] = factory
         return factory
 
@@ -167,10 +173,13 @@ def policy_factory(name: str) -> PolicyFactory:
 
 
 def policy_source_digest(name: str) -> str:
-    """SHA-256 of the source file of a ``_target_`` policy's module ('' for fuzzynav's own, whose code the
-    fuzzynav version identifies, and for a module without a source file): part of an episode's identity, so that
-    a resumed sweep re-runs the episodes of a policy whose code changed instead of keeping their old logs."""
-    if name in POLICIES or not IMPORT_PATH.fullmatch(name):
+    """SHA-256 of the source file of a policy's module when the policy is not fuzzynav's own: a ``_target_``
+    policy's, or one registered by another package ('' for fuzzynav's own, whose code the fuzzynav version
+    identifies, and for a module without a source file). Part of an episode's identity, so that a resumed sweep
+    re-runs the episodes of a policy whose code changed instead of keeping their old logs."""
+    if name in POLICIES:
+        return source_digest(POLICIES[name])
+    if not IMPORT_PATH.fullmatch(name):
         return ""
     module = importlib.import_module(name.rpartition(".")[0])  # imported already, by policy_factory
     try:
