@@ -29,7 +29,8 @@ from typing import Any
 _LOADED: set[tuple[str, str]] = set()
 
 
-def _one_line(err: BaseException, with_type: bool = True) -> str:
+def one_line(err: BaseException, with_type: bool = True) -> str:
+    """An exception as one short line (a plug-in, like any user code, may raise anything, with any message)."""
     text = " ".join(str(err).split())[:200]
     if not with_type:
         return text or type(err).__name__
@@ -75,7 +76,7 @@ def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
             except KeyboardInterrupt:
                 raise
             except BaseException as err:  # another package's code (SystemExit included): that plug-in's error
-                raise ValueError(f"{where}: loading it failed: {_one_line(err)}") from None
+                raise ValueError(f"{where}: loading it failed: {one_line(err)}") from None
             if isinstance(obj, ModuleType) or registered(entry.name) is obj:
                 continue
             if not callable(obj):
@@ -83,7 +84,7 @@ def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
             try:
                 register(entry.name, obj)
             except ValueError as err:  # a bad or taken name, a config_class that is not a dataclass
-                raise ValueError(f"{where}: {_one_line(err, with_type=False)}") from None
+                raise ValueError(f"{where}: {one_line(err, with_type=False)}") from None
     except BaseException:
         _LOADED.discard(key)  # a later lookup tries again and reports the same error
         raise

@@ -43,8 +43,9 @@ from fuzzynav.planning.planner import (
     plan_heading_change,
 )
 from fuzzynav.planning.tpt import TrajectoryPredictionTable, build_tpt
-from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy, one_line
+from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, make_policy
 from fuzzynav.policies.fuzzy import FuzzyPolicyConfig, included_angle_deg
+from fuzzynav.registry import one_line
 
 PLAN_MODES = ("wait", "detour", "evade", "stop")
 """The modes of a step that follows a plan of the wait/detour layer; any other mode is the policy's own."""

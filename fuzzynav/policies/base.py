@@ -49,7 +49,7 @@ import numpy as np
 from fuzzynav.kinematics import RobotLimits, RobotState
 from fuzzynav.params.names import AGENT, DEFAULT_POLICY, IMPORT_PATH, NAME
 from fuzzynav.params.parsing import from_dict
-from fuzzynav.registry import load_plugins, source_digest
+from fuzzynav.registry import load_plugins, one_line, source_digest
 from fuzzynav.sensing.tracking import Track
 
 
@@ -237,12 +237,6 @@ def policy_params(name: str, params: Mapping[str, Any]) -> Any:
         raise
     except BaseException as err:  # a user's config_class (its __post_init__) failing otherwise
         raise ValueError(f"navigator: policy {name!r}: its config_class failed: {one_line(err)}") from None
-
-
-def one_line(err: BaseException, with_type: bool = True) -> str:
-    """An exception as one short line (user code may raise anything, with any message)."""
-    text = " ".join(str(err).split())[:200]
-    return f"{type(err).__name__}: {text}" if with_type else text or type(err).__name__
 
 
 def make_policy(name: str, params: Any, context: PolicyContext) -> Policy:
