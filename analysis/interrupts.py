@@ -114,6 +114,45 @@ def _raise_interrupted(signum: int, frame: Any) -> None:
     raise Interrupted(signum)
 
 
+# -- a library that must not be interrupted midway -----------------------------------------------------------------
+_DEFERRED: list[int] = []  # signals noted while deferring
+_DEFERRING: list[bool] = []
+
+
+def defer() -> None:
+    """From now until :func:`resume`, a SIGINT or SIGTERM is noted instead of raised, and a second one ends the
+    process at once with the one line. For Hydra's start of a run (composing the config, making the output
+    folder): Hydra reports any ``Exception`` itself, and an interrupt raised inside OmegaConf's clean-up left it
+    half-done, so Hydra printed the ``AttributeError`` that followed with exit 1 instead of the interrupt.
+    Only where the start-up guard is in charge (not under a sweep's handlers, not in another thread)."""
+    if _DEFERRING or threading.current_thread() is not threading.main_thread():
+        return
+    if any(signal.getsignal(signum) is not _raise_interrupted for signum in (signal.SIGINT, signal.SIGTERM)):
+        return
+    _DEFERRED.clear()
+    _DEFERRING.append(True)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _note_deferred)
+
+
+def _note_deferred(signum: int, frame: Any) -> None:
+    if _DEFERRED:
+        _exit_interrupted(Interrupted(_DEFERRED[0]))
+    _DEFERRED.append(signum)
+
+
+def resume() -> None:
+    """End :func:`defer`: signals raise again, and one that came meanwhile is raised now as :class:`Interrupted`.
+    Without a :func:`defer` before it, nothing."""
+    if not _DEFERRING:
+        return
+    _DEFERRING.clear()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _raise_interrupted)
+    if _DEFERRED:
+        raise Interrupted(_DEFERRED.pop())
+
+
 def _exit_interrupted(err: BaseException) -> None:
     """One line naming the command, the exit handlers (loky's workers, logging), exit 128 + signal. The
     interpreter would otherwise end an unhandled interrupt by killing itself with SIGINT (status -2, not 130)."""

@@ -235,6 +235,7 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="config")  # absolute: any working dir
 def main(cfg: DictConfig) -> list[dict[str, Any]]:
     logging.raiseExceptions = False  # a job's log file on a full disk must not print a traceback per record
+    interrupts.resume()  # a signal during Hydra's start, raised now that Hydra has handed over: one line, 128 + sig
     try:
         results = run_job(cfg)
     except KeyboardInterrupt as err:
@@ -287,6 +288,7 @@ def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)
     register_sweeper()
+    interrupts.defer()  # until the task function: Hydra turns an interrupt inside OmegaConf into its own error
     main()
 
 

@@ -82,3 +82,40 @@ def test_an_error_raised_while_an_interrupt_unwinds_still_exits_as_interrupted()
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 130, proc.stderr
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
+def test_a_signal_while_deferred_is_raised_when_resumed_and_a_second_one_ends_at_once():
+    """Hydra's start of a run is deferred (``interrupts.defer``): a signal there is raised as the interrupt only
+    once the task function resumes, so it never lands inside OmegaConf (whose half-done clean-up Hydra reported as
+    an AttributeError, exit 1); a second signal meanwhile ends the process at once, with the same one line."""
+    once = ("import os, signal\n"
+            "from analysis import interrupts\n"
+            "interrupts.guard_startup()\n"
+            "interrupts.defer()\n"
+            "os.kill(os.getpid(), signal.SIGTERM)\n"
+            "print('went on', flush=True)\n"
+            "interrupts.resume()\n"
+            "print('not reached', flush=True)\n")
+    proc = subprocess.run([sys.executable, "-c", once], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert proc.returncode == 143 and proc.stdout == "went on\n", (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert "terminated (SIGTERM)" in proc.stderr
+    twice = once.replace("print('went on', flush=True)\n",
+                         "os.kill(os.getpid(), signal.SIGINT)\nprint('not reached either', flush=True)\n")
+    proc = subprocess.run([sys.executable, "-c", twice], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert proc.returncode == 143 and proc.stdout == "", (proc.stdout, proc.stderr)
+    assert len(proc.stderr.strip().splitlines()) == 1 and "terminated (SIGTERM)" in proc.stderr, proc.stderr
+
+
+def test_defer_is_nothing_where_the_start_up_guard_is_not_in_charge():
+    """Under a sweep's own handlers (or none of ours) ``defer`` and ``resume`` change nothing."""
+    code = ("import signal\n"
+            "from analysis import interrupts\n"
+            "handler = lambda *_: None\n"
+            "signal.signal(signal.SIGTERM, handler)\n"
+            "interrupts.defer()\n"
+            "assert signal.getsignal(signal.SIGTERM) is handler\n"
+            "interrupts.resume()\n"
+            "assert signal.getsignal(signal.SIGTERM) is handler\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
