@@ -47,7 +47,7 @@ def reason_of(err: BaseException) -> str:
 _GUARDED: list[bool] = []  # guard_startup has run in this process
 
 
-def _interrupt_in_chain(err: BaseException | None) -> BaseException | None:
+def interrupt_in_chain(err: BaseException | None) -> BaseException | None:
     """The interrupt behind ``err``: itself, or one it was raised while handling. A signal that lands inside a
     library's clean-up (OmegaConf's flag restore during Hydra's config store, say) can leave it half-done, and the
     error that follows hides the interrupt behind it."""
@@ -75,7 +75,7 @@ def guard_startup() -> None:
     previous = sys.excepthook
 
     def excepthook(kind: type[BaseException], value: BaseException, tb: Any) -> None:
-        interrupt = _interrupt_in_chain(value)
+        interrupt = interrupt_in_chain(value)
         if interrupt is None:
             previous(kind, value, tb)
             return

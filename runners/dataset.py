@@ -326,7 +326,7 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
     from omegaconf import OmegaConf
 
     from runners.configuration import schema
-    from runners.run import episode_config, load_evaluator, load_scenario, run_episode
+    from runners.run import episode_config, load_evaluator, load_scenario, run_episode, scenario_generator
 
     schema.register()
     if GlobalHydra.instance().is_initialized():
@@ -338,7 +338,7 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
     plain = OmegaConf.to_container(cfg, resolve=True)
     path = Path(out_dir) / job["file"]
     summary = run_episode(load_scenario(plain, job["seed"]), load_evaluator(plain), episode_config(plain),
-                          job["seed"], path, OmegaConf.to_yaml(cfg, resolve=True))
+                          job["seed"], path, OmegaConf.to_yaml(cfg, resolve=True), generator=scenario_generator(plain))
     return {"file": job["file"], "outcome": summary["outcome"], "steps": summary["steps"], **content_digests(path)}
 
 

@@ -26,7 +26,7 @@ import gymnasium
 from fuzzynav.policies.base import Action
 from runners.gym_env import AGENT, NavigationEnv
 from runners.logs.mcap_log import EpisodeLogWriter
-from runners.run import episode_metadata, log_path, outcome_reason
+from runners.run import episode_metadata, log_path, outcome_reason, scenario_generator
 
 
 class RecordMcap(gymnasium.Wrapper):
@@ -76,7 +76,7 @@ class RecordMcap(gymnasium.Wrapper):
             cfg = dataclasses.replace(cfg, policy=AGENT, navigator=MappingProxyType({}))
             plain = {**plain, "navigator": {"policy": AGENT}}
         config_yaml = run.config_yaml(seed_) if self.policy else run.config_yaml(seed_, {"policy": AGENT})
-        meta = episode_metadata(scenario, nav.evaluator, cfg, seed_, config_yaml)
+        meta = episode_metadata(scenario, nav.evaluator, cfg, seed_, config_yaml, generator=scenario_generator(plain))
         path = log_path(self.out_dir, scenario.name, plain, seed_)
         self._log = EpisodeLogWriter(path, episode, meta, cfg.planner.strategy, cfg.perception.mode)
         self.paths.append(path)

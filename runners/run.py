@@ -38,6 +38,7 @@ from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params.names import DEFAULT_POLICY
 from fuzzynav.pedestrians.base import model_source_digest
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
+from fuzzynav.scenarios.generator import generator_source_digest
 from fuzzynav.scenarios.scenario import Scenario
 from runners.configuration import plugins as config_plugins
 from runners.configuration import schema
@@ -100,24 +101,34 @@ def scenario_yaml(scenario: Scenario) -> str:
     return yaml_text.dump(scenario_data(scenario))
 
 
-def code_source(policy: str, scenario: Scenario) -> str:
+def code_source(policy: str, scenario: Scenario, generator: Any = None) -> str:
     """The digest of the code outside fuzzynav that an episode runs (part of its identity, recorded as
     ``policy_source_sha256``): the policy's source (:func:`fuzzynav.policies.base.policy_source_digest`), combined
-    with the sources of the other packages' pedestrian models its scenario uses; '' when it runs fuzzynav's code
-    only. A resumed sweep thus re-runs the episodes whose plug-ins changed instead of keeping their old logs."""
+    with the sources of the other packages' pedestrian models its scenario uses and of the generator that made the
+    scenario (``generator``: its name, None for a scenario file); '' when it runs fuzzynav's code only. A resumed
+    sweep thus re-runs the episodes whose plug-ins changed instead of keeping their old logs."""
     policy_digest = policy_source_digest(policy)
     models = sorted({d.model for d in scenario.dynamic_obstacles if d.model})
     parts = [f"{name}={digest}" for name in models if (digest := model_source_digest(name))]
+    if generator_digest := generator_source_digest(generator):
+        parts.append(f"generator={generator_digest}")
     if not parts:
         return policy_digest
     return hashlib.sha256(";".join([f"policy={policy_digest}", *parts]).encode()).hexdigest()
 
 
+def scenario_generator(plain: Any) -> Any:
+    """The generator name of a run config's scenario section (None for a scenario file)."""
+    section = plain.get("scenario") if isinstance(plain, dict) else None
+    return section.get("generator") if isinstance(section, dict) else None
+
+
 def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
-                     config_yaml: str, digest: str = "") -> dict[str, str]:
+                     config_yaml: str, digest: str = "", generator: Any = None) -> dict[str, str]:
     """The ``fuzzynav.run`` metadata of an episode's log (also written by the Gymnasium environment's
-    ``runners.gym_log.RecordMcap``, so that both logs are the same)."""
-    source = code_source(ep_cfg.policy, scenario)
+    ``runners.gym_log.RecordMcap``, so that both logs are the same); ``generator``: the name of the generator that
+    made ``scenario`` (:func:`scenario_generator`), None for a scenario file."""
+    source = code_source(ep_cfg.policy, scenario, generator)
     return run_metadata(config_yaml, seed, scenario.name, {
         "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
         "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
@@ -132,7 +143,7 @@ def outcome_reason(outcome: str, max_steps: int) -> str:
 
 
 def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeConfig, seed: int,
-                log_path: Path | None, config_yaml: str, digest: str = "") -> dict[str, Any]:
+                log_path: Path | None, config_yaml: str, digest: str = "", generator: Any = None) -> dict[str, Any]:
     """Run one episode, writing its log; an exception inside the episode gives outcome ``error`` (logged
     with its traceback) instead of propagating. A stop request (:mod:`runners.sweeping.stop`: Ctrl-C, SIGTERM, a sweep's
     stop file) finishes the log as ``interrupted`` and re-raises; a log that cannot be written raises
@@ -143,7 +154,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
                "perception": ep_cfg.perception.mode, "seed": seed, "log": str(log_path) if log_path else ""}
     log = None  # created before the episode: a log that cannot be written is an error, not an episode outcome
     if log_path is not None:
-        meta = episode_metadata(scenario, evaluator, ep_cfg, seed, config_yaml, digest)
+        meta = episode_metadata(scenario, evaluator, ep_cfg, seed, config_yaml, digest, generator)
         log = EpisodeLogWriter(log_path, episode, meta, ep_cfg.planner.strategy, ep_cfg.perception.mode)
     outcome, reason = "error", ""
     try:
@@ -206,10 +217,12 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
         out_dir = Path(runtime.output_dir)
         config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
         version = provenance()["fuzzynav_version"]
+        generator = scenario_generator(plain)
         for seed in seeds:
             stop.check_between_episodes()
             scenario = inputs.scenarios[seed]
-            source = code_source(ep_cfg.policy, scenario)  # plug-ins' code is part of their episodes' identity
+            # plug-ins' code is part of their episodes' identity
+            source = code_source(ep_cfg.policy, scenario, generator)
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
             key = episode_identity.episode_key(config_yaml, seed, version, source)  # whatever the seed batching
@@ -218,7 +231,7 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
                 kept.update(kept=True, reason="resumed: complete log kept")
                 results.append(kept)
                 continue
-            results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml, digest))
+            results.append(run_episode(scenario, evaluator, ep_cfg, seed, path, config_yaml, digest, generator))
             sweep_resume.supersede(sweep_dir, key)
     except KeyboardInterrupt:
         if sweep_dir is None:

@@ -47,9 +47,9 @@ from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params import limits
 from fuzzynav.scenarios.scenario import scenario_from_dict
 from runners.configuration import run_inputs
-from runners.configuration.data_files import DataFileError, check_data_text
+from runners.configuration.data_files import CONFIG_FILE, SCENARIO_OR_CONTROLLER, DataFileError, check_data_text
 from tests.conftest import CONF, ROOT
-from tests.fuzz_mutations import mutations, override, paths, text_mutation
+from tests.fuzz_mutations import alias_bomb, mutations, override, paths, text_mutation
 
 EXAMPLES = int(os.environ.get("FUZZNAV_FUZZ_EXAMPLES", "0"))
 REPORT = os.environ.get("FUZZNAV_FUZZ_REPORT")
@@ -72,8 +72,9 @@ def _load(path: Path) -> Any:
 
 SCENARIOS = {p.stem: _load(p) for p in sorted((CONF / "scenario").glob("*.yaml"))}
 CONTROLLERS = {p.stem: _load(p) for p in sorted((CONF / "controller").glob("*.yaml"))}
-TEXTS = {f"{p.parent.name}/{p.name}": p.read_text() for p in sorted([*(CONF / "scenario").glob("*.yaml"),
-                                                                      *(CONF / "controller").glob("*.yaml")])}
+#: whole files to mutate as text: the data files, and the other groups' config files (same size limits)
+TEXT_GROUPS = ("scenario", "controller", "navigator", "planner", "perception", "robot", "sensors", "sweep")
+TEXTS = {f"{p.parent.name}/{p.name}": p.read_text() for g in TEXT_GROUPS for p in sorted((CONF / g).glob("*.yaml"))}
 
 
 def _default_config() -> dict[str, Any]:
@@ -310,7 +311,9 @@ def test_fuzz_file_texts(data):
     raw, what = data.draw(text_mutation(TEXTS[name]), label="mutation")
     steps = [name, what]
     entry = "text"
-    ok, _ = attempt(entry, steps, lambda: check_data_text(raw, "fz.yaml"), (DataFileError,))
+    group = name.split("/")[0]
+    kind = SCENARIO_OR_CONTROLLER if group in ("scenario", "controller") else CONFIG_FILE
+    ok, _ = attempt(entry, steps, lambda: check_data_text(raw, "fz.yaml", kind), (DataFileError,))
     if not ok:
         return
     ok, tree = attempt(entry, steps, lambda: yaml.safe_load(raw), ())
@@ -324,9 +327,9 @@ def test_fuzz_file_texts(data):
         return
     except Exception:
         pass
-    if name.startswith("scenario/"):
+    if group == "scenario":
         check_scenario(tree, steps, entry)
-    else:
+    elif group == "controller":
         check_controller(tree, steps, entry)
 
 
@@ -414,6 +417,22 @@ def test_huge_scenario_file_is_refused_before_it_is_read(tmp_path):
                          text=True, timeout=120)
     assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
     assert "huge.yaml: 100,000,000 bytes, more than the limit of 1,000,000" in res.stderr
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("group", ["navigator", "planner", "sweep"])
+def test_an_alias_bomb_in_any_config_group_is_one_line_not_a_hang(group, tmp_path):
+    """Not only scenario and controller files: a navigator, planner or sweep file that expands to 10^9 nodes hung
+    Hydra's loader; every file the command composes is checked as text first (interpolations stay allowed)."""
+    (tmp_path / group).mkdir()
+    (tmp_path / group / "bomb.yaml").write_text("# @package _global_\n" * (group == "sweep")
+                                                + "note: '${seed}'\n" + alias_bomb(10, 9))
+    command = "runners.sweep" if group == "sweep" else "runners.run"
+    res = subprocess.run([sys.executable, "-m", command, f"hydra.searchpath=[file://{tmp_path}]",
+                          f"{group}=bomb", f"hydra.run.dir={tmp_path / 'out'}", f"hydra.sweep.dir={tmp_path / 'out'}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+    assert f"{group}/bomb.yaml:" in res.stderr and "YAML nodes once aliases are expanded" in res.stderr, res.stderr
     assert not (tmp_path / "out").exists()
 
 

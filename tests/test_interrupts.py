@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from analysis.interrupts import Interrupted
 from tests.conftest import ROOT
 
 DELAYS_S = (0.2, 0.5, 1.0, 2.0)
@@ -119,3 +120,19 @@ def test_defer_is_nothing_where_the_start_up_guard_is_not_in_charge():
             "assert signal.getsignal(signal.SIGTERM) is handler\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_an_interrupt_inside_the_precheck_composition_is_not_reported_as_a_config_error(monkeypatch):
+    """A signal inside OmegaConf's clean-up while the pre-check composes leaves an AttributeError with the
+    interrupt as its context: that is the interrupt, not ``error: config: ...`` (seen with ``timeout``)."""
+    from runners.configuration import precheck
+
+    def compose(*args, **kwargs):
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted:
+            raise AttributeError("'NoneType' object has no attribute '_invalidate_flags_cache'") from None
+
+    monkeypatch.setattr(precheck, "compose", compose)
+    with pytest.raises(Interrupted):
+        precheck.precheck(["planner=wait"])

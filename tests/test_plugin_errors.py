@@ -105,3 +105,64 @@ def test_resume_reruns_the_episodes_of_a_plug_in_whose_code_changed(tmp_path):
     # different code (as logs of two fuzzynav versions are), and --split-provenance keeps them apart
     out = resumed.stdout + resumed.stderr
     assert "written by different code" in out and "policy_source_sha256" in out, out[-2000:]
+
+
+@pytest.mark.parametrize("name, owner", [("navigator/dwa.yaml", "fuzzynav's conf/"),
+                                         ("scenario/head_on.yaml", "fuzzynav's conf/"),
+                                         ("navigator/wall.yaml", "package aplug_conf")])
+def test_a_plug_in_config_file_that_would_never_be_used_is_one_line(tmp_path, name, owner):
+    """A plug-in's ``navigator/dwa.yaml`` lost silently to fuzzynav's own (the first folder wins in Hydra); a file
+    that another package before it has already, likewise: one line naming the entry point and the file."""
+    site = tmp_path / "site"
+    info = site / "hplug-0.1.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hplug\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[fuzzynav.conf]\na = aplug_conf\nb = bplug_conf\n")
+    for package in ("aplug_conf", "bplug_conf"):
+        (site / package / "navigator").mkdir(parents=True)
+        (site / package / "__init__.py").write_text("")
+        (site / package / "navigator" / f"{package}_own.yaml").write_text("policy: dwa\n")
+    (site / "bplug_conf" / name).parent.mkdir(exist_ok=True)
+    (site / "bplug_conf" / name).write_text("policy: dwa\n")
+    if owner != "fuzzynav's conf/":
+        (site / "aplug_conf" / name).write_text("policy: dwa\n")
+    proc = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.run.dir={tmp_path / 'run'}"], cwd=tmp_path,
+                          env={**os.environ, "PYTHONPATH": str(site)}, capture_output=True, text=True, timeout=300,
+                          stdin=subprocess.DEVNULL)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr[-2000:]
+    assert "entry point 'b'" in lines[0] and f"{name} is also in {owner}" in lines[0], lines[0]
+    assert not (tmp_path / "run").exists()
+
+
+def test_resume_reruns_the_episodes_of_a_plug_in_generator_whose_code_changed(tmp_path):
+    """Another package's scenario generator is code the episode runs, like its policy: a resumed sweep after the
+    generator changed runs its episodes again (the scenario they would get is not the one logged)."""
+    from mcap.reader import make_reader
+
+    module = ("WALKER_SPEED = 30.0\n\n\ndef make(params, seed, name):\n"
+              "    return {'name': name, 'bounds': [0, 0, 1200, 600],\n"
+              "            'robot': {'start': [100, 300], 'heading': 0, 'goal': [1100, 300], 'radius': 20},\n"
+              "            'static_obstacles': [],\n"
+              "            'dynamic_obstacles': [{'id': 'w', 'radius': 20, 'start': [1000, 300],\n"
+              "                                   'velocity': [-WALKER_SPEED, 0]}], 'max_steps': 120}\n")
+    env = _package_with_module(tmp_path, "[fuzzynav.generators]\nhgen = hplug_mod:make\n", module)
+    conf = tmp_path / "conf"
+    (conf / "scenario").mkdir(parents=True)
+    (conf / "scenario" / "hgen_walk.yaml").write_text("generator: hgen\nname: hgen_walk\n")
+    sweep = tmp_path / "sweep"
+    args = [sys.executable, "-m", "runners.sweep", "sweep=quick", f"hydra.searchpath=[file://{conf}]",
+            "scenario=hgen_walk", "planner=none", "episodes=1", f"hydra.sweep.dir={sweep}"]
+
+    def walker_speed() -> str:
+        (log,) = [p for p in sweep.rglob("*.mcap") if not {".fuzzynav", "earlier"} & set(p.relative_to(sweep).parts)]
+        with open(log, "rb") as f:
+            meta = next(m.metadata for m in make_reader(f).iter_metadata() if m.name == "fuzzynav.run")
+        return meta["scenario_yaml"]
+
+    subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300, check=True)
+    assert "-30.0" in walker_speed()
+    (tmp_path / "site" / "hplug_mod.py").write_text(module.replace("WALKER_SPEED = 30.0", "WALKER_SPEED = 45.0"))
+    subprocess.run([*args, "resume=true"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300,
+                   check=True)
+    assert "-45.0" in walker_speed() and "-30.0" not in walker_speed()

@@ -19,7 +19,7 @@ from typing import Any
 
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_count, check_key, check_name, key_text, show
-from fuzzynav.registry import load_plugins
+from fuzzynav.registry import load_plugins, source_digest
 from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict
 
 ROBOT_RADIUS = 20.0
@@ -91,6 +91,13 @@ def registered_generators() -> dict[str, Generator]:
     load_plugins("fuzzynav.scenarios.generators", ENTRY_POINT_GROUP, lambda n, f: register_generator(n)(f),
                  GENERATORS.get)
     return dict(GENERATORS)
+
+
+def generator_source_digest(name: Any) -> str:
+    """SHA-256 of the source of generator ``name``'s module when another package registered it ('' for fuzzynav's
+    own and for unknown names): part of the identity of the episodes it generates the scenarios of."""
+    generators = registered_generators()
+    return source_digest(generators[name]) if isinstance(name, str) and name in generators else ""
 
 
 def generate(data: Mapping[str, Any], seed: int):

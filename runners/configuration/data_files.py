@@ -54,12 +54,17 @@ class DataKind:
     all: str
     max_bytes: int
     max_nodes: int
+    interpolations: bool = False  # ``${...}`` allowed (Hydra's config files use them; data files must not)
 
 
 SCENARIO_OR_CONTROLLER = DataKind("a scenario or controller file", "scenario and controller files",
                                   limits.MAX_DATA_FILE_BYTES, limits.MAX_YAML_NODES)
 #: dataset manifests (runners.dataset) hold a few dozen nodes per episode: larger limits, the same rules
 MANIFEST = DataKind("a dataset manifest", "dataset manifests", limits.MAX_MANIFEST_BYTES, limits.MAX_MANIFEST_NODES)
+#: the other files Hydra composes (navigator, planner, sweep presets, launchers, config.yaml): the same limits, so a
+#: hostile or broken one cannot hang the command either, but Hydra's interpolations are theirs to use
+CONFIG_FILE = DataKind("a config file", "config files", limits.MAX_DATA_FILE_BYTES, limits.MAX_YAML_NODES,
+                       interpolations=True)
 
 
 def check_data_file(path: Path, kind: DataKind | None = None) -> bytes:
@@ -185,7 +190,7 @@ class _Events:
                 if event.tag is not None:
                     self.fail(event, field, f"YAML tag {event.tag!r} is not allowed: {self.kind.all} are data")
                 if isinstance(event, yaml.ScalarEvent):
-                    if "${" in event.value:
+                    if "${" in event.value and not self.kind.interpolations:
                         self.fail(event, field, f"interpolation {_short(event.value)} is not allowed: "
                                                 f"{self.kind.all} are data")
                     if event.implicit[0] and _SEXAGESIMAL.fullmatch(event.value):

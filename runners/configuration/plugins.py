@@ -9,7 +9,9 @@ out as ``conf/`` (``my_package/conf/navigator/wall_follow.yaml``) and names that
 
 Every composition then searches it after fuzzynav's ``conf/`` (Hydra's search path, through the plugin
 :class:`PluginConfigSearchPath`), so ``navigator=wall_follow,dwa`` sweeps it like a
-built-in. A name that fuzzynav's ``conf/`` already has is fuzzynav's (the first folder wins, as in Hydra).
+built-in. A file whose group and name fuzzynav's ``conf/`` (or a package before it) already has would never be
+composed (the first folder wins, as in Hydra): that is an error naming the entry point and the file, not a
+silently ignored file.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ from pathlib import Path
 from hydra.core.config_search_path import ConfigSearchPath
 from hydra.core.plugins import Plugins
 from hydra.plugins.search_path_plugin import SearchPathPlugin
+
+from fuzzynav.conf import CONF_DIR
 
 ENTRY_POINT_GROUP = "fuzzynav.conf"
 _PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
@@ -50,8 +54,21 @@ def plugin_config_dirs() -> tuple[tuple[str, Path], ...]:
         paths = list(getattr(module, "__path__", []))
         if len(paths) != 1 or not Path(paths[0]).is_dir():
             raise PluginConfigError(f"{where}: {package!r} is not a package folder")
-        found.append((package, Path(paths[0]).resolve()))
+        folder = Path(paths[0]).resolve()
+        earlier = [("fuzzynav's conf/", CONF_DIR), *((f"package {name}", f) for name, f in found)]
+        for name in _config_names(folder):
+            owner = next((who for who, f in earlier if (f / name).is_file()), None)
+            if owner is not None:
+                raise PluginConfigError(f"{where}: {name} is also in {owner} (searched first, so this file would "
+                                        f"never be used): rename it")
+        found.append((package, folder))
     return tuple(found)
+
+
+def _config_names(folder: Path) -> list[str]:
+    """The config files of a package folder laid out as ``conf/``, as paths relative to it (``navigator/x.yaml``);
+    the top level holds no group's options."""
+    return sorted(p.relative_to(folder).as_posix() for p in folder.glob("*/**/*.yaml") if p.is_file())
 
 
 class PluginConfigSearchPath(SearchPathPlugin):

@@ -31,10 +31,17 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ChoiceSweep, Glob, Override, ValueType
 from omegaconf import DictConfig
 
+from analysis import interrupts
 from fuzzynav.conf import CONF_DIR as CONF
 from runners.configuration import plugins as config_plugins
 from runners.configuration import schema
-from runners.configuration.data_files import DataFileError, check_data_file
+from runners.configuration.data_files import (
+    CONFIG_FILE,
+    SCENARIO_OR_CONTROLLER,
+    DataFileError,
+    DataKind,
+    check_data_file,
+)
 from runners.configuration.run_inputs import DATA_GROUPS, ConfigFileError, load_run
 
 
@@ -117,51 +124,98 @@ def _options(value: object, group: str, dirs: Sequence[Path]) -> set[str]:
     return set()
 
 
-def selected_data_files(overrides: Sequence[str]) -> list[Path]:
-    """The scenario and controller files these overrides select (the defaults of ``conf/config.yaml``, the
-    command line, and the ``hydra.sweeper.params`` of a ``sweep=`` preset), each as Hydra would find it: in
-    the first config directory that has it."""
+def _group_of(key: str) -> str:
+    """The config group a defaults-list key or group override names (``override /hydra/launcher@x``:
+    ``hydra/launcher``)."""
+    key = key.strip()
+    key = key.removeprefix("override ").strip().lstrip("+~").lstrip("/")
+    return key.partition("@")[0]
+
+
+def _defaults_of(path: Path) -> list[tuple[str, str]]:
+    """(group, option) pairs of a config file's defaults list; nothing for a file that does not load (Hydra or
+    the check of the file as text reports it)."""
+    try:
+        loaded = yaml.load(path.read_text(encoding="utf-8"), Loader=_SAFE)  # checked as text first: bounded
+    except Exception:
+        return []
+    pairs = []
+    items = loaded.get("defaults", []) if isinstance(loaded, dict) else []
+    for item in items if isinstance(items, list) else []:
+        if isinstance(item, dict):
+            for key, name in item.items():
+                names = name if isinstance(name, list) else [name]
+                pairs += [(_group_of(str(key)), str(n)) for n in names if isinstance(n, str)]
+    return pairs
+
+
+def selected_config_files(overrides: Sequence[str]) -> list[Path]:
+    """Every YAML file these overrides make Hydra compose: ``config.yaml``, the options its defaults list, the
+    command line and the ``hydra.sweeper.params`` of a ``sweep=`` preset select, and those their own defaults
+    lists select; each as Hydra would find it, in the first config directory that has it."""
     parser = OverridesParser.create()
     parsed = parser.parse_overrides(list(overrides))
     dirs = _search_dirs(parsed)
-    wanted: dict[str, set[str]] = {group: set() for group in DATA_GROUPS}
-    with contextlib.suppress(Exception):  # the shipped defaults; a broken config.yaml is Hydra's to report
-        for item in yaml.safe_load((CONF / "config.yaml").read_text()).get("defaults", []):
-            if isinstance(item, dict):
-                for group, name in item.items():
-                    if group in wanted and isinstance(name, str):
-                        wanted[group].add(name)
-    presets = [o.value() for o in parsed if o.get_key_element() == "sweep" and isinstance(o.value(), str)]
-    for preset in presets:
-        path = next((d / "sweep" / f"{preset}.yaml" for d in dirs if (d / "sweep" / f"{preset}.yaml").is_file()),
-                    None)
-        with contextlib.suppress(Exception):  # a missing or broken preset is Hydra's to report
-            params = (yaml.safe_load(path.read_text()) or {})["hydra"]["sweeper"]["params"]  # type: ignore[union-attr]
-            for group in DATA_GROUPS:
-                if group in params:
-                    parsed = [*parsed, *parser.parse_overrides([f"{group}={params[group]}"])]
+
+    def find(group: str, name: str) -> Path | None:
+        return next((d / group / f"{name}.yaml" for d in dirs if (d / group / f"{name}.yaml").is_file()), None)
+
+    wanted: list[tuple[str, str]] = []
     for o in parsed:
-        group = o.get_key_element().lstrip("+")
-        if group in wanted:
-            wanted[group] |= _options(o.value(), group, dirs)
-    files = []
-    for group, names in wanted.items():
-        for name in sorted(names):
-            found = next((d / group / f"{name}.yaml" for d in dirs if (d / group / f"{name}.yaml").exists()), None)
-            if found is not None:
-                files.append(found)
-    return files
+        group = _group_of(o.get_key_element())
+        if "." not in group and any((d / group).is_dir() for d in dirs):
+            wanted += [(group, name) for name in sorted(_options(o.value(), group, dirs))]
+    files: list[Path] = [CONF / "config.yaml"]
+    queue = [*_defaults_of(CONF / "config.yaml"), *wanted]
+    seen: set[tuple[str, str]] = set()
+    while queue:
+        group, name = queue.pop(0)
+        if (group, name) in seen or name in ("null", "None", "_self_"):
+            continue
+        seen.add((group, name))
+        path = find(group, name)
+        if path is None:  # a missing option: composing reports it
+            continue
+        files.append(path)
+        queue += _defaults_of(path) if _checked(path) else []
+        if group == "sweep":  # a preset's swept groups
+            with contextlib.suppress(Exception):
+                params = (yaml.load(path.read_text(encoding="utf-8"), Loader=_SAFE)
+                          or {})["hydra"]["sweeper"]["params"]
+                for key, value in params.items():
+                    sub = _group_of(str(key))
+                    if "." not in sub and any((d / sub).is_dir() for d in dirs):
+                        (swept,) = parser.parse_overrides([f"{key}={value}"])
+                        queue += [(sub, n) for n in sorted(_options(swept.value(), sub, dirs))]
+    return list(dict.fromkeys(files))
+
+
+_SAFE = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def _kind(path: Path) -> DataKind:
+    return SCENARIO_OR_CONTROLLER if path.parent.name in DATA_GROUPS else CONFIG_FILE
+
+
+def _checked(path: Path) -> bool:
+    """Whether ``path`` passes the text check (only then is it loaded to read its defaults list)."""
+    try:
+        check_data_file(path, _kind(path))
+    except DataFileError:
+        return False
+    return True
 
 
 def check_selected_files(overrides: Sequence[str]) -> str | None:
-    """Stage 1: the first problem of the selected scenario and controller files as data, or None."""
+    """Stage 1: the first problem of the selected files as text (scenario and controller files as data, the
+    others as config files), or None."""
     try:
-        files = selected_data_files(overrides)
+        files = selected_config_files(overrides)
     except Exception:  # overrides that do not parse: composing them reports it
         return None
     for path in files:
         try:
-            check_data_file(path)
+            check_data_file(path, _kind(path))
         except DataFileError as err:
             return str(err)
     return None
@@ -238,6 +292,9 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                 try:
                     cfg = compose("config", overrides=overrides, return_hydra_config=True)
                 except Exception as err:
+                    interrupt = interrupts.interrupt_in_chain(err)
+                    if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
+                        raise interrupt from None
                     cfg, problem = None, _one_line(err)
             unavailable = _unavailable_search_path(caught)
             if unavailable:  # a typo in hydra.searchpath: the config it should have provided is "missing"
