@@ -150,6 +150,9 @@ class _Returns:
     (Action("go", 0.0, 10.0, {"x": [1, 2]}), "policy broken: field 'x' = '[1, 2]' is not a finite number"),
     ((0.0, 10.0), "policy broken: act() returned tuple, not a fuzzynav.policies.base.Action"),
     (Action("go", True, 10.0), "policy broken: dtheta_deg = True is not a finite number"),
+    (Action("go", 0.0, 10.0, {f"f{k}": 1.0 for k in range(65)}), "policy broken: 65 fields, more than the limit of 64"),
+    (Action("go", 0.0, 10.0, {"x" * 257: 1.0}), "policy broken: field 'xxxx"),
+    (Action("go", 0.0, 10.0, {"x": "y" * 10**6}), "policy broken: field 'x': value of 1,000,000 characters, more than"),
 ])
 def test_a_command_the_robot_cannot_execute_stops_the_episode_naming_the_policy(action, message):
     episode = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,

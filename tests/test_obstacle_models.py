@@ -4,6 +4,8 @@ computations, behaviour in small scenes, determinism, and the scenario keys ``mo
 from __future__ import annotations
 
 import math
+import re
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -90,6 +92,44 @@ def test_a_model_registered_outside_fuzzynav_moves_its_obstacles():
     traj, _ = trajectory(s, 5)
     assert np.array_equal(traj[5, 0], [600, 600])
     assert np.array_equal(traj[5, 1], [650, 200])
+
+
+@pytest.mark.parametrize("returned, says", [
+    (lambda start: (start[0], np.zeros(2)), "returned positions of shape (2,), expected (2, 2)"),
+    (lambda start: (start, np.zeros((3, 2))), "returned velocities of shape (3, 2), expected (2, 2)"),
+    (lambda start: (start, [["a", "b"], [1, 2]]), "returned velocities that are not numbers"),
+    (lambda start: start.ravel(), "returned ndarray, expected (positions, velocities)"),
+    (lambda start: None, "returned NoneType, expected (positions, velocities)"),
+])
+def test_a_model_that_returns_the_wrong_shape_is_named(returned, says):
+    """A plug-in model's arrays of the wrong shape: a ``ValueError`` naming the model (a (2,) array for a group of
+    two was broadcast to both pedestrians without a word)."""
+    name = f"test_bad_shape_{abs(hash(says)) % 10**8}"
+
+    @dataclass(frozen=True)
+    class BadConfig:
+        pass
+
+    @register_obstacle_model(name)
+    class Bad:
+        config_class = BadConfig
+
+        def __init__(self, obstacles, config):
+            self.start = np.array([o.start for o in obstacles], float)
+
+        def reset(self, rng):
+            return self.start.copy(), np.zeros_like(self.start)
+
+        def step(self, view, indices, dt):
+            return returned(self.start.copy())
+
+    try:
+        s = scene([{"id": k, "radius": 20, "start": [600, y], "velocity": [10, 0], "model": name}
+                   for k, y in (("a", 600), ("b", 200))])
+        with pytest.raises(ValueError, match=re.escape(f"pedestrian model {name!r}: step {says}")):
+            trajectory(s, 1)
+    finally:
+        MODELS.pop(name, None)
 
 
 # -- scenario keys ------------------------------------------------------------------------------------------

@@ -99,8 +99,12 @@ MAX_EPISODES_PER_RUN = 10_000
 MAX_SEED = 9_007_199_254_740_991  # 2^53 - 1: seeds stay exact as float64 (pandas tables of the analysis)
 MAX_LAUNCHER_JOBS = 256
 
+# -- policies -------------------------------------------------------------------------------------------------------
+MAX_POLICY_FIELDS = 64  # a policy's own values per step (Action.fields)
+MAX_POLICY_FIELD_CHARS = 256  # a field's name or string value
+
 SIZE_LIMITS: tuple[Limit, ...] = (
-    Limit("scenario / controller file size (bytes)", MAX_DATA_FILE_BYTES,
+    Limit("config file size: scenario, controller and every other file a run composes (bytes)", MAX_DATA_FILE_BYTES,
           "checked before anything parses the file (a 100 MB file kept Hydra busy for minutes); shipped "
           "files are < 10 kB"),
     Limit("YAML nodes per file after alias expansion", MAX_YAML_NODES,
@@ -135,6 +139,10 @@ SIZE_LIMITS: tuple[Limit, ...] = (
           "the batch evaluator allocates grid x 1024 floats per output"),
     Limit("controller numbers, absolute value (universes, params, fallback)", int(MAX_CONTROLLER_ABS),
           "widths and centroids stay finite (1e308 overflowed)"),
+    Limit("a policy's own fields per step (Action.fields)", MAX_POLICY_FIELDS,
+          "logged at every step: 64 fields of 256 characters are 16 kB a step"),
+    Limit("characters of a policy field's name or string value", MAX_POLICY_FIELD_CHARS,
+          "logged at every step"),
     Limit("episodes per run (seeds per job)", MAX_EPISODES_PER_RUN,
           "every scenario of a run is validated before its first episode; split bigger runs into jobs"),
     Limit("seed + episodes", MAX_SEED, "2^53 - 1: seeds stay exact in the analysis' float64 tables"),

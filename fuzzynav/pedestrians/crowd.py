@@ -8,7 +8,7 @@ update). Positions in cm, velocities in cm/s.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -73,10 +73,10 @@ class Crowd:
             name = model_name(o)
             config = model_config(name, o.model_params, f"dynamic_obstacles[{i}].model_params")
             groups.setdefault((name, config), []).append(i)
-        self._models: list[tuple[ObstacleModel, np.ndarray]] = []
+        self._models: list[tuple[ObstacleModel, np.ndarray, str]] = []
         for (name, config), members in groups.items():
             model = model_factory(name, "model")([obstacles[i] for i in members], config)
-            self._models.append((model, np.array(members, dtype=int)))
+            self._models.append((model, np.array(members, dtype=int), name))
         self.positions = np.zeros((len(obstacles), 2))
         self.velocities = np.zeros((len(obstacles), 2))
         self.step_index = 0
@@ -88,8 +88,8 @@ class Crowd:
         """Every obstacle at t = 0: positions (N, 2) cm and velocities (N, 2) cm/s."""
         pos = np.zeros((len(self.ids), 2))
         vel = np.zeros((len(self.ids), 2))
-        for group, (model, members) in enumerate(self._models):
-            p, v = model.reset(obstacle_rng(seed, group))
+        for group, (model, members, name) in enumerate(self._models):
+            p, v = _model_arrays(model.reset(obstacle_rng(seed, group)), name, "reset", len(members))
             pos[members], vel[members] = p, v
         self.positions, self.velocities, self.step_index = pos, vel, 0
         return pos, vel
@@ -104,8 +104,8 @@ class Crowd:
                          self.step_index * dt, self.step_index)
         pos = np.zeros_like(self.positions)
         vel = np.zeros_like(self.velocities)
-        for model, members in self._models:
-            p, v = model.step(view, members, dt)
+        for model, members, name in self._models:
+            p, v = _model_arrays(model.step(view, members, dt), name, "step", len(members))
             pos[members], vel[members] = p, v
         if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
             bad = int(np.nonzero(~(np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)))[0][0])
@@ -114,3 +114,25 @@ class Crowd:
         self.positions, self.velocities = pos, vel
         self.step_index += 1
         return pos, vel
+
+
+def _model_arrays(result: Any, name: str, method: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The (positions, velocities) a model's ``reset`` or ``step`` returned for its ``n`` pedestrians, each of shape
+    (n, 2): anything else is a ``ValueError`` naming the model (a (2,) array would otherwise be broadcast to every
+    pedestrian of the group without a word)."""
+    try:
+        p, v = result
+    except (TypeError, ValueError):
+        raise ValueError(f"pedestrian model {name!r}: {method} returned {type(result).__name__}, expected "
+                         f"(positions, velocities)") from None
+    arrays = []
+    for what, value in (("positions", p), ("velocities", v)):
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"pedestrian model {name!r}: {method} returned {what} that are not numbers") from None
+        if array.shape != (n, 2):
+            raise ValueError(f"pedestrian model {name!r}: {method} returned {what} of shape {array.shape}, "
+                             f"expected ({n}, 2) for its {n} pedestrian(s)")
+        arrays.append(array)
+    return arrays[0], arrays[1]

@@ -219,9 +219,16 @@ def checked_action(action: Any, policy: str) -> Action:
                               + (" (0 = stand still)" if name == "v_cm_s" else ""))
     if not isinstance(action.fields, Mapping):
         raise PolicyError(f"policy {policy}: fields is {type(action.fields).__name__}, not a mapping")
+    if len(action.fields) > limits.MAX_POLICY_FIELDS:
+        raise PolicyError(f"policy {policy}: {len(action.fields):,} fields, more than the limit of "
+                          f"{limits.MAX_POLICY_FIELDS} (they are logged at every step)")
     for key, value in action.fields.items():
         if not isinstance(key, str) or not _utf8(key) or not key:
             raise PolicyError(f"policy {policy}: field name {str(key)[:40]!r} is not a (UTF-8) string")
+        for what, text in (("name", key), ("value", value)):
+            if isinstance(text, str) and len(text) > limits.MAX_POLICY_FIELD_CHARS:
+                raise PolicyError(f"policy {policy}: field {key[:40]!r}: {what} of {len(text):,} characters, more "
+                                  f"than the limit of {limits.MAX_POLICY_FIELD_CHARS}")
         if isinstance(value, bool | np.bool_) or (isinstance(value, str) and _utf8(value)):
             continue
         if isinstance(value, bool | str) or _finite(value) is None:
