@@ -11,6 +11,9 @@ Provenance (fuzzynav version, git commit, library versions) is recorded too. By 
 code are pooled and the difference is reported as a warning (a sweep resumed after an unrelated commit should
 still pool); ``split_provenance=True`` makes those keys group dimensions as well.
 
+Parameters of a part that is off are none: ``h_wait`` of a strategy that does not read it (wait, detour, none) and
+every ``planner.*`` key under ``planner=none`` (:mod:`fuzzynav.params.names`).
+
 Labels: ``auto(h=2) · safety_margin_cm=5`` — the strategy (with h_wait where it is read, or where it differs),
 then each differing parameter by its shortest unambiguous key suffix; where policies differ the policy leads
 (``dwa · none``) and groups are ordered by policy (the paper's ``fuzzy`` first, ``direct`` last). Differing
@@ -35,6 +38,7 @@ from typing import Any
 import yaml
 
 from fuzzynav.episode_identity import POLICY_SOURCE
+from fuzzynav.params.names import PLANNER_OFF, reads_h_wait
 
 EPISODE_PARAMETERS = ("scenario", "policy", "strategy", "h_wait", "seed", "controller", "perception")
 """Columns of every per-episode table, in this order (from the metadata; ``seed`` says which episode)."""
@@ -58,6 +62,7 @@ LEGACY_POLICY = "fuzzy"
 POLICY_FIRST, POLICY_LAST = "fuzzy", "direct"
 CONFIG = "config"  # "logged", or "none" for a log without a readable config: its config keys are unknown, not unset
 UNSET = "unset"  # label of a parameter a log does not have (e.g. a key added to the config later)
+OFF = "off (planner=none)"  # the value of a planner parameter that nothing reads: never a difference, never a label
 SEP = " · "
 _MISSING = object()
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when PyYAML has it: ~10x faster
@@ -126,6 +131,13 @@ def parameters_of(meta: Mapping[str, str], config: Mapping[str, Any] | None = No
                 continue
             params[key] = value
     params.update({key: value for key, value in meta.items() if is_provenance(key)})
+    # a parameter of a part that is off is no dimension: h_wait where the strategy does not read it, every
+    # planner parameter under planner=none (tests/test_parameters_off.py: the episodes are the same bits)
+    if not reads_h_wait(params["strategy"]):
+        params["h_wait"] = None
+    if params["strategy"] == PLANNER_OFF:
+        for key in [k for k in params if k.startswith("planner.")]:
+            params[key] = OFF
     return params
 
 
@@ -158,6 +170,7 @@ def differing_parameters(runs: Sequence[Mapping[str, Any]]) -> list[str]:
 
     def differs(key: str) -> bool:
         among = runs if key in SHOWN or key == CONFIG or is_provenance(key) else configured
+        among = [run for run in among if run.get(key, _MISSING) != OFF]  # where the part is on
         return len({_hashable(run.get(key, _MISSING)) for run in among}) > 1 and not _implied_by_name(key, among)
 
     differing = [key for key in keys if differs(key)]
@@ -200,7 +213,7 @@ def format_value(value: Any) -> str:
 
 def _order(value: Any) -> tuple:
     """Natural sort key of a parameter value: numbers by value (5 before 10), then text, missing last."""
-    if value is _MISSING or value is None:
+    if value is _MISSING or value is None or value == OFF:
         return (3, "")
     if isinstance(value, bool):
         return (1, str(value))
@@ -229,7 +242,8 @@ class Grouping:
         return self.scenario_keys + self.variant_keys
 
     def _parts(self, run: Mapping[str, Any], keys: Iterable[str]) -> list[str]:
-        return [f"{self.short.get(k, k)}={format_value(run.get(k, _MISSING))}" for k in keys]
+        return [f"{self.short.get(k, k)}={format_value(run.get(k, _MISSING))}" for k in keys
+                if run.get(k, _MISSING) != OFF]
 
     def strategy_label(self, run: Mapping[str, Any]) -> str:
         """``auto(h=2)``, ``wait``; ``wait(h=1)`` when wait episodes with different h_wait are analysed."""

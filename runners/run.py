@@ -35,7 +35,7 @@ from fuzzynav import episode_identity
 from fuzzynav.conf import CONF_DIR
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
-from fuzzynav.params.names import DEFAULT_POLICY
+from fuzzynav.params.names import DEFAULT_POLICY, reads_h_wait
 from fuzzynav.pedestrians.base import model_source_digest
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.generator import generator_source_digest
@@ -61,14 +61,16 @@ schema.register()
 def log_name(scenario: str, cfg: dict[str, Any], seed: int) -> str:
     """``<scenario>__<strategy>__h<h_wait>__<controller>__<perception>__s<seed>.mcap`` for the paper's ``fuzzy``
     policy (the names logs had before policies could be chosen), ``<scenario>__<policy>__<strategy>__…`` for
-    any other (``head_on__dwa__none__h2__table1__laser__s0.mcap``)."""
+    any other (``head_on__dwa__none__table1__laser__s0.mcap``). ``h<h_wait>`` only where the strategy reads it
+    (:func:`fuzzynav.params.names.reads_h_wait`: auto), so that episodes that do not depend on it have one name."""
     planner = cfg.get("planner") or {}
+    strategy = planner.get("strategy", "auto")
     controller = (cfg.get("controller") or {}).get("name", "controller")
     perception = (cfg.get("perception") or {}).get("mode", "laser")
     policy, _ = split_navigator_section(cfg.get("navigator"))
     policy_part = "" if policy == DEFAULT_POLICY else f"{policy}__"
-    return (f"{scenario}__{policy_part}{planner.get('strategy', 'auto')}__h{planner.get('h_wait', 2)}__{controller}"
-            f"__{perception}__s{seed}.mcap")
+    h_part = f"h{planner.get('h_wait', 2)}__" if reads_h_wait(strategy) else ""
+    return f"{scenario}__{policy_part}{strategy}__{h_part}{controller}__{perception}__s{seed}.mcap"
 
 
 def log_path(out_dir: Path, scenario: str, cfg: dict[str, Any], seed: int) -> Path:
@@ -269,7 +271,8 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
         sys.exit(2)
     if HydraConfig.get().mode != RunMode.MULTIRUN:
         for r in results:
-            print(f"{r['scenario']} policy={r['policy']} strategy={r['strategy']} h_wait={r['h_wait']} "
+            h_wait = f" h_wait={r['h_wait']}" if reads_h_wait(r["strategy"]) else ""
+            print(f"{r['scenario']} policy={r['policy']} strategy={r['strategy']}{h_wait} "
                   f"seed={r['seed']}: {r['outcome']} after {r['steps']} steps ({r['time_s']:.0f} s), "
                   f"contacts={r['contacts']}  log: {r['log']}")
         failed = [r for r in results if r["outcome"] == "error"]

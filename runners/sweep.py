@@ -5,7 +5,7 @@
     python -m runners.sweep navigator=fuzzy_tpt,dwa,orca   # a sweep over policies: preset sweep=policies
     python -m runners.sweep sweep=quick planner.safety_margin_cm=5,15    # plus any Hydra override
 
-Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>__h<h_wait>__...__s<seed>.mcap`` with Hydra's
+Logs: ``multirun/<date>/<time>/<job>/<scenario>__<strategy>[__h<h_wait>]__...__s<seed>.mcap`` with Hydra's
 ``.hydra/`` snapshots per job. At the end it reads the logs back once (:func:`analysis.metrics.analyse_logs`),
 writes ``summary.csv``, prints a table of outcomes per group — scenario, strategy, h_wait and every other run
 parameter the sweep varied (:mod:`analysis.run_parameters`) — and writes the analysis report from the same

@@ -144,16 +144,29 @@ def test_provenance_is_pooled_with_a_warning_unless_split():
     assert len({split.variant_label(r) for r in logs}) == 2
 
 
-def test_h_wait_shows_for_other_strategies_only_when_it_differs():
-    def wait(h):
+def test_a_parameter_of_a_part_that_is_off_is_no_dimension():
+    """h_wait is read by auto only, and planner=none reads no planner parameter: logs that differ only there are
+    one group (tests/test_parameters_off.py shows their episodes are the same bits); auto's h_wait still splits."""
+    def planner(strategy, h, **more):
         def edit(config):
-            config["planner"].update(strategy="wait", h_wait=h)
+            config["planner"].update(strategy=strategy, h_wait=h, **more)
         return edit
 
-    logs = runs(meta(wait(2)), meta(wait(2), seed=1), meta())
-    assert find_grouping(logs).variant_label(logs[0]) == "wait"
-    logs = runs(meta(wait(1)), meta(wait(3)), meta())
-    assert [find_grouping(logs).variant_label(r) for r in logs] == ["wait(h=1)", "wait(h=3)", "auto(h=2)"]
+    logs = runs(meta(planner("wait", 1)), meta(planner("wait", 3)), meta(planner("auto", 1)), meta())
+    grouping = find_grouping(logs)
+    assert [grouping.variant_label(r) for r in logs] == ["wait", "wait", "auto(h=1)", "auto(h=2)"]
+    assert [r["h_wait"] for r in logs] == [None, None, 1, 2]
+    logs = runs(meta(planner("none", 1, safety_margin_cm=0.0)), meta(planner("none", 4, safety_margin_cm=30.0)))
+    grouping = find_grouping(logs)
+    assert grouping.variant_keys == () and len({grouping.variant_label(r) for r in logs}) == 1
+    logs = runs(meta(planner("auto", 2, safety_margin_cm=0.0)), meta(planner("auto", 2, safety_margin_cm=30.0)),
+                meta(planner("none", 2)))
+    grouping = find_grouping(logs)
+    assert grouping.variant_keys == ("planner.safety_margin_cm",)
+    assert [grouping.variant_label(r) for r in logs] == ["auto(h=2) · safety_margin_cm=0",
+                                                         "auto(h=2) · safety_margin_cm=30", "none"]
+    logs = runs(meta(planner("wait", 2, safety_margin_cm=0.0)), meta(planner("wait", 2, safety_margin_cm=30.0)))
+    assert find_grouping(logs).variant_keys == ("planner.safety_margin_cm",)  # read by wait: still a dimension
 
 
 def test_short_names_are_unambiguous_suffixes():

@@ -244,7 +244,7 @@ def test_resume_of_an_overlapping_sweep_keeps_each_episode_once_and_reruns_failu
     damaged = before["head_on__auto__h2__table1__laser__s0.mcap"]
     _flip_a_byte_inside_a_chunk(damaged)
     assert is_complete(damaged)  # looks complete; only reading it all shows the damage
-    _rewrite_as_error(before["head_on__none__h2__table1__laser__s1.mcap"], monkeypatch)
+    _rewrite_as_error(before["head_on__none__table1__laser__s1.mcap"], monkeypatch)
     good = {name: identities([p])[0] for name, p in before.items()
             if name in ("head_on__none__h2__table1__laser__s0.mcap", "head_on__auto__h2__table1__laser__s1.mcap")}
 

@@ -20,6 +20,19 @@ IMPORT_PATH = re.compile(r"(?=.{3,200}$)[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-
 #: the model of an obstacle whose scenario entry names none: its scripted path (constant velocity or waypoints)
 DEFAULT_MODEL = "scripted"
 
+#: the wait/detour layer's strategies (``planner.strategy``)
+STRATEGIES = ("auto", "wait", "detour", "none")
+#: the strategies that read ``planner.h_wait`` (auto chooses between waiting and a detour by it; wait and detour do
+#: what their names say whatever it is): elsewhere h_wait is in neither log file names nor report groups
+READS_H_WAIT = ("auto",)
+#: the strategy that leaves the policy alone: the layer reads no ``planner.*`` parameter at all
+PLANNER_OFF = "none"
+
+
+def reads_h_wait(strategy: object) -> bool:
+    """Whether episodes of ``strategy`` depend on ``planner.h_wait`` (unknown strategies, as in a damaged log: yes)."""
+    return strategy not in STRATEGIES or strategy in READS_H_WAIT
+
 
 def is_policy_id(text: object) -> bool:
     """Whether ``text`` names a policy as a configuration and a log do: a registered name or an import path."""

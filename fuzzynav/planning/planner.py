@@ -58,9 +58,9 @@ import numpy as np
 from fuzzynav.numerics.clearance import segment_point_clearance
 from fuzzynav.numerics.geometry import angle_difference_deg, swept_distance, wrap_180, wrap_360
 from fuzzynav.numerics.portable_math import atan2_deg, bearing_deg, dist, norm2, sin_cos_deg_array
+from fuzzynav.params.names import STRATEGIES
 from fuzzynav.planning.tpt import TrajectoryPredictionTable
 
-STRATEGIES = ("auto", "wait", "detour", "none")
 PHI_LOW_RULES = ("paper", "target_side", "toward_goal")
 DETOUR_SEARCHES = ("greedy", "astar")
 TIE_BREAKS = ("fastest", "listing")
