@@ -436,6 +436,26 @@ def test_an_alias_bomb_in_any_config_group_is_one_line_not_a_hang(group, tmp_pat
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("edit, says", [
+    (("SweepProgress\n", "SweepProgress\n      scenario: x\n"),
+     "hydra.callbacks.sweep_progress: got an unexpected keyword argument 'scenario'"),
+    (("runners.sweep.SweepProgress", "runners.sweep.NoSuch"),
+     "hydra.callbacks.sweep_progress._target_: cannot import 'runners.sweep.NoSuch'"),
+])
+@pytest.mark.parametrize("command", ["runners.run", "runners.sweep"])
+def test_a_callback_hydra_cannot_instantiate_is_one_line(edit, says, command, tmp_path):
+    """The fuzzer's find: a sweep preset whose callback has a stray key (a duplicated line) was Hydra's five-line
+    ``Error in call to target``; every ``hydra.callbacks`` entry is checked with the config."""
+    (tmp_path / "sweep").mkdir()
+    (tmp_path / "sweep" / "fz.yaml").write_text((CONF / "sweep" / "default.yaml").read_text().replace(*edit))
+    res = subprocess.run([sys.executable, "-m", command, f"hydra.searchpath=[file://{tmp_path}]", "sweep=fz",
+                          f"hydra.run.dir={tmp_path / 'out'}", f"hydra.sweep.dir={tmp_path / 'out'}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and says in res.stderr, res.stderr
+    assert res.stderr.startswith(f"error: {tmp_path / 'sweep' / 'fz.yaml'}: "), res.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_200k_vertex_polygon_is_refused_at_once():
     """A 200,000-vertex polygon ran 297 s without output; the parser counts before converting."""
     import time

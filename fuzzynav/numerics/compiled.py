@@ -34,10 +34,42 @@ def switched_off() -> bool:
     return value is not None and env.decodevalue(value).strip().lower() == "python"
 
 
+#: kernels to leave unused in this process, by full or last name, comma-separated (``_tpt,_raycast``): read when
+#: a module loads its kernel; ``runners.bench`` times the commands with each kernel off in turn
+KERNELS_OFF_ENV = "FUZZYNAV_KERNELS_OFF"
+
+
+def kernels_off() -> set[str]:
+    """The kernels :data:`KERNELS_OFF_ENV` names, as full module names (unknown names are an error: a typo must not
+    time the wrong thing)."""
+    names = {n.strip() for n in os.environ.get(KERNELS_OFF_ENV, "").split(",") if n.strip()}
+    off = {k for k in KERNELS if k in names or k.rpartition(".")[2] in names}
+    unknown = names - off - {k.rpartition(".")[2] for k in off}
+    if unknown:
+        raise ValueError(f"{KERNELS_OFF_ENV}: unknown kernel(s) {', '.join(sorted(unknown))} (known: "
+                         f"{', '.join(k.rpartition('.')[2] for k in KERNELS)})")
+    return off
+
+
 def load(name: str) -> ModuleType | None:
     """The compiled module ``name`` (a full module name, one of :data:`KERNELS`), or None when it was not built
-    (no C compiler at install)."""
+    (no C compiler at install) or :data:`KERNELS_OFF_ENV` names it."""
+    if name in kernels_off():
+        return None
     try:
         return importlib.import_module(name)
     except ImportError:
         return None
+
+
+def built() -> dict[str, bool]:
+    """Each kernel's short name and whether its compiled module can be imported (built at install)."""
+    out = {}
+    for name in KERNELS:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            out[name.rpartition(".")[2]] = False
+        else:
+            out[name.rpartition(".")[2]] = True
+    return out

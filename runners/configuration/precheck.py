@@ -19,11 +19,14 @@ check is skipped and Hydra's full report is shown.
 from __future__ import annotations
 
 import contextlib
+import importlib
+import inspect
 import os
 import re
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import yaml
 from hydra import compose, initialize_config_dir
@@ -221,6 +224,58 @@ def check_selected_files(overrides: Sequence[str]) -> str | None:
     return None
 
 
+def check_callbacks(cfg: DictConfig) -> tuple[str, str] | None:
+    """The first ``hydra.callbacks`` entry Hydra could not instantiate (a target that does not import, a key its
+    class does not take) as (its key, the problem), or None: Hydra reported it on five lines (``Error in call to
+    target ...``)."""
+    callbacks = cfg.hydra.get("callbacks") if "hydra" in cfg else None
+    for name, spec in (callbacks or {}).items():
+        key = f"hydra.callbacks.{name}"
+        if not isinstance(spec, DictConfig) or not isinstance(spec.get("_target_"), str):
+            return key, "expected a mapping with a _target_"
+        try:
+            target = _locate(spec["_target_"])
+        except Exception as err:
+            return f"{key}._target_", f"cannot import {spec['_target_'][:80]!r} ({type(err).__name__})"
+        try:
+            inspect.signature(target).bind(**{str(k): None for k in spec if not str(k).startswith("_")})
+        except TypeError as err:
+            return key, str(err)
+        except ValueError:  # a callable without a signature: Hydra's to try
+            continue
+    return None
+
+
+def file_setting(overrides: Sequence[str], key: str) -> Path | None:
+    """The last of the files the overrides compose that sets the dotted ``key`` at its top level (a ``_global_``
+    file: sweep presets, ``config.yaml``), or None."""
+    found = None
+    with contextlib.suppress(Exception):
+        for path in selected_config_files(overrides):
+            node: Any = yaml.load(path.read_text(encoding="utf-8"), Loader=_SAFE)  # checked as text: bounded
+            *parents, last = key.split(".")
+            for part in parents:
+                node = node.get(part) if isinstance(node, dict) else None
+            if isinstance(node, dict) and last in node:
+                found = path
+    return found
+
+
+def _locate(path: str) -> Any:
+    """The object a dotted path names (a module, then attributes), as Hydra's ``_target_`` does, without Hydra's
+    logging of a failure on stderr."""
+    parts = path.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        for attr in parts[cut:]:
+            obj = getattr(obj, attr)
+        return obj
+    raise ImportError(path)
+
+
 def check_composed(cfg: DictConfig) -> str | None:
     """Stage 3: load and validate a composed config (with Hydra's node) as a job would, or say why not."""
     try:
@@ -301,6 +356,10 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                 return unavailable
             if cfg is None:
                 return problem
+            callback = check_callbacks(cfg)
+            if callback:
+                where = file_setting(overrides, callback[0].removesuffix("._target_"))
+                return f"{where if where else 'config'}: {callback[0]}: {callback[1]}"
             problem = check_composed(cfg)
             if problem:
                 return problem
