@@ -50,7 +50,7 @@ from analysis.schema_checks import Ranges, build_check, field_paths
 from fuzzynav.episode_identity import POLICY_SOURCE, config_hash  # what runners.run records: one definition
 from fuzzynav.params import limits
 from fuzzynav.params import names as policy_names
-from fuzzynav.params.names import DEFAULT_POLICY
+from fuzzynav.params.names import DEFAULT_POLICY, STRATEGIES
 
 __all__ = ["LENIENT", "MESSAGE_CHECKS", "RANGES", "READ", "TOPIC_SCHEMAS", "UNREAD", "CheckError", "check_message",
            "check_metadata", "config_hash", "messages_acceptable"]
@@ -61,7 +61,6 @@ MAX_CONFIG_BYTES = 1 << 20
 MAX_CONFIG_NODES = 100_000
 NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,63}")  # safe as a label and a file-name part (no "..")
 MAX_SEED = 2**53 - 1  # the analysis's tables hold seeds as float64: larger ones would merge
-STRATEGIES = ("auto", "wait", "detour", "none")
 PERCEPTIONS = ("laser", "ground_truth")
 FINISHED = ("goal", "collision", "timeout")  # outcomes whose log must hold every step
 TIME_TOLERANCE_NS = 1000  # log times are round(step * dt * 1e9): 1 µs of slack for the float product

@@ -22,7 +22,12 @@
    walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.benchmarks.crowd`).
 8. Side by side with the commit issue #19 was filed against: CPU time per step on ``mixed`` with and without
    logging, each tree in its own child process, alternated (:mod:`runners.benchmarks.baseline`).
-9. Issue #19's targets, each with its value, threshold and verdict (:mod:`runners.benchmarks.targets`).
+9. The main job (:mod:`runners.benchmarks.main_job`): ``sweep efficiency`` (the default sweep's episodes/s as a
+   whole command / (cores x the same episodes in one plain process)), the time to the first step of
+   ``runners.run``, the report's episodes/s against the metrics alone; in the full run also each compiled kernel's
+   end-to-end gain on the documented workloads (each kernel off in turn, ``FUZZYNAV_KERNELS_OFF``).
+10. Issue #19's and issue #36's targets, each with its value, threshold and verdict
+    (:mod:`runners.benchmarks.targets`).
 
 Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
 Writes ``bench.json`` (path with ``--out``).
@@ -284,13 +289,23 @@ def main(argv: list[str] | None = None) -> int:
 
     results["crowd"] = bench_crowd(2 if args.quick else 10)
     print_crowd(results["crowd"])
+    from runners.benchmarks.main_job import bench_kernels, bench_main_job, print_kernels, print_main_job
+
+    results["main_job"] = bench_main_job(rounds=1 if args.quick else 3)  # issue #36: the job a user runs
+    print_main_job(results["main_job"])
+    if not args.quick:  # each kernel off in turn on every documented workload: about 20 minutes
+        results["kernels"] = bench_kernels(rounds=2)
+        print_kernels(results["kernels"])
     from runners.benchmarks.baseline import bench_baseline, print_baseline  # target 3, side by side
-    from runners.benchmarks.targets import print_targets, targets
+    from runners.benchmarks.targets import main_job_targets, print_targets, targets
 
     results["baseline"] = bench_baseline(rounds=1, episodes=3, passes=1) if args.quick else bench_baseline()
     print_baseline(results["baseline"])
     results["targets"] = [{"name": t.name, "value": t.value, "threshold": t.threshold, "higher_is_better": t.higher,
                            "unit": t.unit, "met": t.met, "note": t.note} for t in targets(results)]
+    results["main_job_targets"] = [{"name": t.name, "value": t.value, "threshold": t.threshold,
+                                    "higher_is_better": t.higher, "unit": t.unit, "met": t.met, "note": t.note}
+                                   for t in main_job_targets(results)]
     print()
     print_targets(results)
     Path(args.out).write_text(json.dumps(results, indent=2))

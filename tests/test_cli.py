@@ -66,6 +66,12 @@ def test_bench_quick_writes_results(tmp_path):
     assert set(data["simulation"]["us_per_step_by_stage"]) >= {"sensors", "tracking", "logging", "controller"}
     assert data["sweep"]["episodes"] >= 100 and len(data["sweep"]["shapes"]) == 2
     assert data["sweep"]["rounds"] == 1
+    job = data["main_job"]  # issue #36: the default sweep as a user runs it, beside one plain process
+    assert job["episodes"] == 105 and 0 < job["sweep_efficiency"] <= job["sweep_efficiency_to_last_log"]
+    assert job["plain_episodes_per_s"] > 0 and 0 < job["first_step_s"] < job["sweep_wall_s"]
+    assert job["report_over_metrics"] > 0
+    assert f"sweep efficiency: {job['sweep_efficiency']:.2f}" in res.stdout
+    assert data["main_job_targets"][0]["name"] == "sweep efficiency, the default sweep as a whole command"
     for shape in data["sweep"]["shapes"]:
         assert shape["wall_over_ideal"] > 0 and shape["wall_over_all_cores"] > 0 and shape["all_cores_s"] > 0
         assert set(shape["phases_s"]) == {"start-up", "validation + workers", "episodes", "summary", "report"}

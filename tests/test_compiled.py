@@ -39,3 +39,35 @@ def test_the_switch_reads_the_environment_a_process_starts_with():
         out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,
                              check=True).stdout.strip()
         assert out == expected
+
+
+def test_every_log_records_which_forms_ran_and_the_bits_do_not_depend_on_it(tmp_path):
+    """``kernels`` in a log's metadata says ``compiled``, ``python`` or which kernels ran as Python
+    (``FUZZYNAV_KERNELS_OFF``); the messages are the same bits whichever it was."""
+    from mcap.reader import make_reader
+
+    from runners.dataset import content_digests
+
+    def run(name: str, env: dict[str, str]) -> tuple[str, str]:
+        out = tmp_path / name
+        subprocess.run([sys.executable, "-m", "runners.run", "scenario=mixed", f"hydra.run.dir={out}"], cwd=ROOT,
+                       env={**os.environ, **env}, capture_output=True, text=True, check=True)
+        (log,) = out.glob("*.mcap")
+        with open(log, "rb") as f:
+            meta = next(m.metadata for m in make_reader(f).iter_metadata() if m.name == "fuzzynav.run")
+        return meta["kernels"], content_digests(log)["sha256"]
+
+    built = compiled.built()
+    all_on = run("on", {compiled.KERNEL_ENV: "", compiled.KERNELS_OFF_ENV: ""})
+    python = run("python", {compiled.KERNEL_ENV: "python", compiled.KERNELS_OFF_ENV: ""})
+    some = run("some", {compiled.KERNEL_ENV: "", compiled.KERNELS_OFF_ENV: "_raycast,fuzzynav.planning._tpt"})
+    assert all_on[0] == ("compiled" if all(built.values()) else all_on[0]) and python[0] == "python"
+    if all(built.values()):
+        assert some[0] == "python for _raycast, _tpt", some
+    assert all_on[1] == python[1] == some[1]
+
+
+def test_an_unknown_kernel_name_to_leave_off_is_an_error(monkeypatch):
+    monkeypatch.setenv(compiled.KERNELS_OFF_ENV, "_raycast,_no_such")
+    with pytest.raises(ValueError, match=r"unknown kernel.*_no_such"):
+        compiled.kernels_off()

@@ -9,6 +9,7 @@ check them, or to time them).
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 from types import ModuleType
@@ -62,6 +63,7 @@ def load(name: str) -> ModuleType | None:
         return None
 
 
+@functools.cache
 def built() -> dict[str, bool]:
     """Each kernel's short name and whether its compiled module can be imported (built at install)."""
     out = {}
@@ -73,3 +75,14 @@ def built() -> dict[str, bool]:
         else:
             out[name.rpartition(".")[2]] = True
     return out
+
+
+def in_use() -> str:
+    """Which forms this process runs, as every log's metadata records it (``kernels``): ``compiled``, ``python``
+    (no kernel built, e.g. no C compiler at install, or ``FUZZYNAV_KERNEL=python``) or ``python for _tpt, _orca``.
+    Either way the results are the same bits; only the speed differs."""
+    off = {k.rpartition(".")[2] for k in kernels_off()}
+    python = [name for name, ok in built().items() if not ok or name in off]
+    if switched_off() or len(python) == len(KERNELS):
+        return "python"
+    return "compiled" if not python else f"python for {', '.join(python)}"

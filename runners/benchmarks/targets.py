@@ -17,6 +17,10 @@ REPORT_SECONDS = 60.0  # target 4: the report of 10,000 episodes
 RSS_GROWTH = 0.05  # target 4: "RSS flat" over a sweep: at most +5 % from 10 % of the episodes to the end
 AGREEMENT_DEG = 1e-9  # target 2: ours vs scikit-fuzzy (Δθ degrees; v is held to the same number in cm/s)
 STEP_RATIO = 2.0  # target 3: the logged step at least twice as fast as at the issue's commit
+SWEEP_EFFICIENCY = 0.8  # issue #36: the default sweep at >= 80 % of cores x one plain process's episodes/s
+FIRST_STEP_S = 0.5  # issue #36: runners.run's first step within 0.5 s of its start
+REPORT_OVER_METRICS = 0.5  # issue #36: analysis.report at least half the metrics' episodes/s
+KERNEL_GAIN = 1.3  # issue #36: a kernel stays where it gives >= 1.3 x on some documented workload end to end
 
 
 @dataclass(frozen=True)
@@ -93,9 +97,36 @@ def targets(results: dict[str, Any]) -> list[Target]:
     return out
 
 
+def main_job_targets(results: dict[str, Any]) -> list[Target]:
+    """Issue #36's targets: the main job's figures (:mod:`runners.benchmarks.main_job`)."""
+    out = []
+    job = results.get("main_job")
+    if job:
+        out.append(Target("sweep efficiency, the default sweep as a whole command", job["sweep_efficiency"],
+                          SWEEP_EFFICIENCY, True, "", f"{job['cores']} cores"))
+        out.append(Target("time to the first step of runners.run", job["first_step_s"], FIRST_STEP_S, False, "s"))
+        out.append(Target("analysis.report / the metrics alone (episodes/s)", job["report_over_metrics"],
+                          REPORT_OVER_METRICS, True, ""))
+    kernels = results.get("kernels")
+    if kernels:
+        for kernel in next(iter(kernels["gain"].values())):
+            if kernel.startswith("all "):
+                continue
+            best = max(kernels["gain"], key=lambda w: kernels["gain"][w][kernel])
+            out.append(Target(f"kernel {kernel}, best end-to-end gain", kernels["gain"][best][kernel], KERNEL_GAIN,
+                              True, "x", best))
+    return out
+
+
 def print_targets(results: dict[str, Any]) -> None:
     rows = targets(results)
     met = sum(1 for t in rows if t.met)
     print(f"issue #19 targets: {met} of {len(rows)} met in this run")
     for t in rows:
         print(t.line())
+    rows = main_job_targets(results)
+    if rows:
+        met = sum(1 for t in rows if t.met)
+        print(f"issue #36 targets (the main job): {met} of {len(rows)} met in this run")
+        for t in rows:
+            print(t.line())

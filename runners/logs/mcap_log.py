@@ -428,10 +428,13 @@ def _policy_fields(fields: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def run_metadata(config_yaml: str, seed: int, scenario: str, extra: Mapping[str, Any] | None = None) -> dict[str, str]:
-    """The ``fuzzynav.run`` metadata record: config, seed, scenario, versions, git commit (all strings)."""
+    """The ``fuzzynav.run`` metadata record: config, seed, scenario, versions, git commit, which forms of the
+    kernels ran (``kernels``: :func:`fuzzynav.numerics.compiled.in_use`; all strings)."""
+    from fuzzynav.numerics import compiled
     from runners.logs.provenance import provenance
 
-    meta = {"config": config_yaml, "seed": str(seed), "scenario": scenario, **provenance()}
+    meta = {"config": config_yaml, "seed": str(seed), "scenario": scenario, **provenance(),
+            "kernels": compiled.in_use()}
     for key, value in (extra or {}).items():
         meta[key] = str(value)
     return meta
