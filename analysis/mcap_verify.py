@@ -22,8 +22,6 @@ from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import Any, BinaryIO
 
-from fuzzynav.numerics import compiled
-
 MAGIC = b"\x89MCAP0\r\n"
 MAX_FILE_BYTES = 256 * 2**20  # a 10,000-step episode's log is ~20 MB: anything larger is not a fuzzynav log
 MAX_CHUNK_BYTES = 64 * 2**20  # the writer's chunks are ~32 KB uncompressed: a bound against bogus size fields
@@ -42,12 +40,8 @@ _CHUNK_HEAD = struct.Struct("<QQQI")  # message start time, end time, uncompress
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 _MESSAGE_START = struct.Struct("<BQH4xQ")  # a record's opcode and length, and if it is a message its channel and time
 
-# The chunk record loop in C (analysis/_mcap_chunk.c; None when not built): the same messages and errors as
-# _Reader._scan_python. Tests set this to None to force the Python loop.
-_mcap_chunk = compiled.load("analysis._mcap_chunk")
-# what the loop stops at: the end, a schema or channel record for Python to file, or one of the errors below
-# (the numbers are analysis/_mcap_chunk.c's codes)
-_DONE, _INNER, _CUT, _PAST_END, _TOO_SHORT, _UNDECLARED, _NOT_IN_CHUNK = range(7)
+# the faults of a chunk's record loop (:func:`_chunk_fault`)
+_CUT, _PAST_END, _TOO_SHORT, _UNDECLARED, _NOT_IN_CHUNK = range(2, 7)
 
 
 class McapError(ValueError):
@@ -238,8 +232,6 @@ class _Reader:
         # the bytes before this offset match the data section's CRC (_intact_data_section): a chunk that ends there
         # decompresses to what its writer compressed, so its own CRC (a fifth of the reading time) is not computed
         self.intact_below = 0
-        # the chunk loop in C unless it was not built or the environment asks for the Python paths (per file)
-        self.scan = None if _mcap_chunk is None or compiled.switched_off() else _mcap_chunk.scan
 
     def record(self, opcode: int, at: int, body: int, end: int) -> None:
         first = not self.header_seen
@@ -289,27 +281,9 @@ class _Reader:
             raise McapError(f"chunk at byte {at}: {len(records)} bytes decompressed, {size} declared")
         if crc and end > self.intact_below and zlib.crc32(records) != crc:
             raise McapError(f"chunk at byte {at}: CRC mismatch (the chunk's content is damaged)")
-        if self.scan is not None and type(records) is bytes:
-            self._scan_compiled(records, at)
-        else:
-            self._scan_python(records, at)
+        self._scan(records, at)
 
-    def _scan_compiled(self, records: bytes, at: int) -> None:
-        """:meth:`_scan_python` with its loop over messages in C (``analysis._mcap_chunk``), which hands each
-        schema and channel record back here in file order (a channel record changes ``keep`` for the messages
-        after it)."""
-        scan, keep, messages = self.scan, self.keep, self.out.messages
-        pos = 0
-        while True:
-            code, pos, value, stop = scan(records, pos, keep, messages)
-            if code == _DONE:
-                return
-            if code != _INNER:
-                raise _chunk_fault(at, code, value)
-            self._inner(value, records, at, pos + _RECORD.size, stop)
-            pos = stop
-
-    def _scan_python(self, records: bytes, at: int) -> None:
+    def _scan(self, records: bytes, at: int) -> None:
         """The records of the chunk at byte ``at`` (``records``: its decompressed bytes): the wanted messages
         go to ``out.messages``, schemas and channels to :meth:`_inner`."""
         size = len(records)

@@ -60,10 +60,10 @@ def test_every_log_records_which_forms_ran_and_the_bits_do_not_depend_on_it(tmp_
     built = compiled.built()
     all_on = run("on", {compiled.KERNEL_ENV: "", compiled.KERNELS_OFF_ENV: ""})
     python = run("python", {compiled.KERNEL_ENV: "python", compiled.KERNELS_OFF_ENV: ""})
-    some = run("some", {compiled.KERNEL_ENV: "", compiled.KERNELS_OFF_ENV: "_raycast,fuzzynav.planning._tpt"})
+    some = run("some", {compiled.KERNEL_ENV: "", compiled.KERNELS_OFF_ENV: "_raycast,fuzzynav.pedestrians._orca"})
     assert all_on[0] == ("compiled" if all(built.values()) else all_on[0]) and python[0] == "python"
     if all(built.values()):
-        assert some[0] == "python for _raycast, _tpt", some
+        assert some[0] == "python for _raycast, _orca", some
     assert all_on[1] == python[1] == some[1]
 
 

@@ -8,8 +8,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fuzzynav.numerics import portable_math as pm
@@ -190,90 +189,3 @@ def test_portable_functions_ignore_numpy_simd_and_blas(angle, frac, x, y):
     assert (s[0], c[0]) == pm.sin_cos_deg(angle)
     ys, xs = np.full(1031, y), np.full(1031, x)
     assert pm.atan2_deg_array(ys, xs)[1030] == pm.atan2_deg(y, x)
-
-
-# -- the compiled forms (fuzzynav/numerics/_portable_math.c) -----------------------------------------------------------
-ANY_FLOAT = st.floats() | st.sampled_from([0.0, -0.0, 90.0, -90.0, 45.0, 135.0, 1e308, -1e308, 5e-324, 2.0 ** 53,
-                                            2.0 ** 53 + 2.0, 720.0, -450.0, 22.5])
-
-
-def _bits(values) -> list[bytes]:
-    return [np.float64(v).tobytes() for v in values]
-
-
-def _python_forms(monkeypatch, call):
-    with monkeypatch.context() as m:
-        m.setenv("FUZZYNAV_KERNEL", "python")
-        return call()
-
-
-@pytest.mark.skipif(pm._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
-@settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(ANY_FLOAT, ANY_FLOAT)
-def test_the_kernel_gives_the_python_forms_bits(monkeypatch, a, b):
-    with np.errstate(all="ignore"):
-        for call in (lambda: pm.sin_cos_deg(a), lambda: (pm.atan2_deg(a, b),),
-                     lambda: tuple(x.tolist() for x in pm.sin_cos_deg_array(np.array([a, b, a + b]))),
-                     lambda: tuple(pm.atan2_deg_array(np.array([a, b, -a, 0.0, a]), np.array([b, a, b, a, -0.0]))
-                                   .tolist())):
-            on, off = call(), _python_forms(monkeypatch, call)
-            assert [type(v) for v in on] == [type(v) for v in off]
-            assert _bits(np.ravel(on)) == _bits(np.ravel(off))
-
-
-@pytest.mark.skipif(pm._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
-def test_the_kernel_keeps_the_array_forms_shapes_and_the_scalar_forms_types(monkeypatch):
-    for angles in (np.float64(30.0), np.arange(12.0).reshape(3, 4) * 37.5, np.arange(10.0)[::3], [10, 20], 45):
-        on = pm.sin_cos_deg_array(angles)
-        off = _python_forms(monkeypatch, lambda angles=angles: pm.sin_cos_deg_array(angles))
-        assert [(x.shape, x.dtype, x.tobytes()) for x in on] == [(x.shape, x.dtype, x.tobytes()) for x in off]
-    # broadcasting, strided columns, 0-d and empty inputs, ints
-    pairs = np.arange(24.0).reshape(12, 2) - 7.5
-    for y, x in ((pairs[:, 1], pairs[:, 0]), (pairs[:, 1], 3.0), (np.float64(-2.0), -0.0), (np.empty(0), np.empty(0)),
-                 ([1, -1, 0], [0, 0, 0]), (pairs.reshape(3, 4, 2)[..., 0], pairs.reshape(3, 4, 2)[..., 1])):
-        on_a = pm.atan2_deg_array(y, x)
-        off_a = _python_forms(monkeypatch, lambda y=y, x=x: pm.atan2_deg_array(y, x))
-        assert (on_a.shape, on_a.dtype, on_a.tobytes()) == (off_a.shape, off_a.dtype, off_a.tobytes())
-    # numpy scalars and ints take the Python form, which keeps their types
-    assert type(pm.sin_cos_deg(np.float64(30.0))[0]) is np.float64
-    assert pm.atan2_deg(1, 1) == 45.0 and pm.sin_cos_deg(90) == (1.0, 0.0)
-
-
-@pytest.mark.skipif(pm._kernel is None, reason="the compiled kernel was not built (no C compiler at install)")
-def test_nan_and_unaligned_inputs_answer_alike(monkeypatch):
-    nan = math.nan
-    for y, x in ((0.0, nan), (-0.0, nan), (nan, 0.0), (nan, nan), (1.0, nan), (nan, -3.0)):
-        on, off = pm.atan2_deg(y, x), _python_forms(monkeypatch, lambda y=y, x=x: pm.atan2_deg(y, x))
-        assert math.isnan(on) and math.isnan(off)
-    ys, xs = np.array([0.0, -0.0, nan, nan, 1.0, nan, -1.0]), np.array([nan, nan, 0.0, nan, nan, -3.0, nan])
-    on_a = pm.atan2_deg_array(ys, xs)
-    assert np.isnan(on_a).all() and np.isnan(_python_forms(monkeypatch, lambda: pm.atan2_deg_array(ys, xs))).all()
-    unaligned = np.frombuffer(bytearray(8 * 5 + 1), np.float64, offset=1)
-    on = pm.sin_cos_deg_array(unaligned)
-    off = _python_forms(monkeypatch, lambda: pm.sin_cos_deg_array(unaligned))
-    assert [x.tobytes() for x in on] == [x.tobytes() for x in off]
-    unaligned[:] = [3.0, -4.0, 0.0, 1e-300, -7.0]
-    on_a = pm.atan2_deg_array(unaligned, unaligned[::-1].copy())
-    off_a = _python_forms(monkeypatch, lambda: pm.atan2_deg_array(unaligned, unaligned[::-1].copy()))
-    assert on_a.tobytes() == off_a.tobytes()
-
-
-def test_configure_reads_a_copy_of_a_series_that_changes_while_it_is_read():
-    import subprocess
-    import sys
-
-    code = """if True:
-        from fuzzynav.numerics import _portable_math as k
-        series = []
-        class Shrinks:
-            def __float__(self):
-                series.clear()
-                return 1.0
-        series += [Shrinks(), 1.0, 2.0]
-        k.configure(series, [1.0], [1.0], 1.0, 1.0, 1.0)
-        print(k.sin_cos_deg(30.0)[0] == k.sin_cos_deg(30.0)[0])"""
-    if pm._kernel is None:
-        pytest.skip("the compiled kernel was not built (no C compiler at install)")
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "True"

@@ -1,7 +1,7 @@
 """The optional compiled kernels (C files built by the install when a C compiler is there).
 
 Each numeric kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are
-the same bits with or without it; the analysis's (``_mcap_chunk``, ``_json_checks``) give the same answers and
+the same bits with or without it; the analysis's (``_json_checks``) gives the same answers and
 the same errors as their Python forms (each kernel has a test that compares it with its counterpart).
 ``FUZZYNAV_KERNEL=python`` in the environment switches every kernel off: the runs then take the Python paths (to
 check them, or to time them).
@@ -17,9 +17,8 @@ from types import ModuleType
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
 # the modules pyproject.toml's ext-modules build
 KERNELS = ("fuzzynav.controller._mamdani", "fuzzynav.sensing._raycast", "fuzzynav.sensing._tracking",
-           "analysis._mcap_chunk", "fuzzynav.pedestrians._social_force", "analysis._json_checks",
-           "fuzzynav.numerics._portable_random", "fuzzynav.pedestrians._orca", "fuzzynav.numerics._closest_approach",
-           "fuzzynav.numerics._portable_math", "fuzzynav.planning._tpt")
+           "fuzzynav.pedestrians._social_force", "analysis._json_checks", "fuzzynav.pedestrians._orca",
+           "fuzzynav.numerics._closest_approach")
 
 
 def switched_off() -> bool:
@@ -35,7 +34,7 @@ def switched_off() -> bool:
     return value is not None and env.decodevalue(value).strip().lower() == "python"
 
 
-#: kernels to leave unused in this process, by full or last name, comma-separated (``_tpt,_raycast``): read when
+#: kernels to leave unused in this process, by full or last name, comma-separated (``_orca,_raycast``): read when
 #: a module loads its kernel; ``runners.bench`` times the commands with each kernel off in turn
 KERNELS_OFF_ENV = "FUZZYNAV_KERNELS_OFF"
 
@@ -79,7 +78,7 @@ def built() -> dict[str, bool]:
 
 def in_use() -> str:
     """Which forms this process runs, as every log's metadata records it (``kernels``): ``compiled``, ``python``
-    (no kernel built, e.g. no C compiler at install, or ``FUZZYNAV_KERNEL=python``) or ``python for _tpt, _orca``.
+    (no kernel built, e.g. no C compiler at install, or ``FUZZYNAV_KERNEL=python``) or ``python for _raycast, _orca``.
     Either way the results are the same bits; only the speed differs."""
     off = {k.rpartition(".")[2] for k in kernels_off()}
     python = [name for name, ok in built().items() if not ok or name in off]

@@ -29,8 +29,6 @@ from fractions import Fraction
 
 import numpy as np
 
-from fuzzynav.numerics import compiled
-
 RAD_PER_DEG = math.pi / 180.0
 DEG_PER_RAD = 180.0 / math.pi
 _TAN_PI_8 = math.sqrt(2.0) - 1.0  # tan(22.5°), the split between atan's two reductions
@@ -56,13 +54,6 @@ _ATANH = _series(0, (2 * k + 1 for k in range(1, 12)))  # x^3 .. x^23, |x| <= 0.
 _EXP = (1.0, 1.0, *(float(Fraction(1, math.factorial(n))) for n in range(2, 17)))  # x^0 .. x^16, |x| <= 0.35
 
 
-# sin_cos_deg, atan2_deg (of Python floats), sin_cos_deg_array and atan2_deg_array in C when built at install: the
-# same operations in the same order, so the same bits (tests/test_portable_math.py); its series and constants are these
-_kernel = compiled.load("fuzzynav.numerics._portable_math")
-if _kernel is not None:
-    _kernel.configure(_SIN, _COS, _ATAN, RAD_PER_DEG, DEG_PER_RAD, _TAN_PI_8)
-
-
 def _horner(z, coefficients: Sequence[float]):
     """c0 + z·(c1 + z·(c2 + ...)), one rounding per operation (floats or arrays alike)."""
     acc = coefficients[-1]
@@ -79,8 +70,6 @@ def _sin_cos_reduced(x):
 
 def sin_cos_deg(angle_deg: float) -> tuple[float, float]:
     """(sin, cos) of an angle in degrees. Exact at multiples of 90° (cos 90° is 0, not 6e-17)."""
-    if type(angle_deg) is float and _kernel is not None and not compiled.switched_off():
-        return _kernel.sin_cos_deg(angle_deg)
     if not math.isfinite(angle_deg):
         return math.nan, math.nan
     q = round(angle_deg / 90.0)  # nearest quadrant (ties to even, as np.rint)
@@ -92,13 +81,6 @@ def sin_cos_deg(angle_deg: float) -> tuple[float, float]:
 def sin_cos_deg_array(angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Elementwise :func:`sin_cos_deg` (NaN for non-finite angles)."""
     a = np.asarray(angle_deg, dtype=float)
-    if _kernel is not None and not compiled.switched_off():
-        # a contiguous aligned copy when needed (np.ascontiguousarray would make a 0-d array 1-d, and keeps an array
-        # that is contiguous but not aligned, which the buffer protocol gives as another format)
-        a = a if a.flags.c_contiguous and a.flags.aligned else a.copy()
-        sin, cos = np.empty(a.shape), np.empty(a.shape)
-        _kernel.sin_cos_deg_array(a, sin, cos)
-        return sin, cos
     finite = np.isfinite(a)
     a = np.where(finite, a, 0.0)
     q = np.rint(a / 90.0)
@@ -119,8 +101,6 @@ def _atan_reduced_deg(u):
 
 def atan2_deg(y: float, x: float) -> float:
     """Angle of the vector (x, y) in degrees, in [-180, 180]; 0 for the zero vector, NaN when either is NaN."""
-    if type(y) is float and type(x) is float and _kernel is not None and not compiled.switched_off():
-        return _kernel.atan2_deg(y, x)
     if math.isnan(x) or math.isnan(y):
         return math.nan
     ax, ay = abs(x), abs(y)
@@ -138,13 +118,6 @@ def atan2_deg(y: float, x: float) -> float:
 def atan2_deg_array(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Elementwise :func:`atan2_deg`."""
     y, x = np.broadcast_arrays(np.asarray(y, dtype=float), np.asarray(x, dtype=float))
-    if _kernel is not None and not compiled.switched_off():
-        # contiguous aligned copies when needed (broadcast views and strided columns such as v[:, 1] are not)
-        y = y if y.flags.c_contiguous and y.flags.aligned else y.copy()
-        x = x if x.flags.c_contiguous and x.flags.aligned else x.copy()
-        out = np.empty(y.shape)
-        _kernel.atan2_deg_array(y, x, out)
-        return out
     ax, ay = np.abs(x), np.abs(y)
     zero = (ax == 0.0) & (ay == 0.0)
     big = np.where(ax >= ay, ax, ay)

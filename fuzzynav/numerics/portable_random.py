@@ -10,15 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fuzzynav.numerics import compiled, portable_math
 from fuzzynav.numerics.portable_math import log_array, sin_cos_deg_array
-
-# the transform below in C (the same operations in the same order: the same bits), when built at install; its
-# series and constants are portable_math's
-_kernel = compiled.load("fuzzynav.numerics._portable_random")
-_SERIES = tuple(np.array(values, dtype=np.float64) for values in (
-    portable_math._SIN, portable_math._COS, portable_math._ATANH,
-    (portable_math.RAD_PER_DEG, portable_math._LN2_HI, portable_math._LN2_LO, portable_math._SQRT_HALF)))
 
 
 def uniform(rng: np.random.Generator, low: float, high: float) -> float:
@@ -30,10 +22,6 @@ def standard_normal(rng: np.random.Generator, size: int) -> np.ndarray:
     """``size`` draws from N(0, 1) (Box–Muller: each pair of uniforms gives two normals)."""
     pairs = (size + 1) // 2
     u = rng.random((2, pairs))
-    if _kernel is not None and not compiled.switched_off():
-        out = np.empty(2 * pairs)
-        _kernel.normal_pairs(u[0], u[1], *_SERIES, out)
-        return out[:size]
     radius = np.sqrt(-2.0 * log_array(1.0 - u[0]))  # 1 - u is in (0, 1]: the logarithm is finite
     s, c = sin_cos_deg_array(360.0 * u[1])
     return np.concatenate([radius * c, radius * s])[:size]

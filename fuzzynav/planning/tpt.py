@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.geometry import closest_approach, wrap_360
 from fuzzynav.numerics.portable_math import atan2_deg_array, hypot, norm2
 from fuzzynav.sensing.tracking import Track
@@ -102,12 +101,8 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     pos0 = np.array([[t.x, t.y] for t in tracks], dtype=float).reshape(j, 2)
     vel = np.array([[t.vx, t.vy] for t in tracks], dtype=float).reshape(j, 2)
     radii = np.array([t.radius for t in tracks], dtype=float)
-    if _kernel is not None and not compiled.switched_off():
-        robot, obstacles, collide = _tables_kernel(position, goal, speed, pos0, vel, radii, robot_radius, n_traj,
-                                                   dt, safety_margin, swept)
-    else:
-        robot, obstacles, collide = _tables_numpy(position, goal, speed, pos0, vel, radii, robot_radius, n_traj,
-                                                  dt, safety_margin, swept)
+    robot, obstacles, collide = _tables_numpy(position, goal, speed, pos0, vel, radii, robot_radius, n_traj, dt,
+                                              safety_margin, swept)
     return TrajectoryPredictionTable(
         robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
         obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),
@@ -120,7 +115,7 @@ def _tables_numpy(position: Sequence[float], goal: Sequence[float], speed: float
                   safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The table's robot rows (n+1, 2) cm, obstacle rows (n+1, J, 2) cm and collision marks (n+1, J), by numpy,
     from the tracks' positions ``pos0`` (J, 2) cm, velocities ``vel`` (J, 2) cm/s and ``radii`` (J,) cm, with ``dt``
-    in s: the definition (the compiled kernel performs these operations in this order)."""
+    in s."""
     robot = predict_robot(position, goal, speed, dt, n_traj)
     k = np.arange(n_traj + 1)[:, None, None] * dt
     obstacles = pos0[None, :, :] + vel[None, :, :] * k
@@ -135,19 +130,3 @@ def _tables_numpy(position: Sequence[float], goal: Sequence[float], speed: float
         earlier[0] = False  # ... but row 0 is the present, not a prediction
         collide[1:] |= between & ~earlier
     return robot, obstacles, collide
-
-
-def _tables_kernel(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
-                   vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
-                   safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_tables_numpy` by the compiled kernel (the same bits; the table is built at every step of every
-    TPT navigator, and its ~40 small numpy calls cost ~15x the kernel's time)."""
-    rows, j = n_traj + 1, len(radii)
-    robot, obstacles, collide = np.empty((rows, 2)), np.empty((rows, j, 2)), np.empty((rows, j), dtype=bool)
-    _kernel.tables(float(position[0]), float(position[1]), float(goal[0]), float(goal[1]), float(speed),
-                   float(dt), float(robot_radius), float(safety_margin), bool(swept), pos0, vel, radii, robot,
-                   obstacles, collide)
-    return robot, obstacles, collide
-
-
-_kernel = compiled.load("fuzzynav.planning._tpt")
