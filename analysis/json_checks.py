@@ -18,16 +18,7 @@ from itertools import chain, repeat
 from operator import eq, itemgetter
 from typing import Any
 
-from fuzzynav.numerics import compiled
-
 MAX_CM = 1e9  # the scenario files' limit on coordinates (cm): the default magnitude bound of a number
-
-# the one-pass C forms of the array tests below (same answers; None when not built at install)
-_kernel = compiled.load("analysis._json_checks")
-
-
-def _kernel_on() -> bool:
-    return _kernel is not None and not compiled.switched_off()
 
 
 class CheckError(ValueError):
@@ -76,8 +67,6 @@ def _types_within(values: Any, allowed: frozenset) -> bool:
 
 def _numbers_within(values: list[Any], lo: float, hi: float) -> bool:
     """All ``values`` are JSON numbers (not booleans) in [lo, hi] (JSON has no NaN: orjson refuses it)."""
-    if _kernel_on():
-        return _kernel.numbers_within(values, float(lo), float(hi))
     return not values or (set(map(type, values)) <= NUMBER_TYPES and lo <= min(values) and max(values) <= hi
                           and _without_nan(values))
 
@@ -90,8 +79,6 @@ def _without_nan(values: list[Any]) -> bool:
 
 def are_booleans(values: list[Any]) -> bool:
     """All ``values`` (a list) are booleans."""
-    if _kernel_on():
-        return _kernel.all_booleans(values)
     return set(map(type, values)) <= BOOL_TYPES
 
 
@@ -127,7 +114,6 @@ def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo:g}, {hi:g}]")
     check.bounds = (lo, hi)  # type: ignore[attr-defined]  # lets obj() check such fields together
-    check.scalar = (0, lo, hi)  # type: ignore[attr-defined]  # and its kernel form
     return with_batch(check, lambda vs: _numbers_within(vs, lo, hi))
 
 
@@ -137,8 +123,6 @@ def integer(lo: int = 0, hi: int = 2**63 - 1) -> Check:
             raise CheckError("", f"expected an integer, got {kind_of(v)}")
         if not lo <= v <= hi:
             raise CheckError("", f"{v!r} is out of range [{lo}, {hi}]")
-    if type(lo) is int and type(hi) is int:  # lets obj()'s kernel form check such fields together
-        check.scalar = (1, lo, hi)  # type: ignore[attr-defined]
     return with_batch(check, lambda vs: _integers_within(vs, lo, hi))
 
 
@@ -148,7 +132,6 @@ def boolean(v: Any) -> None:
 
 
 boolean.batch = lambda vs: _types_within(vs, BOOL_TYPES)  # type: ignore[attr-defined]
-boolean.scalar = (2, None, None)  # type: ignore[attr-defined]
 
 
 def string(v: Any) -> None:
@@ -157,7 +140,6 @@ def string(v: Any) -> None:
 
 
 string.batch = lambda vs: _types_within(vs, STR_TYPES)  # type: ignore[attr-defined]
-string.scalar = (3, None, None)  # type: ignore[attr-defined]
 
 
 def one_of(*values: str) -> Check:
@@ -218,14 +200,6 @@ def obj(**fields: Check) -> Check:
     groups = tuple((itemgetter(*names), lo, hi) for (lo, hi), names in by_range.items() if len(names) > 1)
     grouped = {name for (_lo, _hi), names in by_range.items() if len(names) > 1 for name in names}
     others = tuple((name, c) for name, c in items if name not in grouped)
-    # the kernel's form: every number, integer, boolean and string field, by kind and range, in one pass each
-    by_kind: dict[tuple[int, Any, Any], list[str]] = {}
-    for name, field_check in items:
-        scalar = getattr(field_check, "scalar", None)
-        if scalar is not None:
-            by_kind.setdefault(scalar, []).append(name)
-    scalars = tuple((tuple(names), *kind) for kind, names in by_kind.items())
-    non_scalars = tuple((name, c) for name, c in items if getattr(c, "scalar", None) is None)
 
     def field_by_field(v: Any) -> None:
         name = ""
@@ -255,11 +229,6 @@ def obj(**fields: Check) -> Check:
             return True
         if not set(map(type, vs)) <= DICT_TYPES:
             return False
-        if type(vs) is list and _kernel_on():
-            for names, kind, lo, hi in scalars:
-                if not _kernel.fields_within(vs, names, kind, lo, hi):
-                    return False
-            return all(accepts_all(field_check, list(map(itemgetter(name), vs))) for name, field_check in non_scalars)
         for get, lo, hi in groups:
             if not _numbers_within(list(chain.from_iterable(map(get, vs))), lo, hi):
                 return False
@@ -302,8 +271,6 @@ def are_points(v: Any) -> bool:
         return False
     if not v:
         return True
-    if _kernel_on():
-        return _kernel.points_within(v, -MAX_CM, MAX_CM)
     if not set(map(type, v)) <= LIST_TYPES or set(map(len, v)) != {2}:
         return False
     coords = list(chain.from_iterable(v))
@@ -316,17 +283,13 @@ def are_tables(tables: list[Any], rows: list[Any], ks: list[int], booleans: bool
     ±MAX_CM (a TPT's ``obstacles_cm``), or booleans (its ``collide``). ``rows`` and ``ks``: exact ints, as a TPT's
     ``n_traj + 1`` and its obstacle count are (another count is refused, even for a table without rows).
     ``tables``, ``rows`` and ``ks``: lists of one length (TypeError, ValueError otherwise: the caller's mistake)."""
-    if _kernel_on():
-        if booleans:
-            return _kernel.tables_booleans(tables, rows, ks)
-        return _kernel.tables_within(tables, rows, ks, -MAX_CM, MAX_CM)
     if not (type(tables) is list and type(rows) is list and type(ks) is list):
         raise TypeError("are_tables: tables, rows and ks must be lists")
     if not len(tables) == len(rows) == len(ks):
         raise ValueError(f"are_tables: {len(tables)} tables, {len(rows)} row counts, {len(ks)} column counts")
     if not (set(map(type, tables)) <= LIST_TYPES and list(map(len, tables)) == rows):
         return False
-    if not (set(map(type, rows)) <= INT_TYPES and set(map(type, ks)) <= INT_TYPES):  # as the kernel
+    if not (set(map(type, rows)) <= INT_TYPES and set(map(type, ks)) <= INT_TYPES):
         return False
     if ks and min(ks) < 0:
         return False

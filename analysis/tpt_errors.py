@@ -24,7 +24,6 @@ import numpy as np
 
 from analysis.episode_check import parse_world
 from analysis.episode_log import EpisodeLog
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.portable_math import norm2
 from fuzzynav.params.names import DEFAULT_MODEL, NAME
 
@@ -34,7 +33,6 @@ from fuzzynav.params.names import DEFAULT_MODEL, NAME
 STANDING_MODELS = ("scripted", "social_force", "orca", "random_walk")
 ADE_PREFIX, FDE_PREFIX = "tpt_ade_cm_", "tpt_fde_cm_"  # + the model's name: its columns
 _XY = itemgetter("x_cm", "y_cm")
-_kernel = compiled.load("analysis._json_checks")  # its table_pairs reads the tables' coordinates (None when not built)
 
 
 def obstacle_models(meta: Mapping[str, str]) -> dict[str, str]:
@@ -127,9 +125,7 @@ def _pairs(rows: list[list[Any]], k: int) -> np.ndarray:
 
 def _table_pairs(tables: list[list[Any]], k: int) -> np.ndarray:
     """The (rows of all ``tables``, k, 2) float array (cm) of tables of rows of ``k`` [x, y] pairs (checked by the
-    log check), read-only: :func:`_pairs` of their rows, read in one pass by the compiled kernel when built."""
-    if _kernel is not None and not compiled.switched_off():
-        return np.frombuffer(_kernel.table_pairs(tables, k)).reshape(sum(map(len, tables)), k, 2)  # k may be 0
+    log check): :func:`_pairs` of their rows."""
     return _pairs(list(chain.from_iterable(tables)), k)
 
 

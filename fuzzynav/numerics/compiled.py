@@ -1,8 +1,7 @@
 """The optional compiled kernels (C files built by the install when a C compiler is there).
 
-Each numeric kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are
-the same bits with or without it; the analysis's (``_json_checks``) gives the same answers and
-the same errors as their Python forms (each kernel has a test that compares it with its counterpart).
+Each kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are the same
+bits with or without it (each kernel has a test that compares it with its counterpart).
 ``FUZZYNAV_KERNEL=python`` in the environment switches every kernel off: the runs then take the Python paths (to
 check them, or to time them).
 """
@@ -17,8 +16,7 @@ from types import ModuleType
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
 # the modules pyproject.toml's ext-modules build
 KERNELS = ("fuzzynav.controller._mamdani", "fuzzynav.sensing._raycast", "fuzzynav.sensing._tracking",
-           "fuzzynav.pedestrians._social_force", "analysis._json_checks", "fuzzynav.pedestrians._orca",
-           "fuzzynav.numerics._closest_approach")
+           "fuzzynav.pedestrians._social_force", "fuzzynav.pedestrians._orca", "fuzzynav.numerics._closest_approach")
 
 
 def switched_off() -> bool:
