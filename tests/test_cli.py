@@ -47,11 +47,6 @@ def test_bench_quick_writes_results(tmp_path):
     for row in data["fuzzy"]:
         assert row["ratio"] > 1 and row["max_disagreement_dtheta_deg"] <= 0.01
         assert row["max_disagreement_v_cm_s"] <= 0.01
-        python = row["python_path"]  # the row of an install without the compiled kernel, beside ours
-        assert python["single_us"] > 0 and python["max_disagreement_dtheta_deg"] <= 0.01
-        if os.environ.get("CI"):  # CI installs with a C compiler: the kernel must have been built
-            assert row["compiled_kernel"]
-        assert python["same_bits_as_kernel"] or not row["compiled_kernel"]
     assert "fuzzy decision" in res.stdout and "compiled kernels" in res.stdout
     if os.environ.get("CI"):
         from fuzzynav.numerics.compiled import KERNELS

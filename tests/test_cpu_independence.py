@@ -73,13 +73,13 @@ _PROBE = textwrap.dedent("""
     still_on = [g for g in os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split() if __cpu_features__.get(g)]
     # libm's exp on fixed inputs: its last bits say which variant (FMA or not) the C library chose
     libm = hashlib.sha256(repr([math.exp(k / 997.0 - 300.0) for k in range(600_000)]).encode()).hexdigest()[:16]
-    from fuzzynav.controller.fuzzy_fast import kernel_available
-    print(name, libm, "kernel" if kernel_available() else "python", " ".join(still_on))
+    from fuzzynav.sensing.raycast import kernel_on
+    print(name, libm, "kernel" if kernel_on() else "python", " ".join(still_on))
 """)
 
 
 def _probe(env: dict[str, str]) -> tuple[str, str, str, str]:
-    """(OpenBLAS kernel name, digest of libm's exp results, the fuzzy decision's path (kernel or python), numpy
+    """(OpenBLAS kernel name, digest of libm's exp results, the ray caster's path (kernel or python), numpy
     groups that are still on although disabled) in a child with ``env``."""
     out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=120,
                          cwd=ROOT)
@@ -99,7 +99,7 @@ def _check_the_setting_took_effect(label: str, env: dict[str, str]) -> str:
     if "FUZZYNAV_KERNEL" in env:
         assert fuzzy_path == "python", f"{label}: the child still uses the compiled kernel"
         if os.environ.get("CI"):  # else the comparison would be Python path against Python path
-            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav.controller._mamdani was not built"
+            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav.sensing._raycast was not built"
     if "GLIBC_TUNABLES" in env and _has_fma():
         _, default_libm, _, _ = _probe(_child_env({}))
         assert libm != default_libm, f"{label}: libm's exp gives the same bits as with FMA (setting ignored?)"

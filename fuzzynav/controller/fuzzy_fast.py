@@ -15,12 +15,9 @@ per-call graph walk:
 Inputs and outputs are in the variables' own units (for the default controllers: cm, degrees, cm/s).
 When no rule fires (zero output area) the definition's ``fallback`` output is returned.
 
-Single decisions go through the compiled kernel ``fuzzynav.controller._mamdani`` when it was built at install (a C
-compiler present; optional), else through the Python path ``_evaluate_scalar``: both perform the same IEEE
-operations in the same order, so their results are the same bits (tests/test_mamdani_kernel.py) and a log
-does not depend on which one ran. ``FUZZYNAV_KERNEL=python`` in the environment forces the Python path.
-A batch (arrays) gives, with the kernel, the single decisions' bits row by row; without it, the numpy batch
-below, which agrees with them to ~1e-12 (its sums are grouped differently).
+Single decisions (floats) go through the scalar path ``_evaluate_scalar``, the one every episode takes; a batch
+(arrays) through the numpy batch below, which agrees with the single decisions to ~1e-12 (its sums are grouped
+differently).
 """
 
 from __future__ import annotations
@@ -34,18 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzynav.controller.fuzzy_spec import ControllerSpec, Variable, sample_membership
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.portable_math import sequential_sum
 
-# None: not built (no C compiler at install); the Python path, same bits
-_mamdani = compiled.load("fuzzynav.controller._mamdani")
 _CHUNK = 1024  # batch rows per block (bounds memory at ~ chunk x grid floats per array)
-
-
-def kernel_available() -> bool:
-    """Whether single decisions go through the compiled kernel (built, and not switched off by the
-    environment) for definitions it can take (see :meth:`FastEvaluator.uses_kernel`)."""
-    return _mamdani is not None and not compiled.switched_off()
 
 
 @dataclass(frozen=True)
@@ -73,9 +61,7 @@ class FastEvaluator:
     and returns ``(dtheta_deg, v_cm_s)`` as floats or arrays.
     """
 
-    def __init__(self, spec: ControllerSpec, use_kernel: bool = True) -> None:
-        """``use_kernel=False``: always the Python path (the compiled kernel is otherwise used when built, not
-        switched off by ``FUZZYNAV_KERNEL=python``, and the definition fits it); the results are the same."""
+    def __init__(self, spec: ControllerSpec) -> None:
         self.spec = spec
         self._inputs: list[tuple[Variable, np.ndarray, int]] = []  # variable, sampled mfs, offset
         offset = 0
@@ -122,22 +108,10 @@ class FastEvaluator:
         # per thread for concurrent batches)
         self._grid_work = {role: np.empty((len(o.grid), _CHUNK)) for role, o in self._outputs.items()}
         self._term_work = np.empty((max(hi - lo for o in self._outputs.values() for lo, hi in o.support), _CHUNK))
-        fits = use_kernel and kernel_available() and self._kernel_fits()
-        self._kernel = _mamdani.Kernel(*self._kernel_tables()) if fits else None
-
-    @property
-    def uses_kernel(self) -> bool:
-        """True when single decisions (and batches) of this evaluator run in the compiled kernel."""
-        return self._kernel is not None
 
     # -- public API -------------------------------------------------------------------------------------
     def evaluate(self, inputs: Mapping[str, float | np.ndarray]) -> tuple:
         """Return ``(dtheta, v)`` for scalar inputs (floats) or 1-D arrays (arrays of the same length)."""
-        kernel = self._kernel
-        if kernel is not None:
-            result = kernel.decide(inputs)  # None: not a dict of floats and ints
-            if result is not None:
-                return result
         if all(isinstance(v, float | int) for v in inputs.values()):
             return self._evaluate_scalar(inputs)
         arrays = {k: np.asarray(v, dtype=float) for k, v in inputs.items()}
@@ -149,13 +123,6 @@ class FastEvaluator:
                 raise KeyError(f"missing input {var.name!r}")
         dtheta = np.empty(n)
         v = np.empty(n)
-        if kernel is not None and n > 0:
-            columns = tuple(np.ascontiguousarray(cols[var.name], dtype=np.float64) for var in self.spec.inputs)
-            if not any(np.isnan(c).any() for c in columns):  # a NaN row: the numpy batch (NaN out)
-                kernel.fill(columns, dtheta, v)
-                if scalar:
-                    return float(dtheta[0]), float(v[0])
-                return dtheta, v
         for start in range(0, n, _CHUNK):
             sl = slice(start, min(n, start + _CHUNK))
             dtheta[sl], v[sl] = self._evaluate_block({k: c[sl] for k, c in cols.items()})
@@ -326,68 +293,6 @@ class FastEvaluator:
         # (one sample wider each side: a crossing's segment can end on a zero sample just outside the support)
         self._term_window = [(max(lo - 1, 0) + self._block_start[b], min(hi + 1, len(out.grid)) + self._block_start[b])
                              for b, out in enumerate(self._outs) for lo, hi in out.support]
-
-    # -- the compiled kernel's tables: the scalar tables above as flat int64 and float64 arrays ---------------
-    def _kernel_fits(self) -> bool:
-        """The kernel takes definitions of at most 63 rules (one 64-bit mask) whose tables are finite and
-        whose sampled output memberships are >= +0.0 (its output membership skips terms that did not fire,
-        which relies on min(0.0, mf) being +0.0)."""
-        finite = all(np.isfinite(mfs).all() for _, mfs, _ in self._inputs)
-        outs = self._stacked_mfs
-        return (len(self.spec.rules) <= 63 and finite and bool(np.isfinite(outs).all())
-                and not bool(np.signbit(outs).any()) and bool(np.isfinite(self._stacked_weights).all()))
-
-    def _kernel_tables(self) -> tuple:
-        """The arguments of ``_mamdani.Kernel``: input names, sizes, the tables (order fixed by the C file)
-        and (step, fallback) of both outputs."""
-        def ints(values) -> bytes:
-            return np.asarray(values, dtype=np.int64).reshape(-1).tobytes()
-
-        def floats(values) -> bytes:
-            return np.asarray(values, dtype=np.float64).reshape(-1).tobytes()
-
-        names, in_f, in_i, seg_i, live_i, live_f, crisp_i, crisp_f = [], [], [], [], [], [], [], []
-        for name, lo, hi, step, crisp, table, _ in self._scalar_inputs:
-            names.append(name)
-            in_f.append((lo, hi, step))
-            if crisp:
-                in_i.append((1, len(table), len(crisp_i)))
-                for k, a, b, accepts in table:
-                    crisp_i.append((k, accepts))
-                    crisp_f.append((a, b))
-                continue
-            in_i.append((0, len(table), len(seg_i)))
-            for live, mask in table:
-                seg_i.append((len(live_i), len(live), mask))
-                for k, a, b in live:
-                    live_i.append(k)
-                    live_f.append((a, b))
-        width = max(1, self._antecedents.shape[1])
-        ant = self._antecedents
-        cons_off, cons = [0], []
-        for _, terms in self._scalar_rules:
-            cons.extend(terms)
-            cons_off.append(len(cons))
-        term_i, fall_start, rise, fall = [], [], [], []
-        for b, out in enumerate(self._outs):
-            for t, (r, f, start, _) in enumerate(self._cross_tables[b][0]):
-                lo, hi = out.support[t]
-                win = self._term_window[self._term_offset[b] + t]
-                term_i.append((win[0], win[1], lo + self._block_start[b], hi + self._block_start[b],
-                               len(rise), len(r), len(fall), len(f)))
-                fall_start.append(start)
-                rise.extend(r)
-                fall.extend(f)
-        grid = self._cross_tables[0][1] + self._cross_tables[1][1]
-        sizes = [len(names), len(seg_i), len(live_i), len(crisp_i), self._n_terms_in + 1, len(self.spec.rules),
-                 width, len(cons), self._n_terms_out, self._term_offset[1], len(grid), self._block_start[1],
-                 len(rise), len(fall)]
-        tables = (floats(in_f), ints(in_i), ints(seg_i), ints(live_i), floats(live_f), ints(crisp_i), floats(crisp_f),
-                  ints(ant), ints(cons_off), ints(cons), floats(self._stacked_mfs), floats(self._stacked_weights),
-                  ints(term_i), ints(fall_start), floats(rise), floats(fall), floats(grid))
-        scalars = floats([self._cross_tables[0][2], self._cross_tables[1][2], self._cross_tables[0][3],
-                          self._cross_tables[1][3]])
-        return tuple(names), ints(sizes), tables, scalars
 
     def _evaluate_scalar(self, inputs: Mapping[str, float]) -> tuple[float, float]:
         mu = self._mu_zero.copy()

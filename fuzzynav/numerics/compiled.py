@@ -15,8 +15,8 @@ from types import ModuleType
 
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
 # the modules pyproject.toml's ext-modules build
-KERNELS = ("fuzzynav.controller._mamdani", "fuzzynav.sensing._raycast", "fuzzynav.sensing._tracking",
-           "fuzzynav.pedestrians._social_force", "fuzzynav.pedestrians._orca", "fuzzynav.numerics._closest_approach")
+KERNELS = ("fuzzynav.sensing._raycast", "fuzzynav.sensing._tracking", "fuzzynav.pedestrians._social_force",
+           "fuzzynav.pedestrians._orca", "fuzzynav.numerics._closest_approach")
 
 
 def switched_off() -> bool:

@@ -63,16 +63,14 @@ def bench_fuzzy(name: str, n_single: int, n_ref: int, batch: int, reps: int) -> 
     with open(CONF / "controller" / f"{name}.yaml") as f:
         spec = ControllerSpec.from_dict(yaml.safe_load(f))
     fast, ref = FastEvaluator(spec), SkfuzzyEvaluator(spec)
-    plain = FastEvaluator(spec, use_kernel=False)  # the Python path: what an install without a C compiler runs
     inputs = _inputs(spec, n_single, seed=1)
     rows = [{k: float(v[i]) for k, v in inputs.items()} for i in range(n_single)]
     big = _inputs(spec, batch, seed=2)
     ref_out = np.array(ref.evaluate(inputs))  # (2, n)
     # ours and the peers alternated, so that a slow spell of the machine hits them alike
-    fast_s, plain_s, peer_rows = [], [], {}
+    fast_s, peer_rows = [], {}
     for _ in range(2):
         fast_s.append(_median_time(lambda: [fast.evaluate(r) for r in rows], reps) / n_single)
-        plain_s.append(_median_time(lambda: [plain.evaluate(r) for r in rows], reps) / n_single)
         for peer in ("ferrifuzz", "pyfuzzylite"):
             row = _peer_row(peer, spec, rows if peer == "ferrifuzz" else rows[:n_ref], inputs, big, ref_out,
                             max(1, reps // 2))
@@ -88,23 +86,12 @@ def bench_fuzzy(name: str, n_single: int, n_ref: int, batch: int, reps: int) -> 
     single_out = np.array([fast.evaluate(r) for r in rows]).T
     # the largest difference from scikit-fuzzy over both paths (single decisions and the batch)
     worst = np.maximum(np.abs(batch_out - ref_out), np.abs(single_out - ref_out)).max(axis=1)
-    plain_batch_s = _median_time(lambda: plain.evaluate(big), reps)
-    plain_single = np.array([plain.evaluate(r) for r in rows]).T
-    plain_worst = np.maximum(np.abs(np.array(plain.evaluate(inputs)) - ref_out),
-                             np.abs(plain_single - ref_out)).max(axis=1)
     result = {"controller": name, "fast_us_per_decision": fast_single * 1e6, "skfuzzy_us_per_decision": ref_s * 1e6,
               "ratio": ref_s / fast_single, "batch_size": batch, "batch_decisions_per_s": batch / batch_s,
               "batch_us_per_decision": batch_s / batch * 1e6,
               "max_disagreement_dtheta_deg": float(worst[0]), "max_disagreement_v_cm_s": float(worst[1]),
               "inputs_compared": n_single, "peers": list(peer_rows.values()),
-              "skfuzzy_version": importlib.metadata.version("scikit-fuzzy"),
-              # whether our rows above ran the compiled kernel; the Python path's own row, and whether its single
-              # decisions are the kernel's bits (they must be: the logs do not depend on the build)
-              "compiled_kernel": fast.uses_kernel,
-              "python_path": {"single_us": min(plain_s) * 1e6, "batch_us_per_decision": plain_batch_s / batch * 1e6,
-                              "max_disagreement_dtheta_deg": float(plain_worst[0]),
-                              "max_disagreement_v_cm_s": float(plain_worst[1]),
-                              "same_bits_as_kernel": bool(np.array_equal(plain_single, single_out))}}
+              "skfuzzy_version": importlib.metadata.version("scikit-fuzzy")}
     ferri = peer_rows["ferrifuzz"]
     if ferri.get("installed"):
         # target 2 of issue #19: ours / ferrifuzz (<= 1 meets it); batch per core: its all-core time x cores
@@ -120,15 +107,10 @@ def print_fuzzy(rows: list[dict]) -> None:
     print(f"{'controller':<10} {'engine':<18} {'single µs':>10} {'batch µs/dec':>13} {'cores':>5} "
           f"{'max |Δθ| deg':>13} {'max |Δv| cm/s':>14}")
     for r in rows:
-        label = "fuzzynav (C kernel)" if r["compiled_kernel"] else "fuzzynav (Python)"
+        label = "fuzzynav"
         print(f"{r['controller']:<10} {label:<18} {r['fast_us_per_decision']:10.1f} "
               f"{r['batch_us_per_decision']:13.2f} {1:5d} {r['max_disagreement_dtheta_deg']:13.2e} "
               f"{r['max_disagreement_v_cm_s']:14.2e}")
-        if r["compiled_kernel"]:
-            p = r["python_path"]
-            same = "same bits" if p["same_bits_as_kernel"] else "BITS DIFFER FROM THE KERNEL"
-            print(f"{'':<10} {'fuzzynav (Python)':<18} {p['single_us']:10.1f} {p['batch_us_per_decision']:13.2f} "
-                  f"{1:5d} {p['max_disagreement_dtheta_deg']:13.2e} {p['max_disagreement_v_cm_s']:14.2e}  {same}")
         for p in r["peers"]:
             label = f"{p['engine']} {p.get('version', '')}".strip()
             if not p["installed"]:

@@ -50,8 +50,7 @@ MEASURES = """\
   The peers are built from the same controller definition (the same terms, rules, min/max inference and
   centroid); neither can express it exactly, so their disagreement with scikit-fuzzy is their own
   discretisation, not a bug. ferrifuzz's batch runs on every core, so its time per core is its time per decision
-  times the cores. "same bits" says that the compiled kernel and the Python path agree to the last bit on the
-  inputs; the benchmark exits 1 if they do not.
+  times the cores.
 - **Simulation**: 20 `mixed` episodes with laser perception, with and without writing their logs, alternated;
   logging's share is the median over those pairs; the time per step by stage is measured inside the run.
 - **Sweeps**: real `runners.sweep` runs of 1,000 `head_on` episodes, as two jobs per core (the advice of
