@@ -212,7 +212,7 @@ def test_resume_sets_logs_aside_each_episode_once_and_restores_the_others(tmp_pa
     sweep_resume.supersede(sweep_dir, key["c"])  # c was run again
     b.write_bytes(b"another episode now has this name")
     assert sweep_resume.held_count(sweep_dir) == 1
-    assert sweep_resume.restore(sweep_dir) == (0, 1)  # b is not part of this sweep: kept, under earlier/
+    assert sweep_resume.restore(sweep_dir) == (0, 1, 0)  # b is not part of this sweep: kept, under earlier/
     assert is_complete(sweep_dir / "earlier" / "1" / "b.mcap") and not c.exists()
     assert episode_key_of(read_metadata(sweep_dir / "earlier" / "1" / "b.mcap")) == key["b"]
 
@@ -264,7 +264,7 @@ def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
     assert done.returncode == 0 and not done.stderr, done.stderr
     assert done.stdout.splitlines() == ["1 0 0", f"{fifo}: a FIFO, not a regular file: skipped, not opened"]
     assert fifo.is_fifo() and not log.exists() and sweep_resume.held_count(tmp_path) == 1
-    assert sweep_resume.restore(tmp_path) == (1, 0) and is_complete(log)
+    assert sweep_resume.restore(tmp_path) == (1, 0, 0) and is_complete(log)
 
 
 @pytest.mark.parametrize("phase", ["in_flight", "idle"])

@@ -20,7 +20,7 @@ from analysis.interrupts import SIGNAL_NAMES
 from runners.sweeping import control as sweep_control
 from runners.sweeping import resume as sweep_resume
 from runners.sweeping.outputs import write_report
-from runners.sweeping.paths import job_logs, partial_logs
+from runners.sweeping.paths import holding_dir, job_logs, partial_logs
 from runners.sweeping.size import count_episodes
 from runners.sweeping.summary import write_summary
 
@@ -36,7 +36,7 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
 
     sweep_dir = run.sweep_dir
     kept = plan.kept - sweep_resume.held_count(sweep_dir) if plan is not None else 0  # taken back by the jobs
-    in_place, earlier = sweep_resume.restore(sweep_dir)  # episodes this sweep does not include go back
+    in_place, earlier, superseded = sweep_resume.restore(sweep_dir)  # episodes this sweep does not include
     if plan is not None:
         fresh = [p for p in job_logs(sweep_dir) if _written_since(p, run.started)]
         print(f"resume: {kept} complete episode(s) kept, {len(fresh)} run (incomplete, missing or changed)")
@@ -45,6 +45,10 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
                   f"episode removed, {in_place + earlier} log(s) of episodes outside this sweep left in the directory"
                   + (f" ({earlier} moved to {sweep_dir / sweep_resume.EARLIER}: their name is taken)" if earlier
                      else ""))
+        if superseded:
+            print(f"resume: {superseded} log(s) of episodes this sweep ran again with other code (a changed plug-in "
+                  f"or fuzzynav version) kept in {holding_dir(sweep_dir).parent / sweep_resume.SUPERSEDED}, not "
+                  "analysed")
     analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)

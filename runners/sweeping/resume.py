@@ -35,12 +35,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fuzzynav.episode_identity import episode_key_of
+from fuzzynav.episode_identity import episode_key, episode_key_of
 from runners.sweeping.paths import holding_dir, job_logs
 
 FINAL_OUTCOMES = ("goal", "collision", "timeout")  # the outcomes a resume keeps; error/interrupted run again
 INDEX = "index.json"
 EARLIER = "earlier"
+SUPERSEDED = "superseded"  # in the control folder .fuzzynav/: logs of episodes re-run with other code
 
 
 @dataclass(frozen=True)
@@ -160,20 +161,26 @@ def prepare(sweep_dir: Path, jobs: int = 1) -> ResumePlan:
     return ResumePlan(kept, rerun, removed, unreadable, skipped)
 
 
-def restore(sweep_dir: Path) -> tuple[int, int]:
-    """Return what is still set aside to where it was (``earlier/<path>`` if that name is taken now). Returns
-    (restored in place, moved to ``earlier/``)."""
+def restore(sweep_dir: Path) -> tuple[int, int, int]:
+    """Return what is still set aside to where it was (``earlier/<path>`` if that name is taken now). A log whose
+    name is taken by a log of the same episode (the same config and seed) run by other code (a changed plug-in, a
+    newer fuzzynav) is superseded: it goes to ``.fuzzynav/superseded/<path>``, kept but not analysed, since counted
+    beside its re-run every seed of its group was there twice. Returns (restored in place, moved to ``earlier/``,
+    superseded)."""
     hold = holding_dir(sweep_dir)
     if not hold.is_dir():
-        return 0, 0
+        return 0, 0, 0
     index = _read_index(hold)
-    in_place = earlier = 0
+    in_place = earlier = superseded = 0
     for held in sorted(hold.iterdir()):
         if held.suffix not in (".mcap", ".rerun"):
             continue
         rel = _safe_relative(index.get(held.name)) or Path(EARLIER) / f"{held.stem}.mcap"
         target = sweep_dir / rel
-        if target.exists():
+        if target.exists() and _same_episode(held, target):
+            target = _free_name(hold.parent / SUPERSEDED / rel)
+            superseded += 1
+        elif target.exists():
             target = _free_name(sweep_dir / EARLIER / rel)
             earlier += 1
         else:
@@ -182,7 +189,25 @@ def restore(sweep_dir: Path) -> tuple[int, int]:
         os.replace(held, target)
     with contextlib.suppress(FileNotFoundError):
         (hold / INDEX).unlink()
-    return in_place, earlier
+    return in_place, earlier, superseded
+
+
+def _same_episode(a: Path, b: Path) -> bool:
+    """Whether two logs record the same episode (config and seed, the seed batching aside: the identity without the
+    fuzzynav version and the plug-ins' code); False when either's metadata cannot be read."""
+    from analysis.logs import RUN_METADATA
+    from analysis.mcap_verify import peek_metadata
+
+    metas = []
+    for path in (a, b):
+        try:
+            with path.open("rb") as f:
+                metas.append(peek_metadata(f, RUN_METADATA))
+        except OSError:
+            return False
+    keys = [episode_key(m["config"], m["seed"], "") if m and isinstance(m.get("config"), str)
+            and isinstance(m.get("seed"), str) else None for m in metas]  # no version, no plug-in code
+    return keys[0] is not None and keys[0] == keys[1]
 
 
 def held_count(sweep_dir: Path) -> int:
