@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from runners.benchmarks.fuzzy import bench_fuzzy, print_fuzzy
+from runners.benchmarks.results_file import out_problem, write_results
 from runners.benchmarks.simulation import _scenario_and_config, bench_simulation
 
 
@@ -208,27 +209,6 @@ def bench_memory(episodes: int) -> dict:
             "growth": (late - early) / early if early else float("nan")}
 
 
-def out_problem(out: Path) -> str | None:
-    """Why the results cannot be written to ``out``, or None. Checked before measuring: the benchmark takes
-    minutes, and an unwritable ``--out`` was only found when it ended."""
-    if out.is_dir():
-        return f"{out}: is a directory, not a file name"
-    if out.exists() and not out.is_file():
-        return f"{out}: not a regular file"
-    parent = out.parent
-    if not parent.exists():
-        return f"{out}: the directory {parent} does not exist"
-    if not parent.is_dir():
-        return f"{out}: {parent} is not a directory"
-    if not os.access(parent, os.W_OK | os.X_OK):
-        return f"{out}: the directory {parent} is not writable"
-    if out.exists() and not os.access(out, os.W_OK):
-        return f"{out}: the file is not writable"
-    return None
-
-
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="reduced sizes (under a minute)")
@@ -308,8 +288,11 @@ def main(argv: list[str] | None = None) -> int:
                                    for t in main_job_targets(results)]
     print()
     print_targets(results)
-    Path(args.out).write_text(json.dumps(results, indent=2))
-    print(f"wrote {args.out}")
+    written, problem = write_results(Path(args.out), json.dumps(results, indent=2))
+    if problem:
+        print(f"error: --out: {problem}", file=sys.stderr)
+        return 1
+    print(f"wrote {written}")
     return 0
 
 

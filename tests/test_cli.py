@@ -89,12 +89,30 @@ def test_bench_refuses_an_unwritable_out_before_measuring(tmp_path):
     """``--out /proc/version/b.json`` measured for minutes, then failed: now one line at once."""
     (tmp_path / "dir").mkdir()
     for out, problem in ((tmp_path / "dir", "is a directory"), ("/proc/version/b.json", "is not a directory"),
-                         (tmp_path / "no" / "b.json", "does not exist"), ("/dev/null", "not a regular file")):
+                         (tmp_path / "no" / "b.json", "does not exist"), ("/dev/null", "not a regular file"),
+                         ("/proc/fuzzynav_b.json", "cannot be written")):  # root passes os.access there
         res = subprocess.run([sys.executable, "-m", "runners.bench", "--quick", "--out", str(out)], cwd=ROOT,
                              capture_output=True, text=True, timeout=60)
         assert one_error_line(res).startswith(f"error: --out: {out}: "), res.stderr
         assert problem in res.stderr and res.stdout == ""
+        res = subprocess.run([sys.executable, "-m", "runners.benchmarks.report", "--episodes", "1", "--out", str(out)],
+                             cwd=ROOT, capture_output=True, text=True, timeout=60)
+        assert res.returncode == 2 and problem in res.stderr and res.stdout == "", res.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir"]
+
+
+def test_results_that_cannot_be_written_at_the_end_are_kept_elsewhere(tmp_path):
+    """The folder became unwritable while the benchmark measured: the results go to the temporary folder, and
+    the message says where (they were lost with a traceback)."""
+    from runners.benchmarks.results_file import write_results
+
+    out = tmp_path / "gone" / "bench.json"
+    written, problem = write_results(out, '{"x": 1}')
+    try:
+        assert written != out and written.read_text() == '{"x": 1}'
+        assert problem is not None and problem.startswith(f"{out}: cannot be written") and str(written) in problem
+    finally:
+        written.unlink()
 
 
 # -- issue 14: sweeps given malformed input ----------------------------------------------------------------------

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from runners.benchmarks.results_file import out_problem, write_results
+
 ROOT = Path(__file__).resolve().parents[2]
 BUDGET_S = 60.0
 """The whole report (read and report stages) of 10,000 episodes on a 2-core machine (#18 item 5)."""
@@ -198,6 +200,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="instead: time the whole report of these logs (e.g. a 10,000-episode sweep's directory)")
     parser.add_argument("--out", help="also write the result here (JSON)")
     args = parser.parse_args(argv)
+    problem = out_problem(Path(args.out)) if args.out else None
+    if problem:
+        parser.error(f"--out: {problem}")
     if not 1 <= args.episodes <= MAX_EPISODES:
         parser.error(f"--episodes: must be in [1, {MAX_EPISODES:,}], got {args.episodes}")
     if not 1 <= args.seeds <= MAX_SEEDS:
@@ -220,7 +225,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"bench_report: {err}", file=sys.stderr)
         return 1
     if args.out:
-        Path(args.out).write_text(json.dumps(result, indent=2))
+        _, problem = write_results(Path(args.out), json.dumps(result, indent=2))
+        if problem:
+            print(f"bench_report: --out: {problem}", file=sys.stderr)
+            return 1
     return 0
 
 
