@@ -299,7 +299,7 @@ def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
         overrides, problem = hydra_overrides(args)
         if not problem and "--multirun" not in args and "-m" not in args:
             problem = single_run_sweep(overrides)
-        problem = problem or precheck(overrides, on_config)
+        problem = problem or precheck(overrides, on_config, multirun="--multirun" in args or "-m" in args)
         if problem:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)

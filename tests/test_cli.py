@@ -6,6 +6,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import ROOT
 
 
@@ -245,3 +247,22 @@ def test_an_empty_output_dir_is_refused(tmp_path):
                              cwd=tmp_path, capture_output=True, text=True, timeout=300, env=env)
         assert one_error_line(res).startswith("error: config: hydra.sweep.dir: "), res.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+TOO_MANY = "params.n: 2,000 pedestrians, more than the limit of 100"
+
+
+@pytest.mark.parametrize("overrides, says", [
+    (["scenario=crowd_crossing,corridor_flow", "scenario.params.n=4"],
+     "config: scenario.params: Key 'params' is not in struct (the sweep's own config, with each swept group at its "
+     "default); write ++scenario.params.n=4 to set it in every job where it applies"),
+    (["scenario=crowd_crossing", "scenario.params.n=0,2000"], TOO_MANY),
+    (["scenario=crowd_crossing", "scenario.params.n=2000,3"], TOO_MANY),
+])
+def test_a_sweep_that_hydra_or_a_later_job_would_refuse_is_one_line_before_any_job(overrides, says, tmp_path):
+    """Hydra composes a sweep's own config with the swept groups at their defaults (its seven-line error, exit 1);
+    numbers swept are checked at both ends (2000 was refused by its job, after the first job's logs)."""
+    out = tmp_path / "s"
+    res = run_sweep(*overrides, "planner=auto", f"hydra.sweep.dir={out}")
+    assert one_error_line(res).endswith(says), res.stderr
+    assert not out.exists()

@@ -299,7 +299,38 @@ def _unreadable(parser: OverridesParser, overrides: list[str], err: Exception) -
     return f"config: cannot read the overrides: {str(err).splitlines()[0]}"
 
 
-def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = None) -> str | None:
+def _numeric_ends(values: list[str]) -> list[str]:
+    """The smallest and the largest of ``key=value`` overrides whose values are all numbers (none otherwise)."""
+    numbers = []
+    for text in values:
+        raw = text.partition("=")[2]
+        try:
+            numbers.append((float(raw), text))
+        except ValueError:
+            return []
+    if len(numbers) < 2:
+        return []
+    return list(dict.fromkeys([min(numbers)[1], max(numbers)[1]]))
+
+
+def _base_problem(base: list[str], swept: set[str]) -> str | None:
+    """Hydra composes a sweep's own config with the command line's plain overrides and every swept group at its
+    default (``scenario=a,b scenario.params.n=4`` sets ``params`` in the default scenario, which has none): one
+    line, with the override that adds or sets a key wherever it applies (``++``)."""
+    try:
+        compose("config", overrides=base)
+    except Exception as err:
+        interrupt = interrupts.interrupt_in_chain(err)
+        if interrupt is not None:
+            raise interrupt from None
+        culprits = [t for t in base if "." in (key := t.lstrip("+~").partition("=")[0]) and key.split(".")[0] in swept]
+        hint = (f"; write ++{culprits[0].lstrip('+')} to set it in every job where it applies" if culprits else "")
+        return f"{_one_line(err)} (the sweep's own config, with each swept group at its default){hint}"
+    return None
+
+
+def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = None,
+             multirun: bool = False) -> str | None:
     """One-line description of why these command-line overrides cannot be composed, or None.
 
     ``on_config`` is called with the first composed config, Hydra's node included (the sweep uses it to start
@@ -334,7 +365,12 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
         for value in values[1:]:
             trials.append([*base, *firsts[:i], value, *firsts[i + 1:]])
     with contextlib.suppress(Exception):  # an override that does not parse: composing it below reports it
-        trials = representative_jobs(trials)  # one value of each kind per key is enough
+        trials = representative_jobs(trials)  # one value of each kind per key is enough to compose ...
+    for i, values in enumerate(variants):  # ... but a range is checked at its ends (n=0,2000: 2000 > the limit)
+        for value in _numeric_ends(values):
+            trial = [*base, *firsts[:i], value, *firsts[i + 1:]]
+            if trial not in trials:
+                trials.append(trial)
     problem = check_selected_files(overrides)
     if problem:
         return problem
@@ -365,4 +401,8 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                 return problem
             if k == 0 and on_config is not None:
                 on_config(cfg)
+        if multirun and variants:
+            problem = _base_problem(base, {o.get_key_element() for o in parsed if o.is_sweep_override()})
+            if problem:
+                return problem
     return None
