@@ -26,6 +26,7 @@ from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.numerics import portable_math
 from fuzzynav.numerics.geometry import swept_distance, wrap_360
 from fuzzynav.numerics.portable_random import NormalStream
+from fuzzynav.params import limits
 from fuzzynav.params.checks import check_config_fields
 from fuzzynav.pedestrians.crowd import Crowd, check_crowd_work
 from fuzzynav.planning.layer import (
@@ -80,8 +81,8 @@ class EpisodeConfig:
         lo, hi = self.robot.v_min, self.robot.v_max
         speeds = [(f"planner.successor_speeds[{i}]", v) for i, v in enumerate(self.planner.successor_speeds)]
         speeds += [("planner.cruise_speed", self.planner.cruise_speed)]
-        if isinstance(self.navigator, FuzzyPolicyConfig):
-            speeds += [("navigator.direct_speed_cm_s", self.navigator.direct_speed_cm_s)]
+        # every policy's own commanded speeds, as its config declares them (limits.ranged(..., robot_speed=True))
+        speeds += [(f"navigator.{name}", v) for name, v in limits.robot_speed_fields(self.navigator)]
         for field_, v in speeds:
             if not lo <= v <= hi:
                 raise ValueError(f"{field_}: {v:g} cm/s is outside the robot's speed range [{lo:g}, {hi:g}] cm/s "

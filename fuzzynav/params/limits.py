@@ -211,10 +211,22 @@ FIELD_RANGES: dict[str, Range] = {
 RANGE_KEY = "fuzzynav_range"
 
 
-def ranged(default: Any, rng: Range) -> Any:
+def ranged(default: Any, rng: Range, robot_speed: bool = False) -> Any:
     """A config dataclass field with ``default`` and its documented range, for a plug-in's own parameters
-    (``margin_cm: float = ranged(10.0, Range(0, 1_000, "cm", "why"))``): parsing and checks read it from the field."""
-    return dataclasses.field(default=default, metadata={RANGE_KEY: rng})
+    (``margin_cm: float = ranged(10.0, Range(0, 1_000, "cm", "why"))``): parsing and checks read it from the field.
+    ``robot_speed``: a speed (cm/s) the policy commands as it is, which must also lie within the robot's speed range
+    (``robot.v_min`` .. ``robot.v_max``): the robot would drive another speed than the one configured."""
+    return dataclasses.field(default=default, metadata={RANGE_KEY: rng, ROBOT_SPEED_KEY: robot_speed})
+
+
+ROBOT_SPEED_KEY = "fuzzynav_robot_speed"
+
+
+def robot_speed_fields(config: Any) -> list[tuple[str, float]]:
+    """(field name, value) of each field of a config dataclass declared with ``ranged(..., robot_speed=True)``."""
+    if not dataclasses.is_dataclass(config):
+        return []
+    return [(f.name, getattr(config, f.name)) for f in dataclasses.fields(config) if f.metadata.get(ROBOT_SPEED_KEY)]
 
 
 def field_range(f: dataclasses.Field, dotted: str) -> Range | None:

@@ -29,7 +29,10 @@ Choosing a policy in a run (``conf/navigator/<name>.yaml``): ``navigator.policy`
 its parameters. A policy defined outside fuzzynav is named by ``navigator._target_`` instead, the import path
 of its factory (``my_package.my_module.MyPolicy``): it is called as ``MyPolicy(params, context)`` like the
 registered ones, and may set ``config_class`` (a frozen dataclass) to have its parameters checked when the
-configuration is read rather than when the first episode starts.
+configuration is read rather than when the first episode starts. A field declared with
+``fuzzynav.params.limits.ranged(default, Range(...))`` is checked against its range; with ``robot_speed=True``
+(a speed the policy commands as it is, cm/s) also against the robot's ``v_min`` .. ``v_max``, like the built-in
+policies' cruise speeds.
 """
 
 from __future__ import annotations

@@ -22,7 +22,8 @@ from fuzzynav.policies.base import Action, Observation, PolicyContext, register_
 class DirectConfig:
     """Cruise speed (cm/s)."""
 
-    speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", "direct: " + WHY_SPEED, lo_open=True))
+    speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", "direct: " + WHY_SPEED, lo_open=True),
+                               robot_speed=True)
 
     def __post_init__(self) -> None:
         if not self.speed_cm_s > 0:

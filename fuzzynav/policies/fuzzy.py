@@ -40,7 +40,8 @@ class FuzzyPolicyConfig:
     """When static navigation uses the fuzzy controller (see the module docstring)."""
 
     static_near_cm: float = ranged(100.0, Range(0, 10_000, "cm", WHY_REACH))
-    direct_speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", WHY_SPEED, lo_open=True))
+    direct_speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", WHY_SPEED, lo_open=True),
+                                      robot_speed=True)
     near_sectors: str = "target_side"
     goal_overrides_static: bool = True
     direct_needs_clear_path: bool = True

@@ -91,7 +91,8 @@ class OrcaConfig:
 
     # chosen: the speed of the direct baseline and of the paper's navigator in open space (25 cm/s), so the
     # policies differ in avoidance, not in cruising speed; the speed disc is the robot's v_max (40 cm/s)
-    pref_speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", "ORCA: " + WHY_SPEED, lo_open=True))
+    pref_speed_cm_s: float = ranged(25.0, Range(0, MAX_SPEED_CM_S, "cm/s", "ORCA: " + WHY_SPEED, lo_open=True),
+                                    robot_speed=True)
     # τ for tracks, chosen 5 s (CrowdNav's ORCA baseline uses 5 s at comparable pedestrian speeds): a head-on
     # obstacle at the laser's 250 cm range closes at up to 80 cm/s and is reached in about 3 s, so it is
     # inside the horizon as soon as it is seen
