@@ -106,3 +106,20 @@ def test_obstacle_motion_constant_velocity_and_waypoints():
     assert pos[2].tolist() == [260.0, 500.0] and vel[2].tolist() == [0.0, 0.0]
     pos, vel = m.at(30.0)  # 900 cm along a 1200 cm loop: on the way back
     assert pos[1].tolist() == [500.0, 100.0] and vel[1].tolist() == [-30.0, 0.0]
+
+
+@pytest.mark.parametrize("path, point", [("robot.start", [300, 0]), ("robot.goal", [1000, 300]),
+                                         ("robot.start", [0, 600])])
+def test_a_point_on_the_boundary_is_inside(path, point):
+    """The bounds are closed (as the docs' ranges say): a robot placed on a wall is refused because it does not
+    fit there, not as outside."""
+    d = copy.deepcopy(BASE)
+    _set(path, point)(d)
+    with pytest.raises(ScenarioError, match=rf"{path.replace('.', '[.]')}: the robot \(radius 20.0 cm\) does not fit"):
+        scenario_from_dict(d)
+
+
+def test_a_waypoint_on_the_boundary_is_accepted():
+    d = copy.deepcopy(BASE)
+    d["dynamic_obstacles"][1]["waypoints"] = [[200, 100], [1000, 100]]
+    assert scenario_from_dict(d).dynamic_obstacles[1].waypoints[1] == (1000.0, 100.0)

@@ -360,9 +360,9 @@ def validate_geometry(s: Scenario) -> None:
     if r <= 0:
         raise ScenarioError(f"robot.radius: must be > 0, got {r}")
     start, goal = Point(s.robot.start), Point(goal_xy := s.robot.goal)
-    if not area.contains(start):
+    if not area.covers(start):
         raise ScenarioError(f"robot.start: {list(s.robot.start)} is outside bounds {list(s.bounds)}")
-    if not area.contains(goal):
+    if not area.covers(goal):
         raise ScenarioError(f"robot.goal: {list(goal_xy)} is outside bounds {list(s.bounds)}")
     if start.distance(area.exterior) < r:
         raise ScenarioError(f"robot.start: the robot (radius {r} cm) does not fit inside the bounds there")
@@ -438,7 +438,7 @@ def validate_geometry(s: Scenario) -> None:
         points = [("start", dyn.start)] if dyn.waypoints is None else [
             (f"waypoints[{k}]", w) for k, w in enumerate(dyn.waypoints)]
         for name, xy in points:
-            if not area.contains(Point(xy)):
+            if not area.covers(Point(xy)):
                 raise ScenarioError(f"{path}.{name}: {list(xy)} is outside bounds {list(s.bounds)}")
         for k, obs in enumerate(s.static_obstacles):
             if obs.geometry().covers(Point(first)):
