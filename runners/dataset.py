@@ -353,16 +353,17 @@ def effective_workers(n_jobs: int, n_episodes: int) -> int:
 def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: str = "episodes") -> list[dict]:
     """Record every episode of the dataset into ``out_dir`` in parallel, with a progress bar."""
     from joblib import Parallel, delayed
-    from tqdm import tqdm
+
+    from runners.progress import EpisodeProgress
 
     out_dir.mkdir(parents=True, exist_ok=True)
     todo = jobs(manifest)
     results = []
     workers = effective_workers(n_jobs, len(todo))
-    with tqdm(total=len(todo), unit="episode", desc=desc, file=sys.stderr) as bar:
+    with EpisodeProgress(len(todo), desc) as progress:
         for res in Parallel(n_jobs=workers, return_as="generator")(delayed(_record)(j, str(out_dir)) for j in todo):
             results.append(res)
-            bar.update(1)
+            progress.update(1)
     return sorted(results, key=lambda r: r["file"])
 
 

@@ -31,9 +31,9 @@ from typing import Any
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
-from tqdm import tqdm
 
 from analysis.logs import is_complete
+from runners.progress import EpisodeProgress
 from runners.sweeping import control as sweep_control
 from runners.sweeping import end as sweep_end
 from runners.sweeping import resume as sweep_resume
@@ -122,8 +122,7 @@ def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
     """Count the logs the jobs finish (a log appears under its name only when complete; a kept one is moved back
     into its job's directory) until ``stop`` is set. Logs already there at the start count when replaced."""
     before = {p: p.stat().st_mtime_ns for p in job_logs(sweep_dir) if p.exists()}
-    # a bar only on a terminal: piped or captured, stderr is for the few lines that say what went wrong
-    with tqdm(total=total, unit="episode", desc="sweep", file=sys.stderr, dynamic_ncols=True, disable=None) as bar:
+    with EpisodeProgress(total, "sweep") as progress:
         done: set[Path] = set()
         while True:
             stopping = stop.wait(0.5)
@@ -133,7 +132,8 @@ def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
                 with contextlib.suppress(OSError):
                     if before.get(path) != path.stat().st_mtime_ns and is_complete(path):
                         done.add(path)
-                        bar.update(1)
+                        progress.update(1)
+            progress.tick()
             if stopping:
                 break
 

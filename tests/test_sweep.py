@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import re
 import subprocess
 import sys
 
@@ -14,9 +16,9 @@ from runners.sweeping.size import count_episodes
 from tests.conftest import CONF, ROOT
 
 
-def cli(*args, timeout=600):
+def cli(*args, timeout=600, env=None):
     return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=timeout)
+                          timeout=timeout, env=None if env is None else {**os.environ, **env})
 
 
 def test_user_scenario_through_searchpath(tmp_path):
@@ -59,8 +61,15 @@ def test_typo_and_wrong_type_fail_at_composition(tmp_path):
 
 
 def test_quick_sweep_end_to_end(tmp_path):
-    out = cli("runners.sweep", "sweep=quick", f"hydra.sweep.dir={tmp_path}", "hydra.launcher.n_jobs=2")
+    # stderr is a pipe here, as under `| tee`, nohup or Slurm: plain progress lines instead of a bar
+    out = cli("runners.sweep", "sweep=quick", f"hydra.sweep.dir={tmp_path}", "hydra.launcher.n_jobs=2",
+              env={"FUZZYNAV_PROGRESS_EVERY_S": "0.05"})
     assert out.returncode == 0, out.stderr[-2000:]
+    progress = [line for line in out.stderr.splitlines() if line.startswith("sweep: ")]
+    assert progress and all(re.fullmatch(r"sweep: \d+/12 episodes \(\d+%\), ([\d.]+ episodes/s, "
+                                         r"(about .+ left|done in .+)|started .+ ago)", line)
+                            for line in progress), progress
+    assert progress[-1].startswith("sweep: 12/12 episodes (100%)") and "\r" not in out.stderr
     logs = find_logs([tmp_path])
     assert len(logs) == 12
     assert all((log.parent / ".hydra" / "config.yaml").exists() for log in logs)

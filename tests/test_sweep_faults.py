@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -97,9 +98,13 @@ def logs(sweep_dir: Path) -> list[Path]:
     return sorted(p for p in sweep_dir.rglob("*.mcap") if ".fuzzynav" not in p.parts)
 
 
+PROGRESS_LINE = re.compile(r"sweep: \d+/\d+ episodes \(")
+
+
 def problem_lines(stderr: str) -> list[str]:
-    """stderr without Hydra's own log lines (the progress bar is off when stderr is not a terminal)."""
-    return [line for line in stderr.splitlines() if line.strip() and "[HYDRA]" not in line]
+    """stderr without Hydra's own log lines and the periodic progress lines (stderr is not a terminal)."""
+    return [line for line in stderr.splitlines()
+            if line.strip() and "[HYDRA]" not in line and not PROGRESS_LINE.match(line)]
 
 
 def identities(paths: list[Path]) -> list[str]:
