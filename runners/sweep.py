@@ -97,6 +97,25 @@ def refuse_shared_job_dir(config: DictConfig, task: list[str]) -> None:
         sys.exit(2)
 
 
+_SLURM_CHECKED: list[bool] = []  # asked once per process (sinfo may take a moment on a busy controller)
+
+
+def refuse_unreachable_slurm(config: DictConfig) -> None:
+    """With ``hydra/launcher=slurm``, one line and exit 2 when this machine cannot submit to Slurm
+    (:func:`runners.sweeping.slurm.slurm_problem`), before any job is composed or written."""
+    if _SLURM_CHECKED or "hydra" not in config:
+        return
+    from runners.sweeping.slurm import is_slurm_launcher, slurm_problem
+
+    if not is_slurm_launcher(str((config.hydra.get("launcher") or {}).get("_target_", ""))):
+        return
+    _SLURM_CHECKED.append(True)
+    problem = slurm_problem()
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        sys.exit(2)
+
+
 SHORT_JOBS = 50  # from this many jobs of fewer than SHORT_JOB_EPISODES episodes, the sweep suggests batching
 SHORT_JOB_EPISODES = 10
 
@@ -223,6 +242,7 @@ class SweepProgress(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
         refuse_shared_job_dir(config, list(config.hydra.overrides.task))  # before anything runs or is written
+        refuse_unreachable_slurm(config)
         fault_tolerant_sweeper(config)
         run = sweep_control.begin_or_exit(sweep_dir)
         shm_leftovers.remove_stale()  # pools of hard-stopped earlier sweeps (hostile14c flt_sigterm_twice_resume)
@@ -307,6 +327,7 @@ def main() -> None:
 
     def on_config(config: DictConfig) -> None:
         refuse_shared_job_dir(config, task)  # with the command line's sweeps, not the one job composed to check
+        refuse_unreachable_slurm(config)
         prewarm_workers(config)
 
     run.cli(on_config=on_config)

@@ -13,6 +13,7 @@ waited for it forever instead of reporting the lost episodes and the resume comm
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 
 from submitit.slurm import slurm as submitit_slurm
@@ -64,3 +65,37 @@ def use_squeue_without_sacct() -> None:
     a class attribute of Submitit's ``SlurmJob``; replaced once, before any job is submitted."""
     if not isinstance(submitit_slurm.SlurmJob.watcher, SqueueFallbackWatcher):
         submitit_slurm.SlurmJob.watcher = SqueueFallbackWatcher(delay_s=600)
+
+
+RUN_LOCALLY = ("run on this machine's cores with hydra/launcher=all_cores (the default), or launch from a node "
+               "of the cluster")
+SLURM_COMMANDS = ("sbatch", "srun", "squeue")  # submit, run the task, follow its state
+
+
+def slurm_problem(timeout_s: float = 30.0) -> str | None:
+    """Why ``hydra/launcher=slurm`` cannot submit from this machine, in one line, or None: a Slurm command is
+    missing (not a Slurm node: Submitit said "Could not detect srun", reported as a lost worker), or the
+    controller does not answer ``sinfo`` (Slurm installed, no cluster configured or reachable: four raw sbatch
+    errors, then the same line). Asked before any job is composed or submitted."""
+    missing = [c for c in SLURM_COMMANDS if shutil.which(c) is None]
+    if missing:
+        return (f"hydra/launcher=slurm: Slurm's {', '.join(missing)} not found on PATH, so this machine cannot submit "
+                f"to a cluster; {RUN_LOCALLY}")
+    try:
+        done = subprocess.run(["sinfo", "--noheader", "--format=%P"], capture_output=True, text=True,
+                              timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return f"hydra/launcher=slurm: the Slurm controller did not answer sinfo in {timeout_s:g} s; {RUN_LOCALLY}"
+    except OSError as err:
+        return f"hydra/launcher=slurm: sinfo could not run ({err.strerror or err}); {RUN_LOCALLY}"
+    if done.returncode != 0:
+        first = next((line.strip() for line in done.stderr.splitlines() if line.strip()), f"exit {done.returncode}")
+        first = first.removeprefix("sinfo: ")
+        return f"hydra/launcher=slurm: Slurm does not answer (sinfo: {first[:160]}); {RUN_LOCALLY}"
+    return None
+
+
+def is_slurm_launcher(launcher_target: str) -> bool:
+    """Whether a launcher's ``_target_`` is Submitit's Slurm launcher (``hydra/launcher=slurm`` or
+    ``submitit_slurm``)."""
+    return "SlurmLauncher" in launcher_target and "Local" not in launcher_target
