@@ -285,12 +285,18 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
     return results
 
 
-def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
+def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = False) -> None:
     """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra.
-    ``on_config`` gets the first config the check composes (see :func:`runners.configuration.precheck.precheck`)."""
+    ``on_config`` gets the first config the check composes (see :func:`runners.configuration.precheck.precheck`).
+    ``sweep``: called by ``runners.sweep``, which adds ``--multirun``; a user's own ``-m`` is refused in one line
+    naming the ``runners.sweep`` command (Hydra's multirun of ``runners.run`` wrote logs but printed no outcome,
+    summary or report)."""
     from runners.configuration.precheck import debug_requested, precheck
 
     args = sys.argv[1:]
+    if not sweep and ("--multirun" in args or "-m" in args):
+        print(f"error: {multirun_problem(args)}", file=sys.stderr)
+        sys.exit(2)
     if "--debug" in args:
         args.remove("--debug")
         sys.argv = [sys.argv[0], *args]
@@ -306,6 +312,16 @@ def cli(on_config: Callable[[DictConfig], None] | None = None) -> None:
     register_sweeper()
     interrupts.defer()  # until the task function: Hydra turns an interrupt inside OmegaConf into its own error
     main()
+
+
+def multirun_problem(args: list[str]) -> str:
+    """One line for ``runners.run -m ...``: the same command line as a ``runners.sweep`` command."""
+    import shlex
+
+    rest = [a for a in args if a not in ("-m", "--multirun")]
+    command = shlex.join(["python", "-m", "runners.sweep", *rest])
+    return (f"-m/--multirun: runners.run runs one configuration; for a sweep (all cores, progress, a summary and the "
+            f"report) use: {command[:300]}")
 
 
 def single_run_sweep(overrides: list[str]) -> str | None:

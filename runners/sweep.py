@@ -330,7 +330,7 @@ def main() -> None:
         refuse_unreachable_slurm(config)
         prewarm_workers(config)
 
-    run.cli(on_config=on_config)
+    run.cli(on_config=on_config, sweep=True)
 
 
 if __name__ == "__main__":

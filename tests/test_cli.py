@@ -209,6 +209,19 @@ def test_a_sweep_in_a_single_run_is_one_line(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("flag", ["-m", "--multirun"])
+def test_hydras_multirun_of_a_single_run_names_the_sweep_command(tmp_path, flag):
+    """``runners.run -m planner=wait,detour`` wrote logs but printed no outcome, no summary and no report."""
+    res = subprocess.run([sys.executable, "-m", "runners.run", flag, "planner=wait,detour",
+                          f"hydra.sweep.dir={tmp_path / 's'}", "scenario=head on"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert one_error_line(res) == (
+        "error: -m/--multirun: runners.run runs one configuration; for a sweep (all cores, progress, a summary and "
+        f"the report) use: python -m runners.sweep planner=wait,detour hydra.sweep.dir={tmp_path / 's'} "
+        "'scenario=head on'")
+    assert not (tmp_path / "s").exists() and not (ROOT / "multirun" / "s").exists()
+
+
 def test_an_empty_sweep_is_refused(tmp_path):
     res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "seed=range(5,0)", "planner=auto")
     assert one_error_line(res) == "error: config: seed: range(5,0) selects no value (an empty sweep)"
