@@ -222,6 +222,24 @@ def test_hydras_multirun_of_a_single_run_names_the_sweep_command(tmp_path, flag)
     assert not (tmp_path / "s").exists() and not (ROOT / "multirun" / "s").exists()
 
 
+@pytest.mark.parametrize("order", ["custom,dwa", "dwa,custom"])
+def test_a_policy_target_in_a_sweep_over_navigators_says_how(tmp_path, order):
+    """``navigator=custom,dwa navigator._target_=...``: Hydra said "Key '_target_' is not in struct"."""
+    (tmp_path / "my_policies.py").write_text(
+        "from fuzzynav.policies.base import Action\n\n\nclass Go:\n    def __init__(self, params, context):\n"
+        "        pass\n\n    def act(self, observation):\n        return Action(0.0, 25.0)\n")
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on", "episodes=1",
+                          f"hydra.sweep.dir={tmp_path / 's'}", f"navigator={order}",
+                          "navigator._target_=my_policies.Go"], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "PYTHONPATH": str(tmp_path)})
+    assert one_error_line(res) == (
+        "error: config: navigator._target_: the override applies to every job of the sweep, and navigator=dwa has "
+        "no such key: give your policy its own navigator option (my_conf/navigator/mine.yaml holding "
+        "'_target_: my_policies.Go', with hydra.searchpath=[file://$PWD/my_conf]) and sweep navigator=mine,dwa "
+        "(docs/tutorials/policy.md, section 2)")
+    assert not (tmp_path / "s").exists()
+
+
 def test_an_empty_sweep_is_refused(tmp_path):
     res = run_sweep(f"hydra.sweep.dir={tmp_path / 's'}", "seed=range(5,0)", "planner=auto")
     assert one_error_line(res) == "error: config: seed: range(5,0) selects no value (an empty sweep)"

@@ -313,6 +313,29 @@ def _numeric_ends(values: list[str]) -> list[str]:
     return list(dict.fromkeys([min(numbers)[1], max(numbers)[1]]))
 
 
+def _in_one_job(problem: str, job: list[str], base: list[str], swept: set[str]) -> str:
+    """``problem`` of one job of a sweep, said as such where a plain override sets a key that
+    only some options of a swept group have (``navigator=custom,dwa navigator._target_=my.Policy``: Hydra said
+    "Key '_target_' is not in struct")."""
+    found = re.match(r"config: ([\w.]+): Key '[^']+' is not in struct", problem)
+    if not found:
+        return problem
+    key = found.group(1)
+    group = key.split(".")[0]
+    if group not in swept:
+        return problem
+    choice = next((t for t in job if t not in base and t.partition("=")[0].lstrip("+") == group), None)
+    if choice is None:
+        return problem
+    text = (f"config: {key}: the override applies to every job of the sweep, and {choice} has no such key")
+    if key == f"{group}._target_":
+        target = next((t.partition("=")[2] for t in base if t.partition("=")[0].lstrip("+") == key), "my.Policy")
+        return (f"{text}: give your policy its own {group} option (my_conf/{group}/mine.yaml holding "
+                f"'_target_: {target[:80]}', with hydra.searchpath=[file://$PWD/my_conf]) and sweep "
+                f"{group}=mine,{choice.partition('=')[2]} (docs/tutorials/policy.md, section 2)")
+    return f"{text}: sweep the options that have it in a sweep of their own, or give each its own {group} YAML"
+
+
 def _base_problem(base: list[str], swept: set[str]) -> str | None:
     """Hydra composes a sweep's own config with the command line's plain overrides and every swept group at its
     default (``scenario=a,b scenario.params.n=4`` sets ``params`` in the default scenario, which has none): one
@@ -371,6 +394,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
             trial = [*base, *firsts[:i], value, *firsts[i + 1:]]
             if trial not in trials:
                 trials.append(trial)
+    swept_keys = {o.get_key_element() for o in parsed if o.is_sweep_override()}
     problem = check_selected_files(overrides)
     if problem:
         return problem
@@ -387,6 +411,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                     if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
                         raise interrupt from None
                     cfg, problem = None, _one_line(err)
+                    problem = _in_one_job(problem, overrides, base, swept_keys)
             unavailable = _unavailable_search_path(caught)
             if unavailable:  # a typo in hydra.searchpath: the config it should have provided is "missing"
                 return unavailable
