@@ -21,6 +21,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from analysis import plots
+from analysis.tables import relative_log
 from analysis.trace import Trace
 
 MAX_PER_GROUP = 5
@@ -74,10 +75,11 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
     return plots._save(fig, path)
 
 
-def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP
-            ) -> tuple[list[Failure], pd.DataFrame]:
+def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP,
+            logs_from: Path | None = None) -> tuple[list[Failure], pd.DataFrame]:
     """Write ``failures.csv`` (every failure; ``first_contact_step`` where its log was read, i.e. in ``traces``:
-    :func:`logs_to_read`; empty for a failure without a flagged contact, a timeout)
+    :func:`logs_to_read`; empty for a failure without a flagged contact, a timeout; ``log`` relative to
+    ``logs_from``, the folder ``failures.csv`` ends up in, default ``out``)
     and a picture ``failure_<scenario>__<variant>__s<seed>.png`` of each failure :func:`shown` picks; returns the
     pictured failures and the counts per group (``failed``, ``pictured``, ``not pictured``)."""
     pal = plots.palette(df)
@@ -94,7 +96,7 @@ def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group
                "collisions_static": episode["collisions_static"], "collisions_dynamic": episode["collisions_dynamic"],
                "first_contact_step": trace.first_contact_step if trace is not None else None,
                "log_read": trace is not None,  # False: first_contact_step unknown (not "no contact")
-               "log": episode["log"], "picture": ""}
+               "log": relative_log(str(episode["log"]), logs_from or out), "picture": ""}
         if index in pictured and trace is not None:
             name = (f"failure_{plots._file_part(episode['scenario_label'])}__{plots._file_part(episode['variant'])}"
                     f"__s{episode['seed']}.png")

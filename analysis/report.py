@@ -39,7 +39,7 @@ from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_
 from analysis.overview import overview
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
-from analysis.tables import write_tables
+from analysis.tables import with_relative_logs, write_tables
 from analysis.tpt_errors import models_of_columns
 from analysis.trace import load_traces
 
@@ -50,6 +50,8 @@ METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", 
 MAIN_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps"]
 PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "turn_count"]
 BOX_METRICS = ["time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "wait_steps"]
+#: the share of episodes of a group ending in each other outcome than the goal, beside ``success``
+RATES = {"collision_rate": "collision", "timeout_rate": "timeout"}
 PAIR_KEY = "seed"  # episodes of one scenario group with the same seed face the same world and obstacles
 
 
@@ -75,13 +77,17 @@ def group_table(df: pd.DataFrame, grouping: Grouping) -> tuple[pd.DataFrame, pd.
     main_rows, long_rows = [], []
     for (scenario, variant), g in _groups(df.assign(_row=np.arange(len(df)))):
         at = g["_row"].to_numpy()
-        k, n = int(g["success"].sum()), len(g)
-        p, lo, hi = wilson(k, n)
-        row = {"scenario": scenario, "variant": variant, "episodes": n,
-               "success rate [95% Wilson]": f"{p:.2f} [{lo:.2f}, {hi:.2f}]"}
+        n = len(g)
+        row = {"scenario": scenario, "variant": variant, "episodes": n}
         keys = {c: g[c].iloc[0] for c in constant}
-        long_rows.append({**keys, "metric": "success", "n": n, "mean": p, "ci_low": lo, "ci_high": hi,
-                          "interval": "wilson"})
+        outcomes = g["outcome"].to_numpy()
+        for metric, k in (("success", int(g["success"].sum())), *((rate, int((outcomes == outcome).sum()))
+                                                                   for rate, outcome in RATES.items())):
+            p, lo, hi = wilson(k, n)
+            row[f"{metric.replace('_', ' ')}{'' if metric.endswith('rate') else ' rate'} [95% Wilson]"] = \
+                f"{p:.2f} [{lo:.2f}, {hi:.2f}]"
+            long_rows.append({**keys, "metric": metric, "n": n, "mean": p, "ci_low": lo, "ci_high": hi,
+                              "interval": "wilson"})
         for metric in metrics:
             x = values[metric][at]
             mean, mlo, mhi = bootstrap_mean(x)
@@ -128,8 +134,9 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
                 diff = diffs[metric]
                 mean, lo, hi = bootstrap_mean(diff)
                 rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": int(diff.notna().sum()),
-                             "mean A−B": mean, "ci_low": lo, "ci_high": hi, "excludes_zero": excludes_zero(lo, hi)})
-    return pd.DataFrame(rows, columns=["scenario", "A", "B", "metric", "pairs", "mean A−B", "ci_low", "ci_high",
+                             "mean_a_minus_b": mean, "ci_low": lo, "ci_high": hi,
+                             "excludes_zero": excludes_zero(lo, hi)})
+    return pd.DataFrame(rows, columns=["scenario", "A", "B", "metric", "pairs", "mean_a_minus_b", "ci_low", "ci_high",
                                        "excludes_zero"])
 
 
@@ -191,7 +198,7 @@ def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
                 if other not in best:
                     continue
                 sign = 1 if r["A"] == fastest else -1
-                diff, lo, hi = sign * r["mean A−B"], sign * r["ci_low"], sign * r["ci_high"]
+                diff, lo, hi = sign * r["mean_a_minus_b"], sign * r["ci_low"], sign * r["ci_high"]
                 lo, hi = min(lo, hi) + 0.0, max(lo, hi) + 0.0  # + 0.0: no "-0.0"
                 verdict = "the interval excludes zero" if r["excludes_zero"] else "the interval includes zero"
                 significant.append(f"vs {other}: {diff:+.1f} s [{lo:+.1f}, {hi:+.1f}], {verdict}")
@@ -286,7 +293,8 @@ def _step(value: object) -> str:
 
 
 def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions | None = None,
-                 jobs: int = -1, analysis: Analysis | None = None, split_provenance: bool = False) -> Report:
+                 jobs: int = -1, analysis: Analysis | None = None, split_provenance: bool = False,
+                 final_dir: Path | None = None) -> Report:
     """Compute everything and write the report files into ``out``; returns the report content. ``jobs``:
     worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`), for the
     metrics and for the pictures (from :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on). ``analysis``: the logs
@@ -302,7 +310,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     df, grouping = analysis.episodes, analysis.grouping
     excluded = analysis.excluded[["log", "kind", "outcome", "scenario_label", "variant", "reason"]].rename(
         columns={"scenario_label": "scenario"})
-    excluded.to_csv(out / "left_out.csv", index=False)
+    tables_dir = final_dir or out  # where the files end up (built elsewhere to be written whole): logs from there
+    with_relative_logs(excluded, tables_dir).to_csv(out / "left_out.csv", index=False)
     report = Report("fuzzynav report")
     kinds = left_out_counts(analysis.excluded)
     logs_line = (f"Logs: {', '.join(sources)} — {len(df)} episodes analysed, {len(excluded)} left out"
@@ -316,7 +325,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     if df.empty:
         report.add("p", logs_line)
         _left_out(report, excluded)
-        _write(report, out, df, pd.DataFrame(), pd.DataFrame())
+        _write(report, out, df, pd.DataFrame(), pd.DataFrame(), tables_dir)
         return report
     main, long = group_table(df, grouping)
     paired = paired_table(df, grouping)
@@ -353,7 +362,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                         f"analysis?), e.g. {next(iter(unreadable.values()))[:300]}")
 
     report.add("h2", "Failures")
-    failures, counts = gallery.gallery(df, traces, out)
+    failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir)
     n_failed = int(counts["failed"].sum()) if not counts.empty else 0
     read_all = n_failed <= gallery.READ_ALL_MAX
     report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the goal "
@@ -376,7 +385,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     if not significant.empty:
         shown_rows = significant.copy()
         shown_rows["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in zip(
-            shown_rows["mean A−B"], shown_rows["ci_low"], shown_rows["ci_high"], strict=True)]
+            shown_rows["mean_a_minus_b"], shown_rows["ci_low"], shown_rows["ci_high"], strict=True)]
         table, note = _bounded(shown_rows[["scenario", "A", "B", "metric", "pairs", "mean A−B [95% CI]"]],
                                "paired.csv (excludes_zero true)", "differences")
         report.add("table", table)
@@ -408,7 +417,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         if note:
             report.add("p", note)
     _left_out(report, excluded)
-    _write(report, out, df, long, paired)
+    _write(report, out, df, long, paired, tables_dir)
     return report
 
 
@@ -461,8 +470,9 @@ def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame) -> None:
-    write_tables(out, df, long, paired)  # episodes, groups, paired: CSV and Parquet with units (analysis.tables)
+def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame,
+           tables_dir: Path) -> None:
+    write_tables(out, df, long, paired, logs_from=tables_dir)  # CSV and Parquet with units
     (out / "report.md").write_text(report.markdown())
     (out / "report.html").write_text(report.html())
 
@@ -475,7 +485,7 @@ def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, 
     processes reading logs again for the pictures (as ``--jobs``)."""
     tmp = Path(tempfile.mkdtemp(prefix=".report.partial-", dir=out))
     try:
-        build_report(paths, tmp, options, jobs=jobs, analysis=analysis)
+        build_report(paths, tmp, options, jobs=jobs, analysis=analysis, final_dir=out)
         for item in sorted(tmp.iterdir()):
             os.replace(item, out / item.name)
     except OSError as err:  # name the file as the user knows it, not inside the temporary directory

@@ -8,16 +8,20 @@ file's key-value metadata:
   (adding a column does not raise it);
 - ``fuzzynav.table``: ``episodes``, ``groups`` or ``paired``;
 - ``fuzzynav.units``: JSON object column -> unit (:func:`analysis.metrics.column_unit`; ``""`` for labels, counts
-  and ratios). In ``groups`` the ``mean``, ``ci_low`` and ``ci_high`` columns, in ``paired`` the ``mean A−B``,
+  and ratios). In ``groups`` the ``mean``, ``ci_low`` and ``ci_high`` columns, in ``paired`` the ``mean_a_minus_b``,
   ``ci_low`` and ``ci_high`` columns are in the unit of the row's metric: ``fuzzynav.metric_units`` maps each metric
   to its unit.
 
 Each column's unit is also in its Arrow field metadata (``unit``), so tools that show field metadata see it.
+
+A ``log`` column (in these tables, ``failures.csv``, ``left_out.csv`` and a sweep's ``summary.csv``) holds each
+log's path relative to the folder of the table (:func:`relative_log`).
 """
 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pandas as pd
@@ -26,12 +30,12 @@ import pyarrow.parquet as pq
 
 from analysis.metrics import column_unit
 
-SCHEMA_VERSION = "1"
+SCHEMA_VERSION = "2"
 #: units of the groups table's own columns (``mean``/``ci_low``/``ci_high``: the unit of the row's metric)
 GROUP_UNITS = {"metric": "", "n": "episodes", "mean": "unit of metric", "ci_low": "unit of metric",
                "ci_high": "unit of metric", "interval": ""}
 #: units of the paired table's own columns (the difference and its interval: the unit of the row's metric)
-PAIRED_UNITS = {"A": "", "B": "", "metric": "", "pairs": "seeds", "mean A−B": "unit of metric",
+PAIRED_UNITS = {"A": "", "B": "", "metric": "", "pairs": "seeds", "mean_a_minus_b": "unit of metric",
                 "ci_low": "unit of metric", "ci_high": "unit of metric", "excludes_zero": ""}
 TABLE_UNITS = {"groups": GROUP_UNITS, "paired": PAIRED_UNITS}
 
@@ -72,8 +76,29 @@ def _metric_units(table: pd.DataFrame) -> dict[str, str]:
     return {"fuzzynav.metric_units": json.dumps(units)}
 
 
-def write_tables(out: Path, episodes: pd.DataFrame, groups: pd.DataFrame, paired: pd.DataFrame | None = None) -> None:
-    """``episodes``/``groups``/``paired`` (when given) as ``.csv`` and ``.parquet`` in ``out``."""
+def relative_log(log: str, folder: Path) -> str:
+    """``log`` (a path as the analysis read it: absolute, or relative to the working directory) relative to
+    ``folder``, where the table naming it is written: a table's log paths open from the table's own folder,
+    whichever folder the sweep or report was started from, and stay valid when the sweep's folder is moved whole.
+    Absolute where no relative path exists (another drive)."""
+    try:
+        return os.path.relpath(os.path.abspath(log), os.path.abspath(folder))
+    except ValueError:
+        return os.path.abspath(log)
+
+
+def with_relative_logs(df: pd.DataFrame, folder: Path) -> pd.DataFrame:
+    """``df`` with its ``log`` column (if any) relative to ``folder`` (:func:`relative_log`)."""
+    if "log" not in df.columns or df.empty:
+        return df
+    return df.assign(log=[relative_log(str(p), folder) for p in df["log"]])
+
+
+def write_tables(out: Path, episodes: pd.DataFrame, groups: pd.DataFrame, paired: pd.DataFrame | None = None,
+                 logs_from: Path | None = None) -> None:
+    """``episodes``/``groups``/``paired`` (when given) as ``.csv`` and ``.parquet`` in ``out``; log paths relative
+    to ``logs_from`` (the folder the tables end up in, when ``out`` is where they are built; default ``out``)."""
+    episodes = with_relative_logs(episodes, logs_from or out)
     episodes.to_csv(out / "episodes.csv", index=False)
     groups.to_csv(out / "groups.csv", index=False)
     write_parquet(episodes, out / "episodes.parquet", "episodes")

@@ -232,7 +232,7 @@ def test_two_margins_are_two_groups_in_every_table(tmp_path, monkeypatch):
     pair = paired[paired["metric"] == "min_clearance_dynamic_cm"].iloc[0]
     assert (pair["A"], pair["B"], pair["pairs"]) == ("auto(h=2) · safety_margin_cm=5",
                                                       "auto(h=2) · safety_margin_cm=30", 3)
-    assert pair["mean A−B"] == pytest.approx(-50.0)
+    assert pair["mean_a_minus_b"] == pytest.approx(-50.0)
 
     _, table = summarise(tmp_path)
     assert list(table["variant"]) == ["auto(h=2) · safety_margin_cm=5", "auto(h=2) · safety_margin_cm=30"]
@@ -254,9 +254,9 @@ def test_neighbouring_h_wait_settings_are_paired_and_distant_ones_are_not(tmp_pa
     paired = pd.read_csv(tmp_path / "rep" / "paired.csv")
     assert set(zip(paired["A"], paired["B"], strict=True)) == {("auto(h=1)", "auto(h=2)"), ("auto(h=2)", "auto(h=4)")}
     clearance = paired[paired["metric"] == "min_clearance_dynamic_cm"].set_index("A")
-    assert clearance.loc["auto(h=1)", "mean A−B"] == pytest.approx(-10.0)
+    assert clearance.loc["auto(h=1)", "mean_a_minus_b"] == pytest.approx(-10.0)
     assert clearance.loc["auto(h=1)", "excludes_zero"]
-    assert clearance.loc["auto(h=2)", "mean A−B"] == pytest.approx(0.0)
+    assert clearance.loc["auto(h=2)", "mean_a_minus_b"] == pytest.approx(0.0)
 
 
 def test_summary_and_metrics_agree_on_success(tmp_path):
@@ -320,6 +320,9 @@ def test_sweep_summary_and_report_tables_have_one_row_per_margin(margin_sweep):
     assert sorted(success["planner.safety_margin_cm"]) == [5.0, 5.0, 30.0, 30.0]
     episodes = pd.read_csv(rep / "episodes.csv")
     assert set(episodes["variant"]) == VARIANTS
+    # each table's log paths are relative to its own folder: the same logs, seen from the sweep and from report/
+    summary["log"] = [str((out / p).resolve()) for p in summary["log"]]
+    episodes["log"] = [str((rep / p).resolve()) for p in episodes["log"]]
     merged = summary.merge(episodes, on="log", suffixes=("_summary", "_report"))
     assert len(merged) == 4 and (merged["success_summary"] == merged["success_report"]).all()
     md = (rep / "report.md").read_text()

@@ -306,7 +306,8 @@ def comparable_csv(path: Path, sweep_dir: Path) -> pd.DataFrame:
     if "metric" in frame.columns:
         frame = frame[~frame["metric"].astype(str).str.startswith("compute_time")]
     if "log" in frame.columns:
-        frame["log"] = [str(Path(p).relative_to(sweep_dir)) for p in frame["log"]]
+        # a table's log paths are relative to its own folder
+        frame["log"] = [str((path.parent / p).resolve().relative_to(sweep_dir.resolve())) for p in frame["log"]]
     return frame.sort_values(list(frame.columns)).reset_index(drop=True)
 
 

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import pandas as pd
 import pyarrow.parquet as pq
 
 from analysis.metrics import COLUMN_UNITS, STANDARD_METRICS
 from analysis.report import build_report
+from analysis.report import main as report_main
 from analysis.tables import SCHEMA_VERSION, read_units, write_parquet
 from tests.handmade import write_log
 
@@ -44,10 +47,34 @@ def test_parquet_tables_equal_the_csv_tables_and_carry_units(tmp_path):
     assert read_units(out / "groups.parquet")["mean"] == "unit of metric"
     paired = pd.read_parquet(out / "paired.parquet")
     assert len(paired) > 0 and paired["excludes_zero"].dtype == bool
-    assert read_units(out / "paired.parquet")["mean A−B"] == "unit of metric"
+    assert read_units(out / "paired.parquet")["mean_a_minus_b"] == "unit of metric"
     paired_units = json.loads(pq.read_schema(out / "paired.parquet").metadata[b"fuzzynav.metric_units"])
     assert paired_units["path_length_cm"] == "cm" and set(paired_units) == set(paired["metric"])
     assert "paired.parquet" in (out / "report.md").read_text()
+    for table in ("episodes", "groups", "paired"):  # identifiers: usable as SQL and pandas attribute names
+        assert all(re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.]*", str(c)) for c in pd.read_parquet(
+            out / f"{table}.parquet").columns), table
+    # the rate of each outcome beside the success rate: 2 timeouts of 3 per variant, no collision
+    rates = groups[groups["metric"].isin(["success", "collision_rate", "timeout_rate"])]
+    assert rates.groupby("metric")["mean"].agg(lambda x: sorted(x.round(4))).to_dict() == {
+        "collision_rate": [0.0, 0.0], "success": [0.3333, 0.3333], "timeout_rate": [0.6667, 0.6667]}
+    assert set(rates["interval"]) == {"wilson"}
+    md = (out / "report.md").read_text()
+    assert "collision rate [95% Wilson]" in md and "timeout rate [95% Wilson]" in md
+    # log paths relative to the table's folder, built in a temporary folder or not
+    assert all((out / p).resolve() == (logs / Path(p).name).resolve() for p in episodes["log"])
+
+
+def test_log_paths_are_relative_to_the_tables_folder_from_any_working_directory(tmp_path, monkeypatch):
+    logs = tmp_path / "sweep" / "0"
+    logs.mkdir(parents=True)
+    write_log(logs / "a.mcap", [(0, 0, 0), (25, 0, 0), (50, 0, 0)], goal=(50.0, 0.0), meta={"seed": "0"})
+    monkeypatch.chdir(tmp_path / "sweep")
+    assert report_main(["0", "--out", "rep", "--jobs", "1"]) == 0
+    for table in ("episodes.csv", "failures.csv", "left_out.csv"):
+        frame = pd.read_csv(tmp_path / "sweep" / "rep" / table)
+        assert all(p == "../0/a.mcap" for p in frame.get("log", [])), (table, list(frame.get("log", [])))
+    assert list(pd.read_csv(tmp_path / "sweep" / "rep" / "episodes.csv")["log"]) == ["../0/a.mcap"]
 
 
 def test_a_column_of_numbers_and_text_is_written_as_text(tmp_path):

@@ -41,7 +41,7 @@ def write_report(sweep_dir: Path, analysis: Analysis) -> Path:
     for leftover in (tmp, old):
         shutil.rmtree(leftover, ignore_errors=True)
     try:
-        build_report([sweep_dir], tmp, analysis=analysis)
+        build_report([sweep_dir], tmp, analysis=analysis, final_dir=final)
         if final.exists():
             os.replace(final, old)
         os.replace(tmp, final)

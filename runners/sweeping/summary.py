@@ -64,13 +64,15 @@ def write_summary(sweep_dir: Path, jobs: int = 1, analysis: Analysis | None = No
 
     from analysis.metrics import analyse_logs, left_out_counts
     from analysis.run_parameters import provenance_warning
+    from analysis.tables import with_relative_logs
 
     analysis = analysis or analyse_logs([sweep_dir], jobs=jobs)
     episodes, table = summarise(sweep_dir, analysis=analysis)
     if episodes.empty:
         print(f"no logs found in {sweep_dir}")
         return table
-    write_whole(sweep_dir / "summary.csv", lambda f: episodes.to_csv(f, index=False))  # whole or absent
+    relative = with_relative_logs(episodes, sweep_dir)
+    write_whole(sweep_dir / "summary.csv", lambda f: relative.to_csv(f, index=False))  # whole or absent
     with pd.option_context("display.width", 200, "display.max_rows", 500, "display.max_colwidth", 80):
         print(table.to_string(index=False, na_rep="-", float_format=lambda x: f"{x:.2f}" if not math.isnan(x) else "-"))
     kinds = left_out_counts(analysis.excluded)
