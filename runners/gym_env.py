@@ -5,16 +5,17 @@ Install the optional extra (``pip install -e '.[gym]'``) and import this module 
     import gymnasium
     import runners.gym_env  # noqa: F401  (registers fuzzynav/Navigation-v0)
 
-    env = gymnasium.make("fuzzynav/Navigation-v0", scenario="crossing_right", overrides=["planner=auto"])
+    env = gymnasium.make("fuzzynav/Navigation-v0", scenario="crossing_right")
     obs, info = env.reset(seed=3)
     obs, reward, terminated, truncated, info = env.step([0.0, 30.0])   # steer 0 deg, 30 cm/s
 
 or, without the import, ``gymnasium.make("runners.gym_env:fuzzynav/Navigation-v0", ...)``.
 
 The agent's action takes the place of the navigation policy (:mod:`fuzzynav.policies.base`): it is the command of a
-small policy object (mode and name ``agent``) that the episode's navigator calls, so the paper's wait/detour
-layer still runs on top of it when the configuration's ``planner.strategy`` is not ``none`` (the decision
-actually executed is in ``info["mode"]``: ``agent`` or a plan's ``wait``/``detour``/``evade``/``stop``).
+small policy object (mode and name ``agent``) that the episode's navigator calls. The agent drives: the paper's
+wait/detour layer, which replaces the command whenever the TPT predicts a collision, is off (``planner=none``)
+unless the overrides choose a planner (``overrides=["planner=auto"]``); the decision actually executed is in
+``info["mode"]``: ``agent`` or a plan's ``wait``/``detour``/``evade``/``stop``.
 :meth:`NavigationEnv.step_policy_action` lets a fuzzynav policy drive instead, recorded exactly as under
 ``runners.run`` (same decision mode, name and fields), so that ``runners.gym_log.RecordMcap`` writes the same
 log content as ``python -m runners.run``.
@@ -99,7 +100,11 @@ class NavigationEnv(gymnasium.Env):
       or a :class:`fuzzynav.scenarios.scenario.Scenario`; default: the configuration's (``head_on``);
     - ``overrides``: Hydra override strings as on ``runners.run``'s command line (``["planner=auto",
       "sensors.laser.noise_std_cm=1"]``); ``seed`` and ``episodes`` are not accepted (``reset(seed=...)``
-      chooses the seed, each reset is one episode);
+      chooses the seed, each reset is one episode); without a ``planner=...`` override the planner is ``none``
+      (:func:`agent_drives`);
+    - ``normalized``: False (default): the action is in the robot's units and observations float64; True:
+      ``action_space = Box(-1, 1, (2,), float32)`` (``-1..1`` steering onto ``-max_turn_deg..max_turn_deg``,
+      ``-1..1`` speed onto ``0..v_max``) and every observation part float32;
     - ``max_tracks``: rows of the obstacle part of the observation (default 8);
     - ``render_mode``: None or ``"ansi"`` (one line of text per step).
 
@@ -107,7 +112,8 @@ class NavigationEnv(gymnasium.Env):
     ``action[0]`` the steering increment in degrees (positive = counter-clockwise = left), ``action[1]`` the speed
     in cm/s. The robot turns first, then moves ``v · dt`` (:func:`fuzzynav.kinematics.step_unicycle`); a speed of
     0 means stand still, and a speed in (0, v_min) is driven at ``v_min``: the robot moves at v_min..v_max or not
-    at all. Values outside the box are clamped the same way; NaN/inf or a wrong shape is a ``ValueError``.
+    at all. Values outside the box are clamped to it (``[0, -20]`` stands still); NaN/inf, text, booleans,
+    complex numbers or a wrong shape are a ``ValueError``; ``reset`` takes no ``options``.
 
     Observation space (``Dict``, every part float64; positions and velocities bounded by ±1e9 cm, cm/s, fuzzynav's
     bound on every scenario number):
@@ -140,32 +146,40 @@ class NavigationEnv(gymnasium.Env):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["ansi"], "render_fps": 1}
 
     def __init__(self, scenario: str | Path | Scenario | None = None, overrides: Sequence[str] | None = None,
-                 max_tracks: int = 8, render_mode: str | None = None) -> None:
+                 max_tracks: int = 8, render_mode: str | None = None, normalized: bool = False) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode: expected None or one of {self.metadata['render_modes']}, got "
                              f"{str(render_mode)[:40]!r}")
         if isinstance(max_tracks, bool) or not isinstance(max_tracks, int | np.integer) or not 0 <= max_tracks <= 1000:
             raise ValueError(f"max_tracks: expected an integer in [0, 1000], got {str(max_tracks)[:40]!r}")
+        if not isinstance(normalized, bool):
+            raise ValueError(f"normalized: expected true or false, got {str(normalized)[:40]!r}")
         self.render_mode = render_mode
         self.max_tracks = int(max_tracks)
+        self.normalized = normalized
         self.run = compose_run(scenario, overrides)
         cfg: EpisodeConfig = self.run.episode_config
         self.episode_config = cfg
         self.evaluator: FastEvaluator = self.run.evaluator
         lim = cfg.robot
-        self.action_space = spaces.Box(low=np.array([-lim.max_turn_deg, 0.0]),
-                                       high=np.array([lim.max_turn_deg, lim.v_max]), dtype=np.float64)
+        # normalised: what most learners expect (actions in [-1, 1], float32 observations)
+        self._dtype = np.float32 if normalized else np.float64
+        if normalized:
+            self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        else:
+            self.action_space = spaces.Box(low=np.array([-lim.max_turn_deg, 0.0]),
+                                           high=np.array([lim.max_turn_deg, lim.v_max]), dtype=np.float64)
         # positions and velocities: fuzzynav's bound on every scenario number (|x| <= 1e9 cm, cm/s), not infinity
         # (Gymnasium's checker and many learners want finite bounds); _obs clips to them
-        big = limits.MAX_COORD_CM
+        big, dt = limits.MAX_COORD_CM, self._dtype
         self.observation_space = spaces.Dict({
-            "sonar": spaces.Box(0.0, cfg.sonar.range_cm, (3,), np.float64),
-            "laser": spaces.Box(0.0, cfg.laser.range_cm, (cfg.laser.beams,), np.float64),
-            "robot": spaces.Box(np.array([-big, -big, 0.0, 0.0]), np.array([big, big, 360.0, lim.v_max]),
-                                dtype=np.float64),
-            "goal": spaces.Box(-big, big, (2,), np.float64),
-            "tracks": spaces.Box(-big, big, (self.max_tracks, 5), np.float64),
-            "tracks_mask": spaces.Box(0.0, 1.0, (self.max_tracks,), np.float64),
+            "sonar": spaces.Box(0.0, cfg.sonar.range_cm, (3,), dt),
+            "laser": spaces.Box(0.0, cfg.laser.range_cm, (cfg.laser.beams,), dt),
+            "robot": spaces.Box(np.array([-big, -big, 0.0, 0.0], dtype=dt),
+                                np.array([big, big, 360.0, lim.v_max], dtype=dt), dtype=dt),
+            "goal": spaces.Box(-big, big, (2,), dt),
+            "tracks": spaces.Box(-big, big, (self.max_tracks, 5), dt),
+            "tracks_mask": spaces.Box(0.0, 1.0, (self.max_tracks,), dt),
         })
         self._agent = AgentPolicy()
         self.episode: Episode | None = None
@@ -197,6 +211,11 @@ class NavigationEnv(gymnasium.Env):
         """A new episode with ``seed`` (an integer in [0, 2^53 - 1]; None: drawn from ``self.np_random``)."""
         if seed is not None:  # checked first: Gymnasium's own reset and checker keep a refused seed otherwise
             seed = int(check_number(seed, "seed", limits.FIELD_RANGES["seed"]))
+        if options is not None and not (isinstance(options, Mapping) and len(options) == 0):
+            what = f"unknown key(s) {sorted(map(str, options))[:5]}" if isinstance(options, Mapping) else \
+                f"expected a dict, got {type(options).__name__}"
+            raise ValueError(f"options: {what}; reset takes no options (choose the scenario and overrides when "
+                             "making the environment)")
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, 2**31))
@@ -207,16 +226,32 @@ class NavigationEnv(gymnasium.Env):
         return self._obs(), self._info(None)
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
-        """One time step with the agent's command ``[dtheta_deg, v_cm_s]`` (see the class docstring)."""
-        try:
-            arr = np.asarray(action, dtype=np.float64) if not isinstance(action, str | bytes) else None
-        except (TypeError, ValueError):  # numpy's own message does not say which argument
+        """One time step with the agent's command ``[dtheta_deg, v_cm_s]`` (normalised: ``[-1..1, -1..1]``), see
+        the class docstring."""
+        dtheta, v = self.command(action)
+        return self._advance(Action(AGENT, dtheta, v, {}), AGENT)
+
+    def command(self, action: Any) -> tuple[float, float]:
+        """The command ``(dtheta_deg, v_cm_s)`` an action stands for: two real numbers (not text, booleans or
+        complex numbers), finite, clamped to the action space and, when normalised, scaled from [-1, 1]."""
+        if isinstance(action, str | bytes):
             arr = None
-        if arr is None or arr.shape != (2,):
-            raise ValueError(f"action: expected 2 numbers [dtheta_deg, v_cm_s], got {str(action)[:60]!r}")
+        else:
+            try:
+                arr = np.asarray(action)
+            except (TypeError, ValueError):  # ragged input: numpy's own message does not say which argument
+                arr = None
+        if arr is None or arr.shape != (2,) or arr.dtype.kind not in "iuf":
+            raise ValueError(f"action: expected 2 real numbers [dtheta_deg, v_cm_s], got {str(action)[:60]!r}")
+        arr = arr.astype(np.float64)
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"action: must be finite numbers, got [{arr[0]!r}, {arr[1]!r}]")
-        return self._advance(Action(AGENT, float(arr[0]), float(arr[1]), {}), AGENT)
+        low, high = self.action_space.low.astype(np.float64), self.action_space.high.astype(np.float64)
+        arr = np.minimum(np.maximum(arr, low), high)
+        if self.normalized:  # [-1, 1] onto [-max_turn, max_turn] and [0, v_max]
+            lim = self.episode_config.robot
+            return float(arr[0]) * lim.max_turn_deg, (float(arr[1]) + 1.0) / 2.0 * lim.v_max
+        return float(arr[0]), float(arr[1])
 
     def step_policy_action(self, action: Action, policy_name: str) -> tuple[dict, float, bool, bool, dict]:
         """One time step with a fuzzynav policy's :class:`~fuzzynav.policies.base.Action` (its ``act`` on
@@ -276,11 +311,19 @@ class NavigationEnv(gymnasium.Env):
             rows[k] = (t.x, t.y, t.vx, t.vy, t.radius)
             mask[k] = 1.0
         big = limits.MAX_COORD_CM  # the spaces' bounds: a wild tracker estimate must not leave the space
-        return {"sonar": np.array(obs.sonar, dtype=np.float64),
-                "laser": np.array(scan.ranges, dtype=np.float64),
-                "robot": np.array([min(max(s.x, -big), big), min(max(s.y, -big), big), s.heading, s.v]),
-                "goal": np.array(obs.goal, dtype=np.float64),
-                "tracks": np.clip(rows, -big, big), "tracks_mask": mask}
+        parts = {"sonar": np.array(obs.sonar, dtype=np.float64),
+                 "laser": np.array(scan.ranges, dtype=np.float64),
+                 "robot": np.array([min(max(s.x, -big), big), min(max(s.y, -big), big), s.heading, s.v]),
+                 "goal": np.array(obs.goal, dtype=np.float64),
+                 "tracks": np.clip(rows, -big, big), "tracks_mask": mask}
+        if self._dtype is np.float64:
+            return parts
+        # float32 rounds a heading of 359.99999999 up to 360.0, outside [0, 360): kept inside each part's box
+        out = {}
+        for name, value in parts.items():
+            box = self.observation_space[name]
+            out[name] = np.minimum(np.maximum(value.astype(np.float32), box.low), box.high)
+        return out
 
     def _info(self, record: StepRecord | None) -> dict[str, Any]:
         ep = self.episode
@@ -377,6 +420,7 @@ def compose_run(scenario: str | Path | Scenario | None, overrides: Sequence[str]
     elif scenario is not None:
         raise ValueError(f"scenario: expected a name of conf/scenario/, a .yaml path or a Scenario, got "
                          f"{type(scenario).__name__}")
+    overrides = agent_drives(overrides)
     problem = single_run_sweep(overrides)
     composed: list[DictConfig] = []
     with _hydra_of_our_own():
@@ -401,6 +445,27 @@ def compose_run(scenario: str | Path | Scenario | None, overrides: Sequence[str]
     fixed = None if generated else inputs.scenarios[inputs.seeds[0]]
     OmegaConf.set_readonly(task, False)
     return ComposedRun(task, inputs.plain, inputs.episode_config, inputs.evaluator, fixed)
+
+
+def agent_drives(overrides: list[str]) -> list[str]:
+    """``overrides`` with ``planner=none`` first, unless they choose a planner (``planner=auto``,
+    ``planner=wait``, ...): in the environment the agent drives, and the paper's wait/detour layer, which replaces
+    the agent's command whenever the TPT predicts a collision, runs only when asked for. A ``planner.<key>`` override
+    without a chosen planner would change nothing: ``ValueError`` saying to choose one."""
+    chosen = False
+    for text in overrides:
+        key = text.partition("=")[0].lstrip("+~")
+        if key in ("planner", "planner.strategy"):
+            chosen = True
+    if chosen:
+        return overrides
+    for text in overrides:
+        key = text.partition("=")[0].lstrip("+~")
+        if key.startswith("planner."):
+            raise ValueError(f"overrides: {key[:60]}: the wait/detour layer is off in the environment (the agent "
+                             "drives); choose it as well, e.g. overrides=['planner=auto', "
+                             f"{text[:60]!r}]")
+    return ["planner=none", *overrides]
 
 
 @contextlib.contextmanager

@@ -240,7 +240,7 @@ def test_record_mcap_finishes_an_unfinished_episode(tmp_path: Path) -> None:
     env.reset(seed=1)  # the first episode's log ends here, as interrupted
     env.step([0.0, 20.0])
     env.close()
-    assert [p.name for p in env.paths] == [f"head_on__agent__auto__h2__table1__laser__s{s}.mcap" for s in (0, 1)]
+    assert [p.name for p in env.paths] == [f"head_on__agent__none__table1__laser__s{s}.mcap" for s in (0, 1)]
     ends = [[m for topic, _, m in iter_messages(p) if topic == "/episode"] for p in env.paths]
     assert [(e[0]["outcome"], e[0]["steps"]) for e in ends] == [("interrupted", 3), ("interrupted", 1)]
 
@@ -314,11 +314,14 @@ def test_bad_kwargs_are_one_line_value_errors(kwargs: dict, field: str) -> None:
 @pytest.mark.parametrize(("action", "field"), [
     ([math.nan, 10.0], "finite"),
     ([0.0, math.inf], "finite"),
-    ([0.0, 10.0, 1.0], "2 numbers"),
-    ([[0.0, 10.0]], "2 numbers"),
-    ("fast", "2 numbers"),
-    (["left", 10.0], "2 numbers"),
-    ({"v": 10.0}, "2 numbers"),
+    ([0.0, 10.0, 1.0], "2 real numbers"),
+    ([[0.0, 10.0]], "2 real numbers"),
+    ("fast", "2 real numbers"),
+    (["left", 10.0], "2 real numbers"),
+    ({"v": 10.0}, "2 real numbers"),
+    (["1", "20"], "2 real numbers"),  # numpy would read text as numbers
+    ([1j, 20.0], "2 real numbers"),
+    ([True, False], "2 real numbers"),
 ])
 def test_bad_actions_are_value_errors(env: NavigationEnv, action, field: str) -> None:
     env.reset(seed=0)
@@ -389,3 +392,62 @@ def test_an_agents_log_names_the_agent_and_is_never_pooled_with_a_policy(tmp_pat
     for bad in ("", path):  # empty, or a file
         with pytest.raises(ValueError, match=r"^out_dir: "):
             RecordMcap(NavigationEnv(scenario="head_on"), bad)
+
+
+# -- what an RL user expects (issue 37 item 7) --------------------------------------------------------------------
+def test_the_agent_drives_by_default_and_the_layer_is_an_explicit_option() -> None:
+    assert NavigationEnv(scenario="head_on").episode_config.planner.strategy == "none"
+    assert NavigationEnv(scenario="head_on", overrides=["planner=auto"]).episode_config.planner.strategy == "auto"
+    assert NavigationEnv(scenario="head_on", overrides=["planner.strategy=wait"]).episode_config.planner.strategy \
+        == "wait"
+    with pytest.raises(ValueError, match=r"^overrides: planner.h_wait: the wait/detour layer is off"):
+        NavigationEnv(scenario="head_on", overrides=["planner.h_wait=3"])
+    env = NavigationEnv(scenario="head_on")
+    env.reset(seed=0)
+    modes = set()
+    done = False
+    while not done:  # straight at the goal through a head-on obstacle: nothing takes the wheel
+        goal_x = env.scenario.robot.goal[0]
+        _, _, terminated, truncated, info = env.step([0.0, 30.0 if env.episode.state.x < goal_x else 0.0])
+        modes.add(info["mode"])
+        done = terminated or truncated
+    assert modes == {"agent"}
+
+
+@pytest.mark.parametrize(("action", "command"), [
+    ([0.0, -20.0], (0.0, 0.0)),            # below the box: stand still
+    ([1e7, 20.0], (120.0, 20.0)),          # a turn beyond the limit: the limit
+    ([1e308, 1e308], (120.0, 40.0)),
+    ([-1e308, 5.0], (-120.0, 5.0)),        # (0, v_min) is driven at v_min by the episode, as documented
+    (np.array([3, 25], dtype=np.int64), (3.0, 25.0)),
+])
+def test_actions_outside_the_box_are_clamped(env: NavigationEnv, action, command) -> None:
+    assert env.command(action) == command
+    env.reset(seed=0)
+    env.step(action)  # no PolicyError
+
+
+def test_reset_takes_no_options(env: NavigationEnv) -> None:
+    env.reset(seed=0, options={})
+    with pytest.raises(ValueError, match=r"options: unknown key\(s\) \['goal'\]; reset takes no options"):
+        env.reset(seed=0, options={"goal": [1, 2]})
+    with pytest.raises(ValueError, match="options: expected a dict, got list"):
+        env.reset(seed=0, options=[1])
+
+
+def test_normalized_spaces_pass_gymnasiums_checker() -> None:
+    from gymnasium.utils.env_checker import check_env
+
+    env = NavigationEnv(scenario="crossing_right", normalized=True)
+    assert env.action_space == gymnasium.spaces.Box(-1.0, 1.0, (2,), np.float32)
+    check_env(env, skip_render_check=True)
+    obs, _ = env.reset(seed=0)
+    assert all(part.dtype == np.float32 and env.observation_space[name].contains(part) for name, part in obs.items())
+    assert env.command([1.0, 1.0]) == (120.0, 40.0) and env.command([-1.0, -1.0]) == (-120.0, 0.0)
+    assert env.command([0.0, 0.0]) == (0.0, 20.0) and env.command([5.0, -5.0]) == (120.0, 0.0)
+    made = gymnasium.make(ENV_ID, scenario="head_on", normalized=True)
+    made.reset(seed=1)
+    obs, *_ = made.step(made.action_space.sample())
+    assert made.observation_space.contains(obs)
+    with pytest.raises(ValueError, match="normalized: expected true or false"):
+        NavigationEnv(scenario="head_on", normalized="yes")
