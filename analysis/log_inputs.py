@@ -159,7 +159,8 @@ def _one_per_episode(paths: list[Path]) -> list[Path]:
         if len({digests[i] for i in compared}) == 1:
             for i in compared[1:]:
                 out[i] = RejectedLog.with_reason(paths[i], f"a copy of {paths[first]} (the same episode: {episode}, "
-                                                           "same content): counted once", "duplicate")
+                                                           "same content): counted once", "duplicate",
+                                                 copy_of=str(paths[first]))
             continue
         for i in compared:
             others = ", ".join(str(paths[j]) for j in compared if j != i)

@@ -79,16 +79,19 @@ class RejectedLog(type(Path())):  # type: ignore[misc]  # the concrete Path clas
 
     reason: str
     kind: str
+    copy_of: str | None  # a duplicate: the log counted in its place
 
     @classmethod
-    def with_reason(cls, path: str | Path, reason: str, kind: str = "cannot-read") -> RejectedLog:
+    def with_reason(cls, path: str | Path, reason: str, kind: str = "cannot-read",
+                    copy_of: str | None = None) -> RejectedLog:
         rejected = cls(path)
         rejected.reason = reason
         rejected.kind = kind
+        rejected.copy_of = copy_of
         return rejected
 
     def __reduce__(self):  # type: ignore[override]
-        return RejectedLog.with_reason, (str(self), self.reason, self.kind)
+        return RejectedLog.with_reason, (str(self), self.reason, self.kind, self.copy_of)
 
 
 def file_kind(mode: int) -> str:

@@ -25,7 +25,7 @@ import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.log_inputs import find_logs
-from analysis.logs import SKIPPED_KINDS, LogError, collector_paused, read_logs
+from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import ADE_PREFIX, FDE_PREFIX, STANDING_MODELS, model_columns, obstacle_models, tpt_errors
 from fuzzynav.numerics.geometry import swept_distance, wrap_180
@@ -408,8 +408,32 @@ def _metrics_row(path: Path, options: MetricOptions | None, parameters: Callable
 
 
 def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int) -> tuple[list[dict], list[dict]]:
-    parts = read_logs(functools.partial(_metrics_rows, options=options), find_logs(paths), jobs)
-    return [r for rows, _ in parts for r in rows], [e for _, excluded in parts for e in excluded]
+    logs = find_logs(paths)
+    parts = read_logs(functools.partial(_metrics_rows, options=options), logs, jobs)
+    rows, excluded = [r for rows, _ in parts for r in rows], [e for _, excluded in parts for e in excluded]
+    return _copies_for_lost_logs(logs, rows, excluded, options)
+
+
+def _copies_for_lost_logs(logs: list[Path], rows: list[dict], excluded: list[dict], options: MetricOptions | None
+                          ) -> tuple[list[dict], list[dict]]:
+    """The log counted for an episode among identical copies was chosen (and verified) before the metrics read
+    it; if it cannot be read by then (deleted or damaged while the report ran), its next readable copy is counted
+    instead: the episode counts once, not zero times. The lost log stays in the left-out list with its reason."""
+    copies: dict[str, list[Path]] = {}
+    for path in logs:
+        if isinstance(path, RejectedLog) and path.kind == "duplicate" and getattr(path, "copy_of", None):
+            copies.setdefault(path.copy_of, []).append(path)
+    if not copies:
+        return rows, excluded
+    for entry in [e for e in excluded if e["log"] in copies and e["kind"] not in SKIPPED_KINDS]:
+        for copy in copies[entry["log"]]:
+            found, _ = _metrics_rows([Path(str(copy))], options)
+            if found:
+                rows.extend(found)
+                excluded = [e for e in excluded if e["log"] != str(copy)]
+                entry["reason"] = f"{entry['reason']} (its copy {copy} is counted instead)"
+                break
+    return rows, excluded
 
 
 def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1

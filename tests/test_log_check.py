@@ -273,3 +273,36 @@ def test_a_log_that_grows_while_it_is_read_is_read_whole_up_to_the_limit(tmp_pat
     assert logs.read_log_bytes(path) == content
     monkeypatch.setattr(logs, "MAX_FILE_BYTES", 5000)
     assert logs.read_log_bytes(path) == content[:5001]
+
+
+@pytest.mark.parametrize("fault", ["deleted", "damaged"])
+def test_a_counted_copy_lost_while_the_report_runs_is_replaced_by_another_copy(
+        tmp_path, recorded_logs, fault, monkeypatch):  # noqa: F811
+    """Three copies of one episode: the one chosen to be counted was deleted (or damaged) after it was chosen and
+    before its metrics were read; its copies stayed marked as duplicates and the episode counted zero times,
+    exit 0 (issue 37, hostile corpus)."""
+    import analysis.metrics as metrics
+    from analysis.log_inputs import find_logs
+
+    for name in ("a.mcap", "b.mcap", "c.mcap"):
+        shutil.copy(recorded_logs[0], tmp_path / name)
+
+    def find_then_lose(paths):
+        found = find_logs(paths)
+        chosen = next(p for p in found if not hasattr(p, "kind"))
+        if fault == "deleted":
+            chosen.unlink()
+        else:
+            data = bytearray(chosen.read_bytes())
+            data[len(data) // 2] ^= 0xFF
+            chosen.write_bytes(bytes(data))
+        return found
+
+    monkeypatch.setattr(metrics, "find_logs", find_then_lose)
+    analysis = metrics.analyse_logs([tmp_path])
+    assert len(analysis.episodes) == 1  # counted once, from a copy
+    kinds = analysis.excluded["kind"].tolist()
+    assert kinds.count("duplicate") == 1 and len(kinds) == 2
+    lost = analysis.excluded[analysis.excluded["kind"] != "duplicate"].iloc[0]
+    assert "is counted instead" in lost["reason"] and Path(lost["log"]).name == "a.mcap"
+    assert Path(analysis.episodes["log"].iloc[0]).name == "b.mcap"
