@@ -37,6 +37,7 @@ from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params.names import DEFAULT_POLICY, reads_h_wait
 from fuzzynav.pedestrians.base import model_source_digest
+from fuzzynav.planning.layer import POLICY_NOTE, PolicyError
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.generator import generator_source_digest
 from fuzzynav.scenarios.scenario import Scenario
@@ -150,7 +151,12 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
     with its traceback) instead of propagating. A stop request (:mod:`runners.sweeping.stop`: Ctrl-C, SIGTERM, a sweep's
     stop file) finishes the log as ``interrupted`` and re-raises; a log that cannot be written raises
     :class:`runners.logs.mcap_log.LogWriteError` (not an episode outcome: nothing is left at ``log_path``)."""
-    episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
+    try:
+        episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
+    except KeyboardInterrupt as err:  # a policy's reset(seed) raising it, as any other failure of its reset
+        if isinstance(err, interrupts.Interrupted) or not stop.signals_routed():
+            raise
+        raise PolicyError(raised_by_code(err)) from None
     summary = {"scenario": scenario.name, "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy,
                "h_wait": ep_cfg.planner.h_wait, "controller": evaluator.spec.name,
                "perception": ep_cfg.perception.mode, "seed": seed, "log": str(log_path) if log_path else ""}
@@ -167,8 +173,13 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         outcome = episode.outcome or "error"
         reason = outcome_reason(outcome, scenario.max_steps)
     except KeyboardInterrupt as err:
-        outcome, reason = "interrupted", interrupts.reason_of(err)
-        raise
+        if isinstance(err, interrupts.Interrupted) or not stop.signals_routed():
+            outcome, reason = "interrupted", interrupts.reason_of(err)
+            raise
+        # no signal behind it (a signal arrives as Interrupted here): code raised it, e.g. a policy's act()
+        outcome, reason = "error", raised_by_code(err)
+        if log is not None:
+            log.log(log._last_time, 4, traceback.format_exc())
     except LogWriteError:
         raise
     except Exception as err:  # an episode that raises must not stop the sweep
@@ -312,6 +323,16 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
     register_sweeper()
     interrupts.defer()  # until the task function: Hydra turns an interrupt inside OmegaConf into its own error
     main()
+
+
+def raised_by_code(err: KeyboardInterrupt) -> str:
+    """The reason an episode failed whose code raised ``KeyboardInterrupt`` itself (no signal): named by the
+    policy when it came from one (the note :mod:`fuzzynav.planning.layer` adds), else by the innermost frame."""
+    where = next((note for note in getattr(err, "__notes__", []) if note.startswith(POLICY_NOTE)), None)
+    if where is None:
+        frames = traceback.extract_tb(err.__traceback__)
+        where = f"{frames[-1].filename}:{frames[-1].lineno}" if frames else "the episode's code"
+    return f"{where} raised KeyboardInterrupt (no signal was received: treated as the code's error)"
 
 
 def multirun_problem(args: list[str]) -> str:

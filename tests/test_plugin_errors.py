@@ -171,3 +171,46 @@ def test_resume_reruns_the_episodes_of_a_plug_in_generator_whose_code_changed(tm
     subprocess.run([*args, "resume=true"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300,
                    check=True)
     assert "-45.0" in walker_speed() and "-30.0" not in walker_speed()
+
+
+# -- a _target_ policy whose code raises what usually comes from outside (issue 37, hostile corpus) ---------------
+def _target_module(tmp_path: Path, source: str) -> dict[str, str]:
+    (tmp_path / "odd_policy.py").write_text(source)
+    return {**os.environ, "PYTHONPATH": str(tmp_path)}
+
+
+@pytest.mark.parametrize("statement", ["raise SystemExit(3)", "import sys; sys.exit(0)"])
+def test_a_policy_module_that_exits_at_import_is_the_fields_error(tmp_path, statement):
+    """It ended the run with its own exit status (3, or 0: a silent 'success') and no word."""
+    env = _target_module(tmp_path, f"{statement}\n")
+    proc = subprocess.run([sys.executable, "-m", "runners.run", "navigator=custom", "navigator._target_=odd_policy.P",
+                           f"hydra.run.dir={tmp_path / 'run'}"], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 2 and proc.stderr.strip().splitlines() == [
+        f"error: config: navigator._target_: importing 'odd_policy' failed: SystemExit: {statement[-2]}"]
+
+
+@pytest.mark.parametrize("method", ["act", "reset"])
+def test_a_policy_raising_keyboard_interrupt_is_its_error_not_a_ctrl_c(tmp_path, method):
+    """It was reported as "interrupted (Ctrl-C)", exit 130, and stopped the sweep: no signal was received."""
+    source = ("from fuzzynav.policies.base import Action\n\n\nclass P:\n    name = 'odd'\n\n"
+              "    def __init__(self, params, context):\n        pass\n\n"
+              f"    def reset(self, seed):\n        {'raise KeyboardInterrupt' if method == 'reset' else 'pass'}\n\n"
+              "    def act(self, observation):\n        raise KeyboardInterrupt\n")
+    env = _target_module(tmp_path, source)
+    proc = subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on,crossing_right", "episodes=2",
+                           "navigator=custom", "navigator._target_=odd_policy.P", "planner=none",
+                           f"hydra.sweep.dir={tmp_path / 'sweep'}", "hydra.launcher.n_jobs=1"],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert "Ctrl-C" not in proc.stderr + proc.stdout, proc.stderr[-2000:]
+    if method == "reset":  # as any failure of reset(seed): the configuration's error, before any episode
+        assert proc.returncode == 2 and proc.stderr.strip().splitlines()[-1] == (
+            "error: config: policy odd_policy.P: reset(seed) raised KeyboardInterrupt (no signal was received: "
+            "treated as the code's error)")
+        return
+    # as for any episode that raised: the sweep goes on, and its summary counts them as errors
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "4 left out: 4 error" in proc.stdout
+    summary = (tmp_path / "sweep" / "summary.csv").read_text()
+    assert summary.count(",error,,,,,,error,") == 4, summary  # every episode ran and failed on its own
+    assert "policy odd_policy.P: act() raised KeyboardInterrupt (no signal was received" in summary

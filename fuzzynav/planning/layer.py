@@ -118,7 +118,8 @@ class PlanningLayer:
         """Before an episode: the policy forgets the last one (and draws its randomness from ``seed``)."""
         try:
             self.policy.reset(seed)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as err:  # a signal's, or the policy's own: the runner tells them apart
+            err.add_note(f"{POLICY_NOTE}{self.policy_name}: reset(seed)")
             raise
         except BaseException as err:  # a policy's own code (SystemExit included) fails the episode, not the run
             raise PolicyError(f"policy {self.policy_name}: reset(seed) failed: {one_line(err)}") from err
@@ -132,7 +133,8 @@ class PlanningLayer:
         name = self.policy_name
         try:
             raw = self.policy.act(obs)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as err:  # a signal's, or the policy's own: the runner tells them apart
+            err.add_note(f"{POLICY_NOTE}{name}: act()")
             raise
         except BaseException as err:  # SystemExit from a policy's code must not end a whole sweep
             raise PolicyError(f"policy {name}: act() failed: {one_line(err)}") from err
@@ -185,6 +187,10 @@ class PlanningLayer:
             remaining = hold_to_horizon(remaining, tpt.n_traj)  # safe to stand there to the end of the table
         return not path_collides(tpt, remaining, here, pts, self.robot_radius + self.planner.static_margin_cm,
                                  margin=self.planner.plan_check_margin_cm)
+
+
+#: start of the note a KeyboardInterrupt gets when it comes out of a policy's reset() or act(): "policy <name>: act()"
+POLICY_NOTE = "policy "
 
 
 class PolicyError(ValueError):

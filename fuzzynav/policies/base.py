@@ -166,7 +166,9 @@ def policy_factory(name: str) -> PolicyFactory:
     except ImportError as err:  # ModuleNotFoundError included; the module's own import errors too
         raise ValueError(f"navigator._target_: cannot import {module_name!r} ({err}); is its directory on "
                          "PYTHONPATH?") from None
-    except Exception as err:  # user code: any failure of its import is this field's error
+    except KeyboardInterrupt:
+        raise
+    except BaseException as err:  # user code: any failure of its import (SystemExit included) is this field's error
         raise ValueError(f"navigator._target_: importing {module_name!r} failed: {type(err).__name__}: "
                          f"{str(err)[:200]}") from None
     factory = getattr(module, attr, None)

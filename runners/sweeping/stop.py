@@ -83,13 +83,25 @@ def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
             previous[signum] = signal.signal(signum, handler)
         except ValueError:  # not the main thread
             break
+    _ROUTED[:] = [signal.SIGINT in previous]
 
     def restore() -> None:
         _WATCHED.clear()
+        _ROUTED.clear()
         for signum, handler in previous.items():
             signal.signal(signum, handler if idle is None else idle)
 
     return restore
+
+
+_ROUTED: list[bool] = []  # [True] while install's handlers are in charge of SIGINT and SIGTERM
+
+
+def signals_routed() -> bool:
+    """Whether SIGINT and SIGTERM reach the episodes only as :class:`Interrupted` (between :func:`install` and its
+    undo, in the main thread): a plain ``KeyboardInterrupt`` is then raised by code (a policy's), not by a
+    signal."""
+    return bool(_ROUTED and _ROUTED[0])
 
 
 def check(time_limit: bool = True) -> None:
