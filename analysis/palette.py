@@ -3,7 +3,8 @@ in the same colour in every figure of a report.
 
 Colours come from Okabe & Ito's palette ("Color Universal Design", 2008) for up to seven groups and from Paul Tol's
 *muted* scheme (https://personal.sron.nl/~pault/, nine colours) for up to nine: both stay distinguishable under
-the common colour-vision deficiencies. Black is left out of both (contacts are marked with a black ``x``) and so is
+the common colour-vision deficiencies. Their pale yellows, which vanish on the report's white background, are
+replaced by a dark grey. Black is left out of both (contacts are marked with a black ``x``) and so is
 red-like vermillion next to the red of moving obstacles where it can be (Okabe–Ito's vermillion is its 7th colour).
 Beyond nine groups the colours repeat, and the marker and line style (which change with every repeat) keep the
 series apart. Every group also has a marker (dot plots) and its strategy's line style (lines), so that a figure
@@ -15,10 +16,21 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#F0E442", "#D55E00")
-"""Blue, orange, bluish green, reddish purple, sky blue, yellow, vermillion (black left out)."""
-TOL_MUTED = ("#332288", "#88CCEE", "#44AA99", "#117733", "#999933", "#DDCC77", "#CC6677", "#882255", "#AA4499")
-"""Indigo, cyan, teal, green, olive, sand, rose, wine, purple."""
+GREY = "#666666"
+"""A neutral dark grey (contrast 5.7:1 on white), in place of the palettes' pale yellows."""
+OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", GREY)
+"""Blue, orange, bluish green, reddish purple, sky blue, vermillion, and grey in place of Okabe–Ito's yellow
+(#F0E442, contrast 1.3:1 on white: the detour group of the default sweep was barely visible); black left out."""
+TOL_MUTED = ("#332288", "#88CCEE", "#44AA99", "#117733", "#999933", GREY, "#CC6677", "#882255", "#AA4499")
+"""Indigo, cyan, teal, green, olive, grey in place of Tol's sand (#DDCC77, 1.6:1 on white), rose, wine, purple."""
+
+
+def contrast_on_white(colour: str) -> float:
+    """WCAG 2 contrast ratio of ``colour`` (``#RRGGBB``) against white: 1 (invisible) to 21 (black)."""
+    channels = [int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5)]
+    linear = [c / 12.92 if c <= 0.03928 else ((c + 0.055) / 1.055) ** 2.4 for c in channels]
+    luminance = 0.2126 * linear[0] + 0.7152 * linear[1] + 0.0722 * linear[2]
+    return 1.05 / (luminance + 0.05)
 MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">")
 LINESTYLES = ("-", "--", "-.", ":")
 STRATEGY_LINES = {"auto": "-", "wait": "--", "detour": "-.", "none": ":"}

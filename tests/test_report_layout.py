@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from analysis import gallery, plots
-from analysis.palette import OKABE_ITO, TOL_MUTED, group_styles
+from analysis.palette import OKABE_ITO, TOL_MUTED, contrast_on_white, group_styles
 from analysis.report import INLINE_ROWS, _bounded, build_report
 from tests.handmade import write_log
 from tests.test_grouping import meta, setter
@@ -24,6 +24,9 @@ def test_every_group_has_its_own_colour_and_keeps_it():
     assert group_styles(groups) == group_styles(groups)
     nine = group_styles([f"g{i}" for i in range(9)])
     assert len({s.color for s in nine.values()}) == 9 and {s.color for s in nine.values()} == set(TOL_MUTED)
+    # readable on the white background: no pale yellow (Okabe–Ito's was 1.3:1, and drew the detour group)
+    assert min(contrast_on_white(c) for c in (*OKABE_ITO, *TOL_MUTED)) >= 1.7  # yellow 1.3, sand 1.6
+    assert contrast_on_white("#F0E442") < 1.4 and contrast_on_white("#000000") == pytest.approx(21.0)
     many = group_styles([f"g{i}" for i in range(20)])  # beyond nine: no two groups drawn alike
     assert len({(s.color, s.marker, s.linestyle) for s in many.values()}) == 20
 
