@@ -137,6 +137,24 @@ H_WAIT_METRICS = ("success", "time_to_goal_s", "path_length_cm", "min_clearance_
 """The rows of the h_wait figure (every metric per group is in groups.csv)."""
 
 
+MIN_SPAN = 0.2  # a panel's y range covers at least this fraction of its largest value's magnitude
+
+
+def honest_ylim(low: float, high: float, metric: str) -> tuple[float, float]:
+    """Y limits of a panel that do not magnify noise: a rate spans 0..1; another metric at least ``MIN_SPAN`` of
+    its magnitude, around the data (matplotlib's own limits zoomed into 996-1,000 cm, so that equal path lengths
+    looked like an effect of h_wait)."""
+    if metric == "success" or metric.endswith("_rate"):
+        return -0.05, 1.05
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return low, high
+    need = MIN_SPAN * max(abs(low), abs(high))
+    if high - low >= need or need == 0:
+        return low, high
+    centre = (low + high) / 2
+    return centre - need / 2, centre + need / 2
+
+
 def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path:
     """``h_wait_effect.png``: a row per metric, a column per scenario group. In each panel, ``auto``'s mean against
     h_wait with its 95 % interval (Wilson for the success rate, percentile bootstrap otherwise), each point in its
@@ -182,6 +200,7 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
                 ax.axhline(mean, label=variant, lw=1.2, **pal[variant].line())
                 if not math.isnan(lo):
                     ax.axhspan(lo, hi, color=pal[variant].color, alpha=0.12, lw=0)
+            ax.set_ylim(*honest_ylim(*ax.get_ylim(), metric))
             if hs:  # whole steps only, and room around a single h_wait
                 ax.set_xticks(hs)
                 ax.set_xlim(min(hs) - 0.5, max(hs) + 0.5)

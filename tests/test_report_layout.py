@@ -108,3 +108,16 @@ def test_file_names_of_long_labels_stay_short_and_distinct():
     a, b = "auto(h=2) · " + "rules=x" * 60 + "a", "auto(h=2) · " + "rules=x" * 60 + "b"
     assert len(plots._file_part(a)) <= plots.FILE_PART_MAX and plots._file_part(a) != plots._file_part(b)
     assert plots._file_part("random_mixed · n_dynamic=5") == "random_mixed__n_dynamic=5"
+
+
+def test_the_h_wait_panels_do_not_magnify_noise():
+    """matplotlib zoomed a panel of path lengths into 996-1,000 cm: equal results looked like an effect."""
+    from analysis.plots import MIN_SPAN, honest_ylim
+
+    low, high = honest_ylim(996.0, 1000.0, "path_length_cm")
+    assert high - low == pytest.approx(MIN_SPAN * 1000.0) and low < 996.0 and high > 1000.0
+    assert honest_ylim(0.0, 300.0, "time_to_goal_s") == (0.0, 300.0)  # a real spread is kept
+    assert honest_ylim(0.98, 1.0, "success") == (-0.05, 1.05)
+    assert honest_ylim(0.0, 0.0, "wait_steps") == (0.0, 0.0)
+    low, high = honest_ylim(-30.0, -29.0, "min_clearance_dynamic_cm")
+    assert high - low == pytest.approx(6.0)
