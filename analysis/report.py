@@ -177,6 +177,37 @@ def warnings(df: pd.DataFrame, analysis: Analysis) -> list[str]:
     return out
 
 
+def who_reaches_the_goal(scenario: str, sub: pd.DataFrame) -> str:
+    """One plain sentence for a scenario: how often each group reached the goal (groups with the same count
+    together, best first), how the others ended, and whether the best and the worst group are told apart by
+    their 95 % Wilson intervals."""
+    counts = []
+    for variant, g in sub.groupby("variant", sort=False):
+        outcomes = g["outcome"].to_numpy()
+        counts.append((variant, int(g["success"].sum()), len(g), int((outcomes == "collision").sum()),
+                       int((outcomes == "timeout").sum())))
+    by_count: dict[tuple[int, int], list[str]] = {}
+    for variant, k, n, _, _ in sorted(counts, key=lambda c: -c[1] / c[2]):
+        by_count.setdefault((k, n), []).append(variant)
+    parts = [f"{k}/{n} by {', '.join(vs[:-1]) + ' and ' + vs[-1] if len(vs) > 1 else vs[0]}"
+             for (k, n), vs in by_count.items()]
+    collisions, timeouts = sum(c[3] for c in counts), sum(c[4] for c in counts)
+    ended = [f"{collisions} collision{'s' if collisions != 1 else ''}" if collisions else "",
+             f"{timeouts} timeout{'s' if timeouts != 1 else ''}" if timeouts else ""]
+    ended_text = f" (failures: {', '.join(e for e in ended if e)})" if any(ended) else ""
+    text = f"{scenario}: goal reached {'; '.join(parts)}{ended_text}."
+    if len(by_count) < 2:
+        return text + (" No group differs from another." if len(counts) > 1 else "")
+    (best_k, best_n), (worst_k, worst_n) = next(iter(by_count)), list(by_count)[-1]
+    _, best_lo, _ = wilson(best_k, best_n)
+    _, _, worst_hi = wilson(worst_k, worst_n)
+    episodes = min(n for _, _, n, _, _ in counts)
+    if best_lo > worst_hi:
+        return text + " The best and the worst differ clearly (their 95 % intervals do not overlap)."
+    return text + (f" The best and the worst are not separable with {episodes} episode{'s' if episodes != 1 else ''}"
+                   " per group (their 95 % intervals overlap).")
+
+
 def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
     """Statements computed from the numbers (no hand-written prose)."""
     out = []
@@ -184,12 +215,11 @@ def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
         rates = sub.groupby("variant", sort=False)["success"].mean()
         best_rate = rates.max()
         best = [v for v in rates.index if rates[v] == best_rate]
-        out.append(f"{scenario}: highest success rate {best_rate:.2f} with {', '.join(best)} "
-                   f"(lowest {rates.min():.2f} with {', '.join(v for v in rates.index if rates[v] == rates.min())}).")
+        out.append(who_reaches_the_goal(scenario, sub))
         ttg = sub[sub["variant"].isin(best)].groupby("variant", sort=False)["time_to_goal_s"].mean().dropna()
         if not ttg.empty:
             fastest = ttg.idxmin()
-            line = (f"{scenario}: among those, the shortest mean time-to-goal is {ttg.min():.1f} s with {fastest}")
+            line = (f"{scenario}: among the best, the shortest mean time-to-goal is {ttg.min():.1f} s with {fastest}")
             others = paired[(paired["scenario"] == scenario) & (paired["metric"] == "time_to_goal_s")
                             & ((paired["A"] == fastest) | (paired["B"] == fastest))]
             significant = []

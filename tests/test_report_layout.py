@@ -121,3 +121,23 @@ def test_the_h_wait_panels_do_not_magnify_noise():
     assert honest_ylim(0.0, 0.0, "wait_steps") == (0.0, 0.0)
     low, high = honest_ylim(-30.0, -29.0, "min_clearance_dynamic_cm")
     assert high - low == pytest.approx(6.0)
+
+
+def test_what_the_data_says_leads_with_who_reaches_the_goal():
+    """It read like machine output ("highest 1.00 with auto(h=1), ..., none (lowest 1.00 with ...)")."""
+    from analysis.report import who_reaches_the_goal
+
+    def episodes(variant, outcomes):
+        return [{"variant": variant, "outcome": o, "success": o == "goal"} for o in outcomes]
+
+    rows = (episodes("detour", ["goal"] * 10) + episodes("auto(h=2)", ["goal"] * 10)
+            + episodes("wait", ["collision"] * 9 + ["timeout"]))
+    assert who_reaches_the_goal("head_on", pd.DataFrame(rows)) == (
+        "head_on: goal reached 10/10 by detour and auto(h=2); 0/10 by wait (failures: 9 collisions, 1 timeout). "
+        "The best and the worst differ clearly (their 95 % intervals do not overlap).")
+    few = pd.DataFrame(episodes("detour", ["goal"] * 2) + episodes("wait", ["goal", "collision"]))
+    assert who_reaches_the_goal("x", few) == (
+        "x: goal reached 2/2 by detour; 1/2 by wait (failures: 1 collision). The best and the worst are not "
+        "separable with 2 episodes per group (their 95 % intervals overlap).")
+    same = pd.DataFrame(episodes("a", ["goal"]) + episodes("b", ["goal"]))
+    assert who_reaches_the_goal("y", same) == "y: goal reached 1/1 by a and b. No group differs from another."
