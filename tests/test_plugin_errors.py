@@ -214,3 +214,36 @@ def test_a_policy_raising_keyboard_interrupt_is_its_error_not_a_ctrl_c(tmp_path,
     summary = (tmp_path / "sweep" / "summary.csv").read_text()
     assert summary.count(",error,,,,,,error,") == 4, summary  # every episode ran and failed on its own
     assert "policy odd_policy.P: act() raised KeyboardInterrupt (no signal was received" in summary
+
+
+def test_a_policy_whose_act_never_returns_is_stopped_by_one_sigterm(tmp_path):
+    """SIGTERM waited for a step that never ended: the run hung until killed. Now the step in flight gets
+    STEP_GRACE_S, then the episode ends as interrupted, its log finished, exit 143."""
+    import signal
+    import time
+
+    from runners.dataset import iter_messages
+    from runners.sweeping.stop import STEP_GRACE_S
+
+    marker = tmp_path / "acting"
+    env = _target_module(tmp_path, (
+        "import time\nfrom pathlib import Path\n\n\nclass P:\n    name = 'stuck'\n\n"
+        "    def __init__(self, params, context):\n        pass\n\n    def reset(self, seed):\n        pass\n\n"
+        f"    def act(self, observation):\n        Path({str(marker)!r}).touch()\n        time.sleep(3600)\n"))
+    proc = subprocess.Popen([sys.executable, "-m", "runners.run", "navigator=custom", "navigator._target_=odd_policy.P",
+                             f"hydra.run.dir={tmp_path / 'run'}"], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        assert marker.exists(), proc.communicate(timeout=5)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=STEP_GRACE_S + 60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143, err[-2000:]
+    (log,) = (tmp_path / "run").glob("*.mcap")
+    (end,) = [m for topic, _, m in iter_messages(log) if topic == "/episode"]
+    assert end["outcome"] == "interrupted" and "had not ended" in end["reason"], end

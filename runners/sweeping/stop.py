@@ -40,18 +40,41 @@ def is_launcher() -> bool:
 
 
 _PENDING: list[int] = []  # signals received while a job runs, acted on between two steps
+_GRACE: list[bool] = []  # [True] while the grace timer of a stop signal runs
 _TIME_LIMIT: list[bool] = []  # Submitit's warning that this Slurm job nears its time limit (SIGUSR2), see install
 TIME_LIMIT_REASON = "the Slurm job reached its time limit (hydra.launcher.timeout_min)"
 _WATCHED: list[Path] = []  # the sweep directory whose stop file this job looks for (none outside a sweep)
 _next_look = 0.0  # time.monotonic() of the next look at the stop file
 
 
+STEP_GRACE_S = 10.0  # after a stop signal, how long the step in flight may take before it is cut
+
+
 def _on_signal(signum: int, frame: Any) -> None:
     """SIGINT/SIGTERM during a job: noted, and raised between two steps by :func:`check`; a second one raises
-    at once."""
+    at once, and so does the first when the step in flight does not end within ``STEP_GRACE_S`` (a policy whose
+    ``act()`` never returns held the run forever: the signal waited for a step that never ended)."""
     if _PENDING:
         raise Interrupted(signum)
     _PENDING.append(signum)
+    with contextlib.suppress(ValueError, OSError, AttributeError):  # no SIGALRM (Windows) or not the main thread
+        signal.signal(signal.SIGALRM, _step_overdue)
+        signal.setitimer(signal.ITIMER_REAL, STEP_GRACE_S)
+        _GRACE.append(True)
+
+
+def _step_overdue(signum: int, frame: Any) -> None:
+    pending = _PENDING[0] if _PENDING else signal.SIGTERM
+    raise Interrupted(pending, f"{describe(pending)}; the step in flight had not ended {STEP_GRACE_S:g} s later")
+
+
+def _cancel_grace() -> None:
+    """Stop the step's grace timer (the step ended, or the job's handlers are undone)."""
+    if _GRACE:
+        _GRACE.clear()
+        with contextlib.suppress(ValueError, OSError, AttributeError):
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, signal.SIG_DFL)
 
 
 def _on_time_limit(signum: int, frame: Any) -> None:
@@ -86,6 +109,7 @@ def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
     _ROUTED[:] = [signal.SIGINT in previous]
 
     def restore() -> None:
+        _cancel_grace()
         _WATCHED.clear()
         _ROUTED.clear()
         for signum, handler in previous.items():
@@ -112,6 +136,7 @@ def check(time_limit: bool = True) -> None:
     if _TIME_LIMIT and time_limit:
         raise Interrupted(signal.SIGUSR2, TIME_LIMIT_REASON)
     if _PENDING:
+        _cancel_grace()  # the step ended in time
         if _WATCHED:  # a signal to one job of a sweep stops the sweep (a terminal's Ctrl-C reaches them all)
             request_sweep_stop(_WATCHED[0], _PENDING[0], describe(_PENDING[0]))
         raise Interrupted(_PENDING[0])
