@@ -208,6 +208,47 @@ def who_reaches_the_goal(scenario: str, sub: pd.DataFrame) -> str:
                    " per group (their 95 % intervals overlap).")
 
 
+SAME_EPISODE = ["outcome", "steps", "path_length_cm"]  # episodes equal in these ran the same way
+
+
+def unchanged_by(df: pd.DataFrame, grouping: Grouping) -> list[str]:
+    """One line per scenario and swept parameter that changed no episode: groups that differ only in that
+    parameter (h_wait of ``auto``, or one other differing run parameter) whose episodes on every common seed have
+    the same outcome, steps and path length. A sweep over h_wait where waiting never happens must say so rather
+    than show four equal bars."""
+    factors = _factors(df, grouping)
+    names = ["h_wait", *(grouping.short.get(k, k) for k in grouping.variant_keys)]
+    out = []
+    for scenario, sub in df.groupby("scenario_label", sort=False):
+        per_variant = {v: g.set_index(PAIR_KEY)[SAME_EPISODE] for v, g in sub.groupby("variant", sort=False)
+                       if not g[PAIR_KEY].duplicated().any()}
+        for position, name in enumerate(names):
+            families: dict[tuple, list[str]] = {}
+            for variant in per_variant:
+                f = factors[variant]
+                if position == 0:
+                    if not f[0][1]:  # a strategy that does not read h_wait
+                        continue
+                    rest = (f[0][0], *f[1:])
+                else:
+                    rest = (f[0], *f[1:position], *f[position + 1:])
+                families.setdefault(rest, []).append(variant)
+            for members in families.values():
+                if len(members) < 2:
+                    continue
+                tables = [per_variant[v] for v in members]
+                seeds = tables[0].index
+                for t in tables[1:]:
+                    seeds = seeds.intersection(t.index)
+                if len(seeds) == 0:
+                    continue
+                first = tables[0].loc[seeds]
+                if all(t.loc[seeds].equals(first) for t in tables[1:]):
+                    out.append(f"{scenario}: {name} changed no episode ({', '.join(members)}: the same outcome, "
+                               f"steps and path on each of {len(seeds)} common seed{'s' if len(seeds) != 1 else ''}).")
+    return out
+
+
 def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
     """Statements computed from the numbers (no hand-written prose)."""
     out = []
@@ -363,7 +404,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     report.add("p", logs_line + " Groups: every combination of the run parameters that differ among these logs "
                     "(see Run parameters); one colour per group in every figure.")
     report.add("h2", "What the data says")
-    report.add("list", warnings(df, analysis) + findings(df, paired))
+    report.add("list", warnings(df, analysis) + findings(df, paired) + unchanged_by(df, grouping))
 
     report.add("h2", "Effect of h_wait")
     if (df.groupby("scenario_label")["variant"].nunique() >= 2).any():

@@ -141,3 +141,25 @@ def test_what_the_data_says_leads_with_who_reaches_the_goal():
         "separable with 2 episodes per group (their 95 % intervals overlap).")
     same = pd.DataFrame(episodes("a", ["goal"]) + episodes("b", ["goal"]))
     assert who_reaches_the_goal("y", same) == "y: goal reached 1/1 by a and b. No group differs from another."
+
+
+def test_a_swept_parameter_that_changed_no_episode_is_said():
+    """h_wait 1-4 gave identical outcomes and steps on 6 of 7 unseen scenarios; the report showed equal bars."""
+    from analysis.report import unchanged_by
+    from analysis.run_parameters import Grouping
+
+    rows = []
+    for h in (1, 2, 3):
+        for seed in (0, 1):
+            # head_on: h_wait changes nothing; crossing: h=1 detours (longer), h>=2 waits
+            rows.append({"scenario_label": "head_on", "variant": f"auto(h={h})", "strategy": "auto", "h_wait": h,
+                         "seed": seed, "outcome": "goal", "steps": 40 + seed, "path_length_cm": 1000.0})
+            rows.append({"scenario_label": "crossing", "variant": f"auto(h={h})", "strategy": "auto", "h_wait": h,
+                         "seed": seed, "outcome": "goal", "steps": 44 if h == 1 else 41,
+                         "path_length_cm": 1100.0 if h == 1 else 1000.0})
+    rows += [{"scenario_label": s, "variant": "wait", "strategy": "wait", "h_wait": None, "seed": seed,
+              "outcome": "goal", "steps": 40 + seed, "path_length_cm": 1000.0}
+             for s in ("head_on", "crossing") for seed in (0, 1)]
+    lines = unchanged_by(pd.DataFrame(rows), Grouping())
+    assert lines == ["head_on: h_wait changed no episode (auto(h=1), auto(h=2), auto(h=3): the same outcome, steps "
+                     "and path on each of 2 common seeds)."]
