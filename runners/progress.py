@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 import time
 from typing import IO, Any
@@ -33,6 +34,14 @@ def every_s_from_env(file: IO[str]) -> float:
               f"{EVERY_S:g}", file=file, flush=True)
         return EVERY_S
     return value
+
+
+_LINE = re.compile(r"[^:\n]{1,80}: \d+(/\d+)? episodes(?: \(\d+%\))?, (started .+ ago|[\d.]+ episodes/s.*)")
+
+
+def is_progress_line(line: str) -> bool:
+    """Whether ``line`` is one of :class:`EpisodeProgress`'s lines (to tell them from messages in a log)."""
+    return _LINE.fullmatch(line.strip()) is not None
 
 
 def _duration(seconds: float) -> str:

@@ -48,6 +48,7 @@ from fuzzynav.params import limits
 from fuzzynav.scenarios.scenario import scenario_from_dict
 from runners.configuration import run_inputs
 from runners.configuration.data_files import CONFIG_FILE, SCENARIO_OR_CONTROLLER, DataFileError, check_data_text
+from runners.progress import is_progress_line
 from tests.conftest import CONF, ROOT
 from tests.fuzz_mutations import alias_bomb, mutations, override, paths, text_mutation
 
@@ -359,7 +360,7 @@ def run_command(overrides: list[str], entry: str, steps: list[str], expect: list
         if outside:
             note(entry, steps, "silent", f"files outside the output directory: {outside[:3]}")
             return
-        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        lines = [ln for ln in res.stderr.splitlines() if ln.strip() and not is_progress_line(ln)]
         if "Traceback" in res.stderr:
             note(entry, steps, "traceback", res.stderr[-600:])
         elif res.returncode == 0:

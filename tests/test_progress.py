@@ -80,3 +80,20 @@ def test_a_bad_interval_is_named_and_the_default_used(monkeypatch, raw):
 def test_the_interval_from_the_environment(monkeypatch):
     monkeypatch.setenv(EVERY_S_ENV, "60")
     assert EpisodeProgress(3, "sweep", file=io.StringIO()).every_s == 60.0
+
+
+@given(done=st.integers(0, 10**6), total=st.one_of(st.none(), st.integers(1, 10**6)),
+       elapsed=st.floats(0, 1e7, allow_nan=False), desc=st.sampled_from(["sweep", "build suite_v2", "episodes"]))
+def test_progress_lines_are_recognised(done, total, elapsed, desc):
+    from runners.progress import is_progress_line
+
+    assert is_progress_line(progress_line(desc, done, total, elapsed))
+
+
+def test_messages_are_not_progress_lines():
+    from runners.progress import is_progress_line
+
+    for line in ["error: a worker process was lost (UncompletedJobError: job 7_0 has not produced any output)",
+                 "SIGTERM: 5 episode(s) finished, 2 interrupted, 0 lost, 5 not run (of 12)",
+                 "resume: skipped x.mcap", "sweep: stopped"]:
+        assert not is_progress_line(line), line

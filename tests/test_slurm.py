@@ -273,8 +273,11 @@ def partials(sweep_dir: Path) -> list[Path]:
 
 
 def problem_lines(stderr: str) -> list[str]:
-    """stderr without Hydra's and Submitit's own log lines."""
-    return [line for line in stderr.splitlines() if line.strip() and "[HYDRA]" not in line]
+    """stderr without Hydra's and Submitit's own log lines and the sweep's progress lines."""
+    from runners.progress import is_progress_line
+
+    return [line for line in stderr.splitlines()
+            if line.strip() and "[HYDRA]" not in line and not is_progress_line(line)]
 
 
 def array_tasks(sweep_dir: Path) -> list[str]:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -22,6 +21,7 @@ import yaml
 
 from analysis.logs import LogFile, episode_summary, is_complete, read_metadata
 from fuzzynav.episode_identity import episode_key_of
+from runners.progress import is_progress_line
 from tests.conftest import ROOT, load_controller, load_scenario
 from tests.tmpfs import tmpfs_mounter
 
@@ -98,13 +98,11 @@ def logs(sweep_dir: Path) -> list[Path]:
     return sorted(p for p in sweep_dir.rglob("*.mcap") if ".fuzzynav" not in p.parts)
 
 
-PROGRESS_LINE = re.compile(r"sweep: \d+/\d+ episodes \(")
-
 
 def problem_lines(stderr: str) -> list[str]:
     """stderr without Hydra's own log lines and the periodic progress lines (stderr is not a terminal)."""
     return [line for line in stderr.splitlines()
-            if line.strip() and "[HYDRA]" not in line and not PROGRESS_LINE.match(line)]
+            if line.strip() and "[HYDRA]" not in line and not is_progress_line(line)]
 
 
 def identities(paths: list[Path]) -> list[str]:
