@@ -58,7 +58,7 @@ def progress_line(desc: str, done: int, total: int | None, elapsed_s: float) -> 
     """One line of progress: episodes done of ``total`` (None: unknown), the rate (episodes/s) since the start
     and, when the total is known, the time left at that rate (before the first episode: the time since the
     start)."""
-    rate = done / elapsed_s if elapsed_s > 0 else 0.0
+    rate = done / elapsed_s if elapsed_s >= 1e-3 else 0.0  # under a millisecond a rate means nothing (inf)
     text = f"{desc}: {done}" + (f"/{total} episodes ({100 * done / total:.0f}%)" if total else " episodes")
     if done == 0:
         return f"{text}, started {_duration(elapsed_s)} ago"

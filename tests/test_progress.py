@@ -18,6 +18,7 @@ def test_a_line_says_done_total_rate_and_time_left():
                                                        "done in 2 min 05 s")
     assert progress_line("sweep", 3, None, 1.0) == "sweep: 3 episodes, 3.0 episodes/s"
     assert progress_line("sweep", 0, 10, 0.0) == "sweep: 0/10 episodes (0%), started 0 s ago"
+    assert progress_line("sweep", 1, None, 5e-324) == "sweep: 1 episodes, 0.0 episodes/s"  # not "inf episodes/s"
     assert progress_line("x", 1, 10_000, 10.0).endswith("about 27 h 46 min left")
 
 
