@@ -154,7 +154,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
     try:
         episode = Episode(scenario, evaluator, ep_cfg, seed=seed)
     except KeyboardInterrupt as err:  # a policy's reset(seed) raising it, as any other failure of its reset
-        if isinstance(err, interrupts.Interrupted) or not stop.signals_routed():
+        if stop.from_signal(err):
             raise
         raise PolicyError(raised_by_code(err)) from None
     summary = {"scenario": scenario.name, "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy,
@@ -173,7 +173,7 @@ def run_episode(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: EpisodeCon
         outcome = episode.outcome or "error"
         reason = outcome_reason(outcome, scenario.max_steps)
     except KeyboardInterrupt as err:
-        if isinstance(err, interrupts.Interrupted) or not stop.signals_routed():
+        if stop.from_signal(err):
             outcome, reason = "interrupted", interrupts.reason_of(err)
             raise
         # no signal behind it (a signal arrives as Interrupted here): code raised it, e.g. a policy's act()

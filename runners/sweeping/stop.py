@@ -128,6 +128,12 @@ def signals_routed() -> bool:
     return bool(_ROUTED and _ROUTED[0])
 
 
+def from_signal(err: KeyboardInterrupt) -> bool:
+    """Whether ``err`` stands for a stop request (a signal, the stop file) rather than code that raised
+    ``KeyboardInterrupt`` itself: always, unless the job's handlers route the signals (:func:`signals_routed`)."""
+    return isinstance(err, Interrupted) or not signals_routed()
+
+
 def check(time_limit: bool = True) -> None:
     """Raise :class:`Interrupted` if a stop was requested: a signal, the Slurm time-limit warning (unless
     ``time_limit`` is False), or (looked at every ``STOP_POLL_S``) the sweep's stop file. Called after every step
