@@ -183,7 +183,8 @@ class Episode:
             t = self.step_index * cfg.dt
             pos, vel = self.crowd.positions, self.crowd.velocities
             discs = np.column_stack([pos, self.crowd.radii]) if len(pos) else np.zeros((0, 3))
-            sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs)
+            sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs,
+                                    portable_math.norm2(vel) if len(vel) else None)
             scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
                                   self._noise)
             tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.crowd.radii,

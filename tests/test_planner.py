@@ -151,3 +151,42 @@ def test_astar_search_also_reaches_rg():
 def test_bad_planner_config_names_the_field(kw, field):
     with pytest.raises(ValueError, match=field):
         PlannerConfig(**kw)
+
+
+def _wall_beside_rtraj() -> np.ndarray:
+    """Laser returns of a wall whose end is 22 cm right of rTraj (x = 0, +y) at y = 62 cm, between steps 2 and 3:
+    closer than the robot radius + static margin."""
+    return np.array([[x, 62.0] for x in np.arange(22.0, 81.0, 2.0)])
+
+
+def test_detour_prefix_backs_up_before_a_static_point():
+    """The listing follows rTraj unchecked to rS' = rTraj(4); the end of a wall 22 cm off rTraj between steps 2
+    and 3 (within the robot radius + static margin) moves the detour's start back to step 2, the last one
+    reached clear of it."""
+    tpt = paper_table()
+    wall = _wall_beside_rtraj()
+    plan = find_new_path(tpt, PlannerConfig(h_wait=2, safety_margin_cm=0.0, detour_search="astar"), heading_deg=90.0,
+                         static_points=wall)
+    assert plan.strategy == "detour" and plan.detour_start == 2
+    assert "(tS' 4 -> 2: rTraj to step 3 passes a static point)" in plan.reason
+    np.testing.assert_allclose(plan.path[:2], tpt.robot[1:3])
+    clearance = tpt.robot_radius + PlannerConfig().static_margin_cm
+    assert not path_collides(tpt, plan.path, tpt.robot[0], wall, clearance)
+    # the listing's greedy search finds no way past the wall's end from there; its failure says where it started
+    greedy = find_new_path(tpt, PlannerConfig(h_wait=2, safety_margin_cm=0.0), heading_deg=90.0, static_points=wall)
+    assert greedy.strategy == "wait" and "(tS' 4 -> 2: rTraj to step 3 passes a static point)" in greedy.reason
+
+
+def test_detour_prefix_unchecked_without_avoid_static_points():
+    """``avoid_static_points: false`` (paper_literal) keeps the listing's rS' = rTraj(tS - 1)."""
+    tpt = paper_table()
+    plan = find_new_path(tpt, PlannerConfig(h_wait=2, safety_margin_cm=0.0, avoid_static_points=False),
+                         heading_deg=90.0, static_points=_wall_beside_rtraj())
+    assert plan.strategy == "detour" and plan.detour_start == 4 and "tS' 4 ->" not in plan.reason
+
+
+def test_detour_prefix_clear_of_static_points_is_the_listings():
+    tpt = paper_table()
+    far = np.array([[300.0, y] for y in range(0, 200, 5)], dtype=float)
+    plan = find_new_path(tpt, PlannerConfig(h_wait=2, safety_margin_cm=0.0), heading_deg=90.0, static_points=far)
+    assert plan.detour_start == 4 and "->" not in plan.reason

@@ -82,3 +82,59 @@ def test_tracker_ignores_walls_and_static_discs():
         scan = laser_mod.scan(LaserConfig(), 500 + 10 * t, 500, 0.0, w.segments, w.circles, np.zeros((0, 3)))
         state, tracks, _ = tracking.update(state, scan, float(t), TrackerConfig())
         assert tracks == []
+
+
+@pytest.mark.parametrize("sees, speed, seen", [("stationary", 0.0, True), ("stationary", 4.9, True),
+                                               ("stationary", 5.0, False), ("stationary", 30.0, False),
+                                               ("all", 30.0, True), ("all", 0.0, True),
+                                               ("static_map", 0.0, False)])
+def test_sonar_sees_people_by_its_mode(sees, speed, seen):
+    """``stationary`` (the paper's "sonar detects the stationary obstacles"): a person slower than
+    ``stationary_below_cm_s`` (5 cm/s) is one; ``all``: every person; ``static_map``: the map only."""
+    w = world_with([])
+    person = np.array([[600.0, 500.0, 20.0]])  # 100 cm ahead of the robot's centre
+    _, front, _ = Sonar(SonarConfig(sees=sees), 20.0).read(500, 500, 0.0, w.solid, person, np.array([speed]))
+    assert front == (pytest.approx(60.0, abs=0.01) if seen else 130.0)
+
+
+def test_sonar_stationary_needs_the_speeds():
+    w = world_with([])
+    with pytest.raises(ValueError, match="needs the moving obstacles' speeds"):
+        Sonar(SonarConfig(), 20.0).read(500, 500, 0.0, w.solid, np.array([[600.0, 500.0, 20.0]]))
+
+
+def test_sonar_rejects_an_unknown_mode():
+    with pytest.raises(ValueError, match=r"sensors\.sonar\.sees: unknown value 'people'"):
+        SonarConfig(sees="people")
+
+
+@pytest.mark.parametrize("speed", [70.0, 140.0])
+def test_tracker_follows_a_mover_faster_than_its_gate(speed):
+    """A track seen once has no velocity: its next detection is up to ``max_speed_cm_s`` x dt away, beyond the
+    60 cm gate around a predicted position, and is still the same obstacle (at 70 and 140 cm/s, 1 s frames)."""
+    w = world_with([])
+    state, tracks = TrackerState(), []
+    for t in range(3):
+        disc = np.array([[400.0 + speed * t, 380.0, 20.0]])
+        scan = laser_mod.scan(LaserConfig(noise_std_cm=0.0), 500, 500, 0.0, w.segments, w.circles, disc)
+        state, tracks, _ = tracking.update(state, scan, float(t), TrackerConfig())
+    assert len(tracks) == 1 and tracks[0].vx == pytest.approx(speed, abs=0.5)
+    state = TrackerState()
+    for t in range(3):  # with the gate bound to gate_cm (max_speed_cm_s at most gate / dt) it never becomes a track
+        disc = np.array([[400.0 + speed * t, 380.0, 20.0]])
+        scan = laser_mod.scan(LaserConfig(noise_std_cm=0.0), 500, 500, 0.0, w.segments, w.circles, disc)
+        state, slow_tracks, _ = tracking.update(state, scan, float(t), TrackerConfig(max_speed_cm_s=60.0))
+        assert slow_tracks == []
+
+
+def test_tracker_gate_for_a_first_association_scales_with_the_frame_interval():
+    """At 0.5 s frames the default gate of a new track is 75 cm (150 cm/s x 0.5 s): a disc 100 cm from its
+    first detection is another obstacle, one 70 cm away the same."""
+    w = world_with([])
+    for jump, same in [(70.0, True), (100.0, False)]:
+        state = TrackerState()
+        for t in range(2):
+            disc = np.array([[560.0 + jump * t, 380.0, 20.0]])
+            scan = laser_mod.scan(LaserConfig(noise_std_cm=0.0), 500, 500, 0.0, w.segments, w.circles, disc)
+            state, tracks, _ = tracking.update(state, scan, 0.5 * t, TrackerConfig())
+        assert (len(tracks) == 1) is same

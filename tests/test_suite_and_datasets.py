@@ -106,7 +106,8 @@ def test_dataset_list_and_manifests():
     assert names["paper_fig5"]["committed_logs"] == 21 and names["paper_fig5"]["logs_MB"] < 5
     assert names["suite_v1"]["episodes"] == 14 * 4 * 10 and names["suite_v1"]["built"]
     assert names["suite_v2"]["episodes"] == 5 * 5 * 10 and names["suite_v2"]["built"]
-    for name in ("paper_fig5", "suite_v1", "suite_v2"):
+    assert names["suite_v3"]["episodes"] == 4 * 8 * 10 and names["suite_v3"]["built"]
+    for name in ("paper_fig5", "suite_v1", "suite_v2", "suite_v3"):
         m = dataset.load_manifest(name)
         assert len(m["episodes"]) == len(dataset.jobs(m)) and "success" in m["metrics_columns"]
 
@@ -135,6 +136,14 @@ def test_suite_v2_dataset_verifies_on_its_first_seeds():
     out = run_dataset("verify", "suite_v2", "--seeds", "0:2")
     assert out.returncode == 0, out.stdout + out.stderr[-2000:]
     assert "seeds 0:2 of the dataset match" in out.stdout
+
+
+def test_suite_v3_dataset_verifies_on_its_first_seed():
+    """The situations the paper did not try (standing person, a person who stops, a fast mover, a doorway) under
+    every navigator, seed 0."""
+    out = run_dataset("verify", "suite_v3", "--seeds", "0:1")
+    assert out.returncode == 0, out.stdout + out.stderr[-2000:]
+    assert "seeds 0:1 of the dataset match" in out.stdout
 
 
 def test_verify_fails_readably_when_a_behaviour_parameter_changes():

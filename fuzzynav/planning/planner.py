@@ -17,7 +17,9 @@ A plan is the list of positions the robot should occupy at steps 1, 2, ..., L.
 - **Detour** (lines 19-35): back up one step (``tS' = tS - 1`` if ``tS > 1``), follow ``rTraj`` to
   ``rS' = rTraj(tS')``, then repeatedly move to the successor with minimal ``f = g + h`` (``g``: step
   length, ``h``: distance to ``rG = rTraj(tG)``; a successor whose move collides costs ∞) until within
-  ``detour_tolerance_cm`` of ``rG``.
+  ``detour_tolerance_cm`` of ``rG``. With ``avoid_static_points`` (ours) the moves along ``rTraj`` to
+  ``rS'`` are checked against the static points too, and ``tS'`` backs up further to the last step
+  ``rTraj`` reaches clear of them (``rTraj`` is the straight run to the goal, which knows no walls).
 
 Choices where the listing is silent (documented in the README, tested):
 
@@ -257,11 +259,25 @@ def _wait_path(tpt: TrajectoryPredictionTable, t_s: int, t_g: int) -> np.ndarray
 
 def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, heading_deg: float,
             config: PlannerConfig, static_points: np.ndarray | None, static_clearance: float,
-            max_turn_deg: float) -> tuple[np.ndarray | None, int, float, str]:
-    """Lines 19-35. Returns (path or None, tS', φLow of the first expansion, reason)."""
+            max_turn_deg: float) -> tuple[np.ndarray | None, int, float, str, str]:
+    """Lines 19-35. Returns (path or None, tS', φLow of the first expansion, reason, and a note when tS' backed
+    up further than the listing's tS - 1 because rTraj passes a static point, else "")."""
     t_s1 = t_s - 1 if t_s > 1 else t_s
     r_goal = tpt.robot_at(t_g)
     prefix = [tpt.robot_at(k) for k in range(1, t_s1 + 1)]
+    backed = ""
+    if static_points is not None and len(static_points) and prefix:
+        # the listing follows rTraj up to rS' unchecked; rTraj is the robot's straight run to the goal, which
+        # ignores walls the laser sees (the sonar-driven fuzzy control would have turned away from them), so the
+        # detour starts from the last position rTraj reaches clear of every static point instead
+        ends = np.array(prefix)
+        starts = np.vstack([tpt.robot[:1], ends[:-1]])
+        clear = [not moves_collide(None, a, b[None, :], k + 1, static_points, static_clearance)[0]
+                 for k, (a, b) in enumerate(zip(starts, ends, strict=True))]
+        if not all(clear):
+            safe = clear.index(False)
+            backed = f" (tS' {t_s1} -> {safe}: rTraj to step {safe + 1} passes a static point)"
+            t_s1, prefix = safe, prefix[:safe]
     start = tpt.robot_at(t_s1)
     heading = heading_deg if t_s1 == 0 else _bearing(tpt.robot[0], tpt.goal, heading_deg)
     phi = float(tpt.obstacle_angles_deg[col])
@@ -283,12 +299,12 @@ def _detour(tpt: TrajectoryPredictionTable, t_s: int, t_g: int, col: int, headin
         # rG is where the robot stands (a policy commanding v = 0 is predicted standing): the "detour" would be no
         # step at all (a plan with nothing to follow) or a wait labelled detour; the fallbacks decide instead
         # (wait in place if that is safe, evade, stop)
-        return None, t_s1, 0.0, "rG is where the robot stands: no detour to make"
+        return None, t_s1, 0.0, "rG is where the robot stands: no detour to make", backed
     search = _greedy if config.detour_search == "greedy" else _astar
     path, low, why = search(expand, start, heading, t_s1, r_goal, config)
     if path is None:
-        return None, t_s1, low, why
-    return np.array(prefix + path).reshape(-1, 2), t_s1, low, why
+        return None, t_s1, low, why + backed, backed
+    return np.array(prefix + path).reshape(-1, 2), t_s1, low, why, backed
 
 
 def _greedy(expand, start: np.ndarray, heading: float, t_s1: int, r_goal: np.ndarray,
@@ -402,9 +418,11 @@ def find_new_path(tpt: TrajectoryPredictionTable, config: PlannerConfig, heading
         return path if stands_safely(path) else None
 
     def detour(why: str) -> Plan | None:
-        path, t_s1, low, failed = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance, max_turn_deg)
+        path, t_s1, low, failed, backed = _detour(tpt, t_s, t_g, col, heading_deg, config, pts, clearance,
+                                                  max_turn_deg)
         if path is not None:
-            return make("detour", path, f"{why}: detour from tS' = {t_s1}", detour_start=t_s1, phi_low_deg=low)
+            return make("detour", path, f"{why}: detour from tS' = {t_s1}{backed}", detour_start=t_s1,
+                        phi_low_deg=low)
         nonlocal detour_failure
         detour_failure = failed
         return None

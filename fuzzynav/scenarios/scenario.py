@@ -419,18 +419,10 @@ def validate_geometry(s: Scenario) -> None:
             if dyn.speed is None or dyn.speed <= 0:
                 raise ScenarioError(f"{path}.speed: must be > 0 with waypoints, got {dyn.speed}")
             first = dyn.waypoints[0]
-            if all(w == first for w in dyn.waypoints):
-                raise ScenarioError(f"{path}.waypoints: the obstacle never moves (every waypoint is {list(first)}): "
-                                    "a standing obstacle belongs in static_obstacles (the tracker reports only "
-                                    "moving ones and the sonar sees only static ones, so it would be invisible)")
         else:
             if dyn.start is None or dyn.velocity is None:
                 raise ScenarioError(f"{path}: constant-velocity obstacles need start and velocity")
             first = dyn.start
-            if dyn.velocity[0] == 0 and dyn.velocity[1] == 0:
-                raise ScenarioError(f"{path}.velocity: the obstacle never moves ([0, 0]): a standing obstacle "
-                                    "belongs in static_obstacles (the tracker reports only moving ones and the sonar "
-                                    "sees only static ones, so it would be invisible)")
         if Point(first).distance(start) < r + dyn.radius:
             raise ScenarioError(f"{path}: overlaps the robot at robot.start")
         # the world's bounds are walls: a moving obstacle starting or heading for a point outside them is a typo

@@ -22,17 +22,28 @@ from fuzzynav.numerics.portable_math import sin_cos_deg, sin_cos_deg_array
 SECTOR_NAMES = ("left", "front", "right")
 
 
+#: what the sonar sees besides the static map (:attr:`SonarConfig.sees`)
+SEES = ("stationary", "all", "static_map")
+
+
 @dataclass(frozen=True)
 class SonarConfig:
-    """Sectors (degrees relative to the heading), range (cm), arc sampling step (degrees), and whether the
-    sonar also sees moving obstacles (the paper's sonar sees static obstacles only)."""
+    """Sectors (degrees relative to the heading), range (cm), arc sampling step (degrees), and what it sees.
+
+    ``sees``: ``stationary`` (default) — the paper's division of labour, "the sonar sensors detect the
+    stationary obstacles" and the laser the moving ones: the static map plus every moving obstacle slower than
+    ``stationary_below_cm_s`` (a person standing still, or one that stopped; the default equals the tracker's
+    ``min_speed_cm_s``, below which the laser reports no moving obstacle, so that nothing is seen by neither);
+    ``all`` — a physical sonar, which echoes off people walking too; ``static_map`` — the static obstacles and
+    walls only (a person standing in the path is then invisible to the fuzzy controller)."""
 
     left: tuple[float, float] = (30.0, 90.0)
     front: tuple[float, float] = (-30.0, 30.0)
     right: tuple[float, float] = (-90.0, -30.0)
     range_cm: float = 130.0
     arc_step_deg: float = 2.0
-    sees_dynamic: bool = False
+    sees: str = "stationary"
+    stationary_below_cm_s: float = 5.0
 
     def __post_init__(self) -> None:
         for name in SECTOR_NAMES:
@@ -43,6 +54,8 @@ class SonarConfig:
             raise ValueError(f"sensors.sonar.range_cm: must be > 0, got {self.range_cm}")
         if not 0 < self.arc_step_deg <= 30:
             raise ValueError(f"sensors.sonar.arc_step_deg: must be in (0, 30], got {self.arc_step_deg}")
+        if self.sees not in SEES:
+            raise ValueError(f"sensors.sonar.sees: unknown value {self.sees!r} (known: {', '.join(SEES)})")
 
 
 class Sonar:
@@ -70,18 +83,31 @@ class Sonar:
         return np.array([shapely.polygons(np.stack([t[:, 0] * c - t[:, 1] * s + x, t[:, 0] * s + t[:, 1] * c + y],
                                                    axis=1)) for t in self._templates], dtype=object)
 
+    def seen_discs(self, discs: np.ndarray | None, speeds: np.ndarray | None) -> np.ndarray | None:
+        """The rows of ``discs`` (K, 3: x, y, r in cm) this sonar sees, given the obstacles' ``speeds`` (K,) in
+        cm/s (:attr:`SonarConfig.sees`); None when it sees none of them."""
+        if discs is None or not len(discs) or self.config.sees == "static_map":
+            return None
+        if self.config.sees == "stationary":
+            if speeds is None:
+                raise ValueError("Sonar.read: sees 'stationary' needs the moving obstacles' speeds")
+            discs = discs[np.asarray(speeds, dtype=float) < self.config.stationary_below_cm_s]
+        return discs if len(discs) else None
+
     def read(self, x: float, y: float, heading_deg: float, solid: shapely.Geometry,
-             discs: np.ndarray | None = None) -> tuple[float, float, float]:
+             discs: np.ndarray | None = None, speeds: np.ndarray | None = None) -> tuple[float, float, float]:
         """Readings (left, front, right) in cm for a robot at (x, y) cm with ``heading_deg``.
 
-        ``solid`` is the static world (obstacles + walls); ``discs`` (K, 3) rows ``x, y, r`` are moving
-        obstacles, used only when ``sees_dynamic`` is set."""
+        ``solid`` is the static world (obstacles + walls); ``discs`` (K, 3) rows ``x, y, r`` are the moving
+        obstacles and ``speeds`` (K,) their speeds in cm/s, of which the sonar sees those :meth:`seen_discs`
+        says."""
         wedges = self.wedges(x, y, heading_deg)
         reach = self._reach
+        seen = self.seen_discs(discs, speeds)
         with np.errstate(divide="ignore", invalid="ignore"):  # GEOS on degenerate slivers; NaN is handled below
             target = shapely.clip_by_rect(solid, x - reach, y - reach, x + reach, y + reach)
-            if self.config.sees_dynamic and discs is not None and len(discs):
-                target = shapely.union_all([target, *shapely.buffer(shapely.points(discs[:, :2]), discs[:, 2])])
+            if seen is not None:
+                target = shapely.union_all([target, *shapely.buffer(shapely.points(seen[:, :2]), seen[:, 2])])
             hits = shapely.intersection(wedges, target)
             dist = shapely.distance(hits, shapely.points((x, y)))  # NaN for an empty intersection
         left, front, right = (self._reading(d) for d in dist.tolist())

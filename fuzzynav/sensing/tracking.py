@@ -8,7 +8,11 @@ Per frame:
    least squares). Clusters that are not small discs — radius above ``max_radius_cm``, a poor fit (walls,
    polygon corners), or a centre nearer to the robot than the returns — are static structure.
 3. **Association.** Detections are matched to the tracks' predicted positions (constant velocity) by the
-   Hungarian method (``scipy.optimize.linear_sum_assignment``), gated at ``gate_cm``.
+   Hungarian method (``scipy.optimize.linear_sum_assignment``). A track with a velocity is gated at ``gate_cm``
+   around its prediction (what the prediction may miss by: turns, speed changes, fit noise); a track seen in
+   one frame only has no velocity yet, so its gate is where an obstacle as fast as ``max_speed_cm_s`` can
+   have gone in the time since, ``max_speed_cm_s`` x elapsed (at least ``gate_cm``): at 1 s steps the
+   default follows obstacles up to 150 cm/s, a brisk walk, whatever ``dt`` is.
 4. **Velocity.** Finite difference of successive fitted centres over the elapsed time, blended with the
    previous estimate by ``velocity_alpha`` (1 = plain finite difference).
 
@@ -66,12 +70,13 @@ class TrackerConfig:
     max_radius_cm: float = 60.0
     max_fit_rms_cm: float = 3.0
     gate_cm: float = 60.0
+    max_speed_cm_s: float = 150.0
     min_speed_cm_s: float = 5.0
     max_missed: int = 2
     velocity_alpha: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("cluster_gap_cm", "max_radius_cm", "max_fit_rms_cm", "gate_cm"):
+        for name in ("cluster_gap_cm", "max_radius_cm", "max_fit_rms_cm", "gate_cm", "max_speed_cm_s"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"perception.tracker.{name}: must be > 0, got {getattr(self, name)}")
         if self.min_points < 3:
@@ -236,17 +241,20 @@ def update(state: TrackerState, scan: LaserScan, time_s: float,
     matched: dict[int, int] = {}
     if prev and dets:
         cost = np.empty((len(prev), len(dets)))
+        gate = np.empty((len(prev), 1))
         for i, t in enumerate(prev):
             dt = time_s - t.time
             px, py = t.x + t.vx * dt, t.y + t.vy * dt
+            gate[i, 0] = config.gate_cm if t.hits >= 2 else max(config.gate_cm, config.max_speed_cm_s * dt)
             for j, d in enumerate(dets):
                 cost[i, j] = hypot(d.x - px, d.y - py)
         # imported here: scipy.optimize takes ~0.25 s to import, which every process importing fuzzynav (a
         # sweep's launching process, the analysis' tests, a single run's start-up) would otherwise pay
         from scipy.optimize import linear_sum_assignment
 
-        rows, cols = linear_sum_assignment(np.where(cost <= config.gate_cm, cost, 1e9))
-        matched = {int(c): int(r) for r, c in zip(rows, cols, strict=True) if cost[r, c] <= config.gate_cm}
+        inside = cost <= gate
+        rows, cols = linear_sum_assignment(np.where(inside, cost, 1e9))
+        matched = {int(c): int(r) for r, c in zip(rows, cols, strict=True) if inside[r, c]}
     tracks: list[_Tracked] = []
     next_id = state.next_id
     used = set(matched.values())

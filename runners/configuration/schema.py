@@ -42,7 +42,7 @@ def mutable_mirror(cls: type) -> type:
             value = list(default)
             fields.append((f.name, list[item], dataclasses.field(default_factory=lambda v=value: list(v))))
             continue
-        # OmegaConf turns any integer into a boolean for a bool field (``sees_dynamic=3`` became true): such
+        # OmegaConf turns any integer into a boolean for a bool field (``swept_tpt=3`` became true): such
         # fields stay untyped here and fuzzynav's own parser (fuzzynav.config) accepts only true or false
         fields.append((f.name, Any if hint is bool else hint, dataclasses.field(default=default)))
     mirror = dataclasses.make_dataclass(f"{cls.__name__}Schema", fields)
