@@ -247,3 +247,45 @@ def test_a_policy_whose_act_never_returns_is_stopped_by_one_sigterm(tmp_path):
     (log,) = (tmp_path / "run").glob("*.mcap")
     (end,) = [m for topic, _, m in iter_messages(log) if topic == "/episode"]
     assert end["outcome"] == "interrupted" and "had not ended" in end["reason"], end
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_a_policy_whose_act_never_returns_does_not_hold_a_stopped_sweep(tmp_path, n_jobs):
+    """A sweep job reads the stop file between steps only: with a step that never ends, SIGTERM to the sweep
+    waited forever. Now the job's stop-file watch gives the step STEP_GRACE_S, then interrupts it: the sweep
+    exits 143 with every log finished, the stuck episode's as interrupted with the reason."""
+    import signal
+    import time
+
+    from runners.dataset import iter_messages
+    from runners.sweeping.stop import STEP_GRACE_S
+
+    marker = tmp_path / "acting"
+    env = _target_module(tmp_path, (
+        "import time\nfrom pathlib import Path\n\n\nclass P:\n    name = 'stuck'\n\n"
+        "    def __init__(self, params, context):\n        pass\n\n    def reset(self, seed):\n        pass\n\n"
+        f"    def act(self, observation):\n        Path({str(marker)!r}).touch()\n        time.sleep(3600)\n"))
+    sweep = tmp_path / "sweep"
+    proc = subprocess.Popen([sys.executable, "-m", "runners.sweep", "scenario=head_on,crossing_right",
+                             "navigator=custom", "navigator._target_=odd_policy.P", "planner=none",
+                             f"hydra.sweep.dir={sweep}", f"hydra.launcher.n_jobs={n_jobs}"],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 180
+        while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        assert marker.exists(), proc.communicate(timeout=5)
+        proc.send_signal(signal.SIGTERM)  # to the launching process only, as `kill PID` does
+        out, err = proc.communicate(timeout=STEP_GRACE_S + 90)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 143, (out + err)[-3000:]
+    logs = sorted(sweep.rglob("*.mcap"))
+    assert logs, out + err
+    for log in logs:
+        (end,) = [m for topic, _, m in iter_messages(log) if topic == "/episode"]
+        assert end["outcome"] == "interrupted", (log, end)
+    assert any("had not ended" in m["reason"] for log in logs for topic, _, m in iter_messages(log)
+               if topic == "/episode"), out + err

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -64,8 +65,45 @@ def _on_signal(signum: int, frame: Any) -> None:
 
 
 def _step_overdue(signum: int, frame: Any) -> None:
+    if _OVERDUE:  # the stop file's request, which the step in flight kept this job from reading (_StopFileWatch)
+        stop_signum, why = _OVERDUE.pop()
+        raise Interrupted(stop_signum, f"{why}; the step in flight had not ended {STEP_GRACE_S:g} s later")
     pending = _PENDING[0] if _PENDING else signal.SIGTERM
+    if _WATCHED:  # as check() does at a step boundary: a signal to one job of a sweep stops the sweep
+        request_sweep_stop(_WATCHED[0], pending, describe(pending))
     raise Interrupted(pending, f"{describe(pending)}; the step in flight had not ended {STEP_GRACE_S:g} s later")
+
+
+_WATCHING: list[bool] = []  # [True] while a _StopFileWatch runs in this process
+_OVERDUE: list[tuple[int, str]] = []  # a sweep stop the step in flight did not let the job act on in time
+_CHECKS = [0]  # how many times check() ran: the job's heartbeat, read by _StopFileWatch
+
+
+class _StopFileWatch(threading.Thread):
+    """A sweep job's step can hang (a policy whose ``act()`` never returns), and the job reads the stop file only
+    between steps: the sweep, asked to stop, then waited for it forever. This thread looks at the stop file too;
+    once it appears, the step in flight has ``STEP_GRACE_S`` to end (the job then stops at the step boundary as
+    usual), after which the thread interrupts the job's main thread (SIGALRM, :func:`_step_overdue`): the episode
+    ends as interrupted with the stop's reason, its log finished."""
+
+    def __init__(self, sweep_dir: Path) -> None:
+        super().__init__(name="fuzzynav-stop-file-watch", daemon=True)
+        self.path = stop_file(sweep_dir)
+        self.main = threading.main_thread().ident
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.wait(STOP_POLL_S):
+            request = read_sweep_stop(self.path)
+            if request is None:
+                continue
+            beat = _CHECKS[0]
+            if self.done.wait(STEP_GRACE_S) or _CHECKS[0] != beat:
+                return  # the job ended, or reached a step boundary (where it stops by itself)
+            _OVERDUE[:] = [request]
+            with contextlib.suppress(ValueError, OSError, AttributeError, ProcessLookupError):
+                signal.pthread_kill(self.main, signal.SIGALRM)
+            return
 
 
 def _cancel_grace() -> None:
@@ -74,7 +112,8 @@ def _cancel_grace() -> None:
         _GRACE.clear()
         with contextlib.suppress(ValueError, OSError, AttributeError):
             signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, signal.SIG_DFL)
+            # while the stop-file watch runs, its SIGALRM must still raise, never kill the job (SIG_DFL would)
+            signal.signal(signal.SIGALRM, _step_overdue if _WATCHING else signal.SIG_DFL)
 
 
 def _on_time_limit(signum: int, frame: Any) -> None:
@@ -107,13 +146,26 @@ def install(sweep_dir: Path | None, idle: Any = None) -> Callable[[], None]:
         except ValueError:  # not the main thread
             break
     _ROUTED[:] = [signal.SIGINT in previous]
+    watch = None
+    _OVERDUE.clear()
+    if sweep_dir is not None and _ROUTED[0] and hasattr(signal, "pthread_kill"):
+        with contextlib.suppress(ValueError, OSError, AttributeError):
+            previous.setdefault(signal.SIGALRM, signal.signal(signal.SIGALRM, _step_overdue))
+            watch = _StopFileWatch(sweep_dir)
+            watch.start()
+            _WATCHING.append(True)
 
     def restore() -> None:
+        if watch is not None:
+            watch.done.set()
+            watch.join()
+        _WATCHING.clear()
+        _OVERDUE.clear()
         _cancel_grace()
         _WATCHED.clear()
         _ROUTED.clear()
-        for signum, handler in previous.items():
-            signal.signal(signum, handler if idle is None else idle)
+        for signum, handler in previous.items():  # SIGALRM back to what it was: only the watch needed it
+            signal.signal(signum, handler if idle is None or signum == signal.SIGALRM else idle)
 
     return restore
 
@@ -139,6 +191,7 @@ def check(time_limit: bool = True) -> None:
     ``time_limit`` is False), or (looked at every ``STOP_POLL_S``) the sweep's stop file. Called after every step
     and, through :func:`check_between_episodes`, before every episode."""
     global _next_look
+    _CHECKS[0] += 1
     if _TIME_LIMIT and time_limit:
         raise Interrupted(signal.SIGUSR2, TIME_LIMIT_REASON)
     if _PENDING:
