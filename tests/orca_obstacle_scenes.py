@@ -2,7 +2,8 @@
 pedestrian goes into a polygon, how far pedestrians overlap each other, how far one walking straight at a wall
 slides along it. Used by tests/test_orca_obstacles.py; ``python -m tests.orca_obstacle_scenes`` prints the
 figures of our model and, when pyrvo (RVO2's Python binding, not a dependency of fuzzynav) is installed, of
-RVO2 on the same scenes. Units: cm, s, cm/s.
+RVO2 on the same scenes, and how far one step of each differs (:func:`rvo2_step_differences`). Units: cm, s,
+cm/s.
 
 The scenes: a long wall (a 20 cm thick rectangle, 5800 cm long) approached at an angle or head-on by one
 pedestrian of radius 20 cm at a constant preferred velocity; eight pedestrians (radius 20 cm) on a circle of
@@ -158,6 +159,59 @@ def rvo2_run(s: Scenario, seconds: float) -> np.ndarray:
     return np.array(out)
 
 
+#: three polygons in a 1000 x 800 cm room for :func:`rvo2_step_differences`: a box, an L (one concave corner) and a
+#: triangle; their sides' lines cross the walls and each other, so RVO2's obstacle tree splits edges
+ROOM_POLYGONS = (((200.0, 200.0), (400.0, 200.0), (400.0, 300.0), (200.0, 300.0)),
+                 ((600.0, 400.0), (800.0, 400.0), (800.0, 600.0), (700.0, 600.0), (700.0, 500.0), (600.0, 500.0)),
+                 ((300.0, 500.0), (450.0, 650.0), (250.0, 700.0)))
+
+
+def rvo2_step_differences(polygons: Sequence[Sequence[tuple[float, float]]], cases: int,
+                          seed: int = 7) -> np.ndarray:
+    """|our velocity − RVO2's| (cm/s) after one step of one pedestrian (radius 20 cm, top speed 60 cm/s, the
+    model's default horizons) in a 1000 x 800 cm room with ``polygons``, for ``cases`` random positions clear of
+    the walls and polygons by more than 25 cm, velocities and preferred velocities (within the speed disc: the
+    model limits the preferred velocity to it, RVO2 does not). Ours: the model's edges within reach,
+    :func:`~fuzzynav.numerics.orca_lp.edge_lines` and the linear program; RVO2's: pyrvo."""
+    import pyrvo
+
+    from fuzzynav.numerics.orca_lp import choose_velocity, edge_lines, world_chains
+    from fuzzynav.pedestrians.orca import PedestrianOrcaConfig, PedestrianOrcaModel, _Obstacles
+
+    bounds, radius, top = (0.0, 0.0, 1000.0, 800.0), 20.0, 60.0
+    chains = world_chains(bounds, polygons)
+    obstacles = _Obstacles(bounds, [np.array(p) for p in polygons])
+    model = PedestrianOrcaModel.__new__(PedestrianOrcaModel)
+    model.config, model.radii = PedestrianOrcaConfig(), np.array([radius])
+    c = model.config
+    solid = shapely.union_all([shapely.Polygon(p) for p in polygons]) if polygons else shapely.Polygon()
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < cases:
+        p = rng.uniform(bounds[:2], bounds[2:])
+        if min(p[0], p[1], bounds[2] - p[0], bounds[3] - p[1]) <= 25.0 or (
+                polygons and (solid.contains(shapely.Point(p)) or solid.distance(shapely.Point(p)) <= 25.0)):
+            continue
+        vel, pref = rng.uniform(-top, top, 2), rng.uniform(-top, top, 2)
+        pref = pref * min(1.0, top / float(np.hypot(*pref)))
+        sim = pyrvo.RVOSimulator(STEP_S, c.neighbor_dist_cm, c.max_neighbors, c.time_horizon_s,
+                                 c.time_horizon_obst_s, radius, top)
+        for chain in chains:
+            sim.add_obstacle([tuple(q) for q in chain])
+        sim.process_obstacles()
+        sim.add_agent(tuple(p))
+        sim.set_agent_velocity(0, tuple(vel))
+        sim.set_agent_pref_velocity(0, tuple(pref))
+        sim.do_step()
+        theirs = np.array(sim.get_agent_velocity(0).to_tuple())
+        edges = model._edges_within_reach(obstacles, p[None, :], np.array([top]))[0]
+        lines = edge_lines(obstacles.vertices, edges, (float(p[0]), float(p[1])), (float(vel[0]), float(vel[1])),
+                           radius, c.time_horizon_obst_s)
+        ours = np.array(choose_velocity(lines, len(lines), top, (float(pref[0]), float(pref[1]))).velocity)
+        out.append(float(np.hypot(*(ours - theirs))))
+    return np.array(out)
+
+
 SPEEDS = (30.0, 40.0, 130.0)
 ANGLES = (10.0, 20.0, 30.0, 45.0, 60.0, 75.0)
 SECONDS = 30.0
@@ -195,3 +249,7 @@ if __name__ == "__main__":
     else:
         print("RVO2 (pyrvo):")
         print("\n".join(table(rvo2_run)))
+        for what, polygons in (("walls alone", ()), ("three polygons", ROOM_POLYGONS)):
+            d = rvo2_step_differences(polygons, 3000)
+            print(f"one step against RVO2, {what}, 3000 cases: |ours - RVO2| max {d.max():.1e} cm/s, median "
+                  f"{np.median(d):.1e}, {(d > 1e-3).sum()} above 1e-3 cm/s")
