@@ -1,11 +1,12 @@
 /*
  * fuzzynav.pedestrians._orca: the new velocities of an `orca` pedestrian group for one substep, in C
  * (fuzzynav.pedestrians.orca.PedestrianOrcaModel._velocity for every own pedestrian, with what it calls in
- * fuzzynav.policies.orca: static_point_line, orca_line, choose_velocity, solve_lp2, _lp1, solve_lp3, _deepest, violation,
- * _det, _dot, _unit, and fuzzynav.numerics.portable_math.hypot). `substep` also computes its inputs as the substep loop of
- * PedestrianOrcaModel.step does: _neighbours (its stable argsort as an ordered selection) and
- * fuzzynav.numerics.geometry.away_from_static (its numpy elementwise operations, numpy's clip included) with the
- * statics within reach; `velocities` takes those as arrays (the tests drive it with arbitrary ones).
+ * fuzzynav.numerics.orca_lp: edge_lines (_covered, _leg_left, _leg_right, _through), static_point_line, orca_line,
+ * choose_velocity, solve_lp2, _lp1, solve_lp3, _deepest, violation, _det, _dot, _unit, and
+ * fuzzynav.numerics.portable_math.hypot). `substep` also computes its inputs as the substep loop of
+ * PedestrianOrcaModel.step does: _neighbours (its stable argsort as an ordered selection), _edges_within_reach (its
+ * numpy elementwise operations and stable argsort) and fuzzynav.numerics.geometry.away_from_static for the circles
+ * with those within reach; `velocities` takes those as arrays (the tests drive it with arbitrary ones).
  *
  * The Python path computes with Python floats: IEEE doubles, one rounding per operation, left to right as written,
  * math.sqrt correctly rounded. This file performs the same operations in the same order (each Python expression
@@ -33,8 +34,8 @@
 #pragma STDC FP_CONTRACT OFF
 #endif
 
-/* fuzzynav.policies.orca's constants, set by set_constants() from Python (one definition: orca.py's) */
-static double PARALLEL = NAN, SLACK_REL = NAN, SLACK_ABS = NAN;
+/* fuzzynav.numerics.orca_lp's constants, set by set_constants() from Python (one definition: orca_lp.py's) */
+static double PARALLEL = NAN, SLACK_REL = NAN, SLACK_ABS = NAN, COVERED = NAN;
 static int constants_set = 0;
 
 /* fuzzynav.policies.orca.Line: the velocities left of the line through (px, py) along the unit vector (dx, dy) */
@@ -144,6 +145,209 @@ static int static_point_line(double px, double py, double combined_radius, doubl
     out->dx = divide(-py, d, bad);
     out->dy = divide(px, d, bad);
     return 1;
+}
+
+/* The walls and static polygons as orca_lp.ObstacleVertices: points (V, 2), directions (V, 2), next and previous
+ * vertex (V,), convex (V,) */
+typedef struct {
+    const double *pts, *dirs;
+    const int64_t *next, *prev;
+    const unsigned char *convex;
+} Vertices;
+
+/* orca_lp._covered */
+static int covered(const Line *lines, Py_ssize_t count, double r1x, double r1y, double r2x, double r2y,
+                   double inv_tau, double radius) {
+    double margin = inv_tau * radius;
+    double c1x = inv_tau * r1x, c1y = inv_tau * r1y;
+    double c2x = inv_tau * r2x, c2y = inv_tau * r2y;
+    for (Py_ssize_t j = 0; j < count; j++) {
+        const Line *l = &lines[j];
+        if ((c1x - l->px) * l->dy - (c1y - l->py) * l->dx - margin >= -COVERED &&
+            (c2x - l->px) * l->dy - (c2y - l->py) * l->dx - margin >= -COVERED)
+            return 1;
+    }
+    return 0;
+}
+
+/* orca_lp._leg_left (left != 0) and _leg_right */
+static void leg(double rx, double ry, double dist_sq, double radius, int left, double *dx, double *dy, int *bad) {
+    double leg_len = py_sqrt(py_max(dist_sq - radius * radius, 0.0), bad);
+    if (left) {
+        *dx = divide(rx * leg_len - ry * radius, dist_sq, bad);
+        *dy = divide(rx * radius + ry * leg_len, dist_sq, bad);
+    } else {
+        *dx = divide(rx * leg_len + ry * radius, dist_sq, bad);
+        *dy = divide(-rx * radius + ry * leg_len, dist_sq, bad);
+    }
+}
+
+/* orca_lp._unit */
+static inline void unit(double ax, double ay, double *ux, double *uy, int *bad) {
+    double norm = hypot_(ax, ay, bad);
+    *ux = divide(ax, norm, bad);
+    *uy = divide(ay, norm, bad);
+}
+
+/* orca_lp._through */
+static inline void through(double cx, double cy, double scale, double dx, double dy, Line *out) {
+    out->px = cx + scale * -dy;
+    out->py = cy + scale * dx;
+    out->dx = dx;
+    out->dy = dy;
+}
+
+/* orca_lp.edge_lines for the `n_edges` edges (first vertices) `edges`: the lines appended at lines[*count] on */
+static void edge_lines(const Vertices *vx, const int64_t *edges, Py_ssize_t n_edges, double posx, double posy,
+                       double velx, double vely, double radius, double horizon_s, Line *lines, Py_ssize_t *count,
+                       int *bad) {
+    double inv_tau = divide(1.0, horizon_s, bad);
+    double r = radius;
+    double r_sq = r * r;
+    const double *pts = vx->pts, *dirs = vx->dirs;
+    Py_ssize_t first = *count, n = *count;
+    for (Py_ssize_t q = 0; q < n_edges; q++) {
+        int64_t k1 = edges[q], k2 = vx->next[k1];
+        double r1x = pts[2 * k1] - posx, r1y = pts[2 * k1 + 1] - posy;
+        double r2x = pts[2 * k2] - posx, r2y = pts[2 * k2 + 1] - posy;
+        if (covered(lines + first, n - first, r1x, r1y, r2x, r2y, inv_tau, r)) continue;
+        double dist_sq1 = r1x * r1x + r1y * r1y;
+        double dist_sq2 = r2x * r2x + r2y * r2y;
+        double ex = pts[2 * k2] - pts[2 * k1], ey = pts[2 * k2 + 1] - pts[2 * k1 + 1];
+        double s = divide(-(r1x * ex + r1y * ey), ex * ex + ey * ey, bad);
+        double offx = -r1x - s * ex, offy = -r1y - s * ey;
+        double dist_sq_line = offx * offx + offy * offy;
+        Line *out = &lines[n];
+        if (s < 0.0 && dist_sq1 <= r_sq) {
+            if (vx->convex[k1]) {
+                out->px = 0.0;
+                out->py = 0.0;
+                unit(-r1y, r1x, &out->dx, &out->dy, bad);
+                n++;
+            }
+            continue;
+        }
+        if (s > 1.0 && dist_sq2 <= r_sq) {
+            if (vx->convex[k2] && r2x * dirs[2 * k2 + 1] - r2y * dirs[2 * k2] >= 0.0) {
+                out->px = 0.0;
+                out->py = 0.0;
+                unit(-r2y, r2x, &out->dx, &out->dy, bad);
+                n++;
+            }
+            continue;
+        }
+        if (0.0 <= s && s <= 1.0 && dist_sq_line <= r_sq) {
+            out->px = 0.0;
+            out->py = 0.0;
+            out->dx = -dirs[2 * k1];
+            out->dy = -dirs[2 * k1 + 1];
+            n++;
+            continue;
+        }
+        double lx, ly, rx, ry;
+        if (s < 0.0 && dist_sq_line <= r_sq) {
+            if (!vx->convex[k1]) continue;
+            k2 = k1;
+            r2x = r1x;
+            r2y = r1y;
+            leg(r1x, r1y, dist_sq1, r, 1, &lx, &ly, bad);
+            leg(r1x, r1y, dist_sq1, r, 0, &rx, &ry, bad);
+        } else if (s > 1.0 && dist_sq_line <= r_sq) {
+            if (!vx->convex[k2]) continue;
+            k1 = k2;
+            r1x = r2x;
+            r1y = r2y;
+            leg(r2x, r2y, dist_sq2, r, 1, &lx, &ly, bad);
+            leg(r2x, r2y, dist_sq2, r, 0, &rx, &ry, bad);
+        } else {
+            if (vx->convex[k1]) {
+                leg(r1x, r1y, dist_sq1, r, 1, &lx, &ly, bad);
+            } else {
+                lx = -dirs[2 * k1];
+                ly = -dirs[2 * k1 + 1];
+            }
+            if (vx->convex[k2]) {
+                leg(r2x, r2y, dist_sq2, r, 0, &rx, &ry, bad);
+            } else {
+                rx = dirs[2 * k1];
+                ry = dirs[2 * k1 + 1];
+            }
+        }
+        const double *before = dirs + 2 * vx->prev[k1];
+        int left_foreign = 0, right_foreign = 0;
+        if (vx->convex[k1] && lx * -before[1] - ly * -before[0] >= 0.0) {
+            lx = -before[0];
+            ly = -before[1];
+            left_foreign = 1;
+        }
+        if (vx->convex[k2] && rx * dirs[2 * k2 + 1] - ry * dirs[2 * k2] <= 0.0) {
+            rx = dirs[2 * k2];
+            ry = dirs[2 * k2 + 1];
+            right_foreign = 1;
+        }
+        double lcx = inv_tau * r1x, lcy = inv_tau * r1y;
+        double rcx = inv_tau * r2x, rcy = inv_tau * r2y;
+        double cx = rcx - lcx, cy = rcy - lcy;
+        double flx = velx - lcx, fly = vely - lcy;
+        double frx = velx - rcx, fry = vely - rcy;
+        int one_vertex = k1 == k2;
+        double t = one_vertex ? 0.5 : divide(flx * cx + fly * cy, cx * cx + cy * cy, bad);
+        double t_left = flx * lx + fly * ly;
+        double t_right = frx * rx + fry * ry;
+        double scale = r * inv_tau;
+        if ((t < 0.0 && t_left < 0.0) || (one_vertex && t_left < 0.0 && t_right < 0.0)) {
+            double wx, wy;
+            unit(flx, fly, &wx, &wy, bad);
+            out->px = lcx + scale * wx;
+            out->py = lcy + scale * wy;
+            out->dx = wy;
+            out->dy = -wx;
+            n++;
+            continue;
+        }
+        if (t > 1.0 && t_right < 0.0) {
+            double wx, wy;
+            unit(frx, fry, &wx, &wy, bad);
+            out->px = rcx + scale * wx;
+            out->py = rcy + scale * wy;
+            out->dx = wy;
+            out->dy = -wx;
+            n++;
+            continue;
+        }
+        double d_cut, d_left, d_right;
+        if (t < 0.0 || t > 1.0 || one_vertex) {
+            d_cut = INFINITY;
+        } else {
+            double ox = velx - (lcx + t * cx), oy = vely - (lcy + t * cy);
+            d_cut = ox * ox + oy * oy;
+        }
+        if (t_left < 0.0) {
+            d_left = INFINITY;
+        } else {
+            double ox = velx - (lcx + t_left * lx), oy = vely - (lcy + t_left * ly);
+            d_left = ox * ox + oy * oy;
+        }
+        if (t_right < 0.0) {
+            d_right = INFINITY;
+        } else {
+            double ox = velx - (rcx + t_right * rx), oy = vely - (rcy + t_right * ry);
+            d_right = ox * ox + oy * oy;
+        }
+        if (d_cut <= d_left && d_cut <= d_right) {
+            through(lcx, lcy, scale, -dirs[2 * k1], -dirs[2 * k1 + 1], out);
+            n++;
+        } else if (d_left <= d_right) {
+            if (!left_foreign) {
+                through(lcx, lcy, scale, lx, ly, out);
+                n++;
+            }
+        } else if (!right_foreign) {
+            through(rcx, rcy, scale, -rx, -ry, out);
+            n++;
+        }
+    }
+    *count = n;
 }
 
 /* orca._lp1: 0 for None, else 1 with the point in (*rx, *ry) */
@@ -370,44 +574,65 @@ static int get_shaped(PyObject *obj, Py_buffer *view, int writable, char format,
     return 0;
 }
 
-/* set_constants(parallel, slack_rel, slack_abs): fuzzynav.policies.orca's _PARALLEL, _SLACK_REL, _SLACK_ABS */
+/* set_constants(parallel, slack_rel, slack_abs, covered): fuzzynav.numerics.orca_lp's _PARALLEL, _SLACK_REL,
+ * _SLACK_ABS, _COVERED */
 static PyObject *set_constants(PyObject *self, PyObject *args) {
     (void)self;
-    if (!PyArg_ParseTuple(args, "ddd", &PARALLEL, &SLACK_REL, &SLACK_ABS)) return NULL;
+    if (!PyArg_ParseTuple(args, "dddd", &PARALLEL, &SLACK_REL, &SLACK_ABS, &COVERED)) return NULL;
     constants_set = 1;
     Py_RETURN_NONE;
 }
 
-enum { V, PREF, MAX_SPEED, REL, VEL, RADII, SHARE, GAPS, AWAY, CLOSE, NEAR, COUNTS, NEW_V, BAD, N_ARRAYS };
+/* the vertex arrays' indices (next, previous: (V,) int64) lie in 0..V-1; else a ValueError and -1 */
+static int check_vertices(const Vertices *vx, Py_ssize_t n_vertices, const char *who) {
+    for (Py_ssize_t k = 0; k < n_vertices; k++) {
+        if (vx->next[k] < 0 || vx->next[k] >= n_vertices || vx->prev[k] < 0 || vx->prev[k] >= n_vertices) {
+            PyErr_Format(PyExc_ValueError, "%s: a vertex's next or previous index is out of range", who);
+            return -1;
+        }
+    }
+    return 0;
+}
 
-/* velocities(time_horizon_obst_s, time_horizon_s, h, v (n, 2), pref (n, 2), max_speed (n,), rel (n, m, 2),
- *            vel (m, 2), radii (m,), share (m,), gaps (n, K), away (n, K, 2), close (n, K) bool,
- *            near (n, NB) int64, counts (n,) int64, new_v (n, 2) out, bad (n,) bool out) -> int
- * PedestrianOrcaModel._velocity(i, v[i], pref[i], max_speed[i], the k with close[i, k], near[i, :counts[i]], ...)
- * for every own pedestrian i into new_v[i]; bad[i] is set (and new_v[i] meaningless) where the Python path
- * raises. Returns the number of bad pedestrians. */
+enum {
+    X, V, PREF, MAX_SPEED, REL, VEL, RADII, SHARE, PTS, DIRS, NEXT, PREV, CONVEX, EDGES, EDGE_COUNTS, GAPS, AWAY,
+    CLOSE, NEAR, COUNTS, NEW_V, BAD, N_ARRAYS
+};
+
+/* velocities(time_horizon_obst_s, time_horizon_s, h, x (n, 2), v (n, 2), pref (n, 2), max_speed (n,),
+ *            rel (n, m, 2), vel (m, 2), radii (m,), share (m,), points (V, 2), directions (V, 2), next (V,) int64,
+ *            previous (V,) int64, convex (V,) bool, edges (n, E) int64, edge_counts (n,) int64, gaps (n, K),
+ *            away (n, K, 2), close (n, K) bool, near (n, NB) int64, counts (n,) int64, new_v (n, 2) out,
+ *            bad (n,) bool out) -> int
+ * PedestrianOrcaModel._velocity(i, v[i], pref[i], max_speed[i], the vertices, edges[i, :edge_counts[i]], the k
+ * with close[i, k], near[i, :counts[i]], ...) for every own pedestrian i into new_v[i]; bad[i] is set (and
+ * new_v[i] meaningless) where the Python path raises. Returns the number of bad pedestrians. */
 static PyObject *velocities(PyObject *self, PyObject *args) {
     (void)self;
     double horizon_obst, horizon, h;
     PyObject *objs[N_ARRAYS];
-    if (!PyArg_ParseTuple(args, "dddOOOOOOOOOOOOOO", &horizon_obst, &horizon, &h, &objs[0], &objs[1], &objs[2],
-                          &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8], &objs[9], &objs[10],
-                          &objs[11], &objs[12], &objs[13]))
+    if (!PyArg_ParseTuple(args, "dddOOOOOOOOOOOOOOOOOOOOOO", &horizon_obst, &horizon, &h, &objs[0], &objs[1],
+                          &objs[2], &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8], &objs[9],
+                          &objs[10], &objs[11], &objs[12], &objs[13], &objs[14], &objs[15], &objs[16], &objs[17],
+                          &objs[18], &objs[19], &objs[20], &objs[21]))
         return NULL;
     if (!constants_set) {
         PyErr_SetString(PyExc_RuntimeError, "fuzzynav.pedestrians._orca: set_constants() was not called");
         return NULL;
     }
-    static const char *what[N_ARRAYS] = {"v", "pref", "max_speed", "rel", "vel", "radii", "share", "gaps",
+    static const char *what[N_ARRAYS] = {"x", "v", "pref", "max_speed", "rel", "vel", "radii", "share", "points",
+                                         "directions", "next", "previous", "convex", "edges", "edge_counts", "gaps",
                                          "away", "close", "near", "counts", "new_v", "bad"};
-    Py_ssize_t n = -1, m = -1, K = -1, NB = -1;
-    /* the shapes, in terms of n, m, K, NB (each read from the first array that has it) */
+    Py_ssize_t n = -1, m = -1, K = -1, NB = -1, NV = -1, E = -1;
+    /* the shapes, in terms of n, m, K, NB, NV (vertices), E (each read from the first array that has it) */
     Py_ssize_t *shapes[N_ARRAYS][3] = {
-        {&n, NULL, NULL}, {&n, NULL, NULL}, {&n, NULL, NULL}, {&n, &m, NULL}, {&m, NULL, NULL}, {&m, NULL, NULL},
-        {&m, NULL, NULL}, {&n, &K, NULL}, {&n, &K, NULL}, {&n, &K, NULL}, {&n, &NB, NULL}, {&n, NULL, NULL},
-        {&n, NULL, NULL}, {&n, NULL, NULL}};
-    static const int ndims[N_ARRAYS] = {2, 2, 1, 3, 2, 1, 1, 2, 3, 2, 2, 1, 2, 1};
-    static const char formats[N_ARRAYS] = {'d', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', '?', 'q', 'q', 'd', '?'};
+        {&n, NULL, NULL}, {&n, NULL, NULL}, {&n, NULL, NULL}, {&n, NULL, NULL}, {&n, &m, NULL}, {&m, NULL, NULL},
+        {&m, NULL, NULL}, {&m, NULL, NULL}, {&NV, NULL, NULL}, {&NV, NULL, NULL}, {&NV, NULL, NULL},
+        {&NV, NULL, NULL}, {&NV, NULL, NULL}, {&n, &E, NULL}, {&n, NULL, NULL}, {&n, &K, NULL}, {&n, &K, NULL},
+        {&n, &K, NULL}, {&n, &NB, NULL}, {&n, NULL, NULL}, {&n, NULL, NULL}, {&n, NULL, NULL}};
+    static const int ndims[N_ARRAYS] = {2, 2, 2, 1, 3, 2, 1, 1, 2, 2, 1, 1, 1, 2, 1, 2, 3, 2, 2, 1, 2, 1};
+    static const char formats[N_ARRAYS] = {'d', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'q',
+                                           'q', '?', 'q', 'q', 'd', 'd', '?', 'q', 'q', 'd', '?'};
     Py_buffer b[N_ARRAYS];
     int got = 0;
     PyObject *result = NULL;
@@ -419,16 +644,20 @@ static PyObject *velocities(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "orca velocities: the own pedestrians must be the first of everyone");
         goto done;
     }
-    const double *v = b[V].buf, *pref = b[PREF].buf, *max_speed = b[MAX_SPEED].buf, *rel = b[REL].buf;
-    const double *vel = b[VEL].buf, *radii = b[RADII].buf, *share = b[SHARE].buf, *gaps = b[GAPS].buf;
-    const double *away = b[AWAY].buf;
+    const double *x = b[X].buf, *v = b[V].buf, *pref = b[PREF].buf, *max_speed = b[MAX_SPEED].buf;
+    const double *rel = b[REL].buf, *vel = b[VEL].buf, *radii = b[RADII].buf, *share = b[SHARE].buf;
+    const double *gaps = b[GAPS].buf, *away = b[AWAY].buf;
+    const Vertices vx = {b[PTS].buf, b[DIRS].buf, b[NEXT].buf, b[PREV].buf, b[CONVEX].buf};
+    const int64_t *edges = b[EDGES].buf, *edge_counts = b[EDGE_COUNTS].buf;
     const unsigned char *close = b[CLOSE].buf;
     const int64_t *near = b[NEAR].buf, *counts = b[COUNTS].buf;
     double *new_v = b[NEW_V].buf;
     unsigned char *bad_out = b[BAD].buf;
+    if (check_vertices(&vx, NV, "orca velocities") < 0) goto done;
     for (Py_ssize_t i = 0; i < n; i++) {
-        if (counts[i] < 0 || counts[i] > NB) {
-            PyErr_SetString(PyExc_ValueError, "orca velocities: counts must be within 0..near's width");
+        if (counts[i] < 0 || counts[i] > NB || edge_counts[i] < 0 || edge_counts[i] > E) {
+            PyErr_SetString(PyExc_ValueError, "orca velocities: counts must be within 0..near's width and "
+                                              "edge_counts within 0..edges' width");
             goto done;
         }
         for (int64_t q = 0; q < counts[i]; q++) {
@@ -438,9 +667,16 @@ static PyObject *velocities(PyObject *self, PyObject *args) {
                 goto done;
             }
         }
+        for (int64_t q = 0; q < edge_counts[i]; q++) {
+            int64_t k = edges[i * E + q];
+            if (k < 0 || k >= NV) {
+                PyErr_SetString(PyExc_ValueError, "orca velocities: an edge index is out of range");
+                goto done;
+            }
+        }
     }
-    /* at most K + NB lines per pedestrian: the lines, their widened copies, solve_lp3's projected program */
-    Py_ssize_t cap = K + NB + 1;
+    /* at most E + K + NB lines per pedestrian: the lines, their widened copies, solve_lp3's projected program */
+    Py_ssize_t cap = E + K + NB + 1;
     work = PyMem_Malloc((size_t)(3 * cap) * sizeof(Line));
     if (work == NULL) {
         PyErr_NoMemory();
@@ -453,9 +689,11 @@ static PyObject *velocities(PyObject *self, PyObject *args) {
         double velx = v[2 * i], vely = v[2 * i + 1];
         double r = radii[i];
         Py_ssize_t count = 0;
+        edge_lines(&vx, edges + i * E, edge_counts[i], x[2 * i], x[2 * i + 1], velx, vely, r, horizon_obst, lines,
+                   &count, &bad);
         for (Py_ssize_t k = 0; k < K; k++) {
             if (!close[i * K + k]) continue;
-            /* the nearest point of the edge or rim relative to the pedestrian: (-away * g) */
+            /* the nearest point of the rim relative to the pedestrian: (-away * g) */
             double g = gaps[i * K + k];
             const double *a = away + 2 * (i * K + k);
             double px = -a[0] * g, py = -a[1] * g;
@@ -473,30 +711,6 @@ done:
     return result;
 }
 
-/* geometry.away_from_static for the point (px, py) and segment q = (x0, y0, x1, y1), in its numpy operations'
- * order: the gap (cm) and the unit vector away from the segment */
-static void away_from_segment(double px, double py, const double *q, double *gap, double *ax_, double *ay_) {
-    /* closest_approach_fraction(a - p, b - a): np.clip(-dot2(rel0, e) / np.where(dd > 0, dd, 1.0), 0.0, 1.0);
-     * numpy's clip keeps NaN and -0.0 (replaces only values strictly beyond a bound) */
-    double r0x = q[0] - px, r0y = q[1] - py, ex = q[2] - q[0], ey = q[3] - q[1];
-    double dd = ex * ex + ey * ey;
-    double f = -(r0x * ex + r0y * ey) / (dd > 0.0 ? dd : 1.0);
-    if (!isnan(f)) f = f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
-    /* off = pts - (a + s * (b - a)); its norm; the edge's left normal for a point on the edge */
-    double offx = px - (q[0] + f * ex), offy = py - (q[1] + f * ey);
-    double g = sqrt(offx * offx + offy * offy);
-    if (g > 0.0) {
-        *ax_ = offx / g;
-        *ay_ = offy / g;
-    } else {
-        double edge_len = sqrt(ex * ex + ey * ey);
-        double den = edge_len > 0.0 ? edge_len : 1.0;
-        *ax_ = -ey / den;
-        *ay_ = ex / den;
-    }
-    *gap = g;
-}
-
 /* geometry.away_from_static for the point (px, py) and circle q = (x, y, radius): d - radius and the unit vector
  * from the centre (+x at the centre) */
 static void away_from_circle(double px, double py, const double *q, double *gap, double *ax_, double *ay_) {
@@ -512,23 +726,65 @@ static void away_from_circle(double px, double py, const double *q, double *gap,
     *gap = d - q[2];
 }
 
-enum { S_X, S_POS, S_VEL, S_RADII, S_SHARE, S_V, S_PREF, S_MAX_SPEED, S_SEG, S_CIRC, S_NEW_V, S_BAD, S_N };
+/* PedestrianOrcaModel._edges_within_reach for the pedestrian at (px, py) with obstacle range `reach` (cm): the
+ * edges' first vertices into edges[], nearest first (equal distances in vertex order: the stable argsort), their
+ * squared distances into dist[]; returns how many */
+static Py_ssize_t edges_within_reach(const Vertices *vx, Py_ssize_t n_vertices, double px, double py, double reach,
+                                     int64_t *edges, double *dist) {
+    double range_sq = reach * reach;
+    Py_ssize_t count = 0;
+    for (Py_ssize_t k = 0; k < n_vertices; k++) {
+        const double *a = vx->pts + 2 * k, *b = vx->pts + 2 * vx->next[k];
+        double ex = b[0] - a[0], ey = b[1] - a[1];
+        double left = (a[0] - px) * ey - (a[1] - py) * ex;
+        double fax = px - a[0], fay = py - a[1];
+        double along = (fax * ex + fay * ey) / (ex * ex + ey * ey);
+        double d;
+        if (along < 0.0) {
+            d = fax * fax + fay * fay;
+        } else if (along > 1.0) {
+            double fbx = px - b[0], fby = py - b[1];
+            d = fbx * fbx + fby * fby;
+        } else {
+            double fx = px - (a[0] + along * ex), fy = py - (a[1] + along * ey);
+            d = fx * fx + fy * fy;
+        }
+        if (!(left < 0.0 && d < range_sq)) continue;
+        Py_ssize_t at = count;
+        while (at > 0 && dist[at - 1] > d) {
+            dist[at] = dist[at - 1];
+            edges[at] = edges[at - 1];
+            at--;
+        }
+        dist[at] = d;
+        edges[at] = k;
+        count++;
+    }
+    return count;
+}
+
+enum {
+    S_X, S_POS, S_VEL, S_RADII, S_SHARE, S_V, S_PREF, S_MAX_SPEED, S_PTS, S_DIRS, S_NEXT, S_PREV, S_CONVEX, S_CIRC,
+    S_NEW_V, S_BAD, S_N
+};
 
 /* substep(neighbor_dist_cm, max_neighbors, time_horizon_obst_s, time_horizon_s, h, x (n, 2), pos_all (m, 2),
- *         vel_all (m, 2), rad_all (m,), share (m,), v (n, 2), pref (n, 2), max_speed (n,), segments (M, 4),
- *         circles (C, 3), new_v (n, 2) out, bad (n,) bool out) -> int
+ *         vel_all (m, 2), rad_all (m,), share (m,), v (n, 2), pref (n, 2), max_speed (n,), points (V, 2),
+ *         directions (V, 2), next (V,) int64, previous (V,) int64, convex (V,) bool, circles (C, 3),
+ *         new_v (n, 2) out, bad (n,) bool out) -> int
  * The body of PedestrianOrcaModel.step's substep loop from pos_all on: rel = pos_all - x[i]; the neighbours of
  * _neighbours (the others j != i with |rel| < neighbor_dist_cm, nearest first, equal distances in index order:
- * its stable argsort; at most max_neighbors); geometry.away_from_static's gaps and directions, the statics within
- * reach (gap - r < time_horizon_obst_s * max_speed + r); _velocity. bad[i] as in velocities(). */
+ * its stable argsort; at most max_neighbors); the edges of _edges_within_reach; geometry.away_from_static's gaps
+ * and directions of the circles, those within reach (gap - r < time_horizon_obst_s * max_speed + r); _velocity.
+ * bad[i] as in velocities(). */
 static PyObject *substep(PyObject *self, PyObject *args) {
     (void)self;
     double neighbor_dist, horizon_obst, horizon, h;
     Py_ssize_t max_nb;
     PyObject *objs[S_N];
-    if (!PyArg_ParseTuple(args, "dndddOOOOOOOOOOOO", &neighbor_dist, &max_nb, &horizon_obst, &horizon, &h,
+    if (!PyArg_ParseTuple(args, "dndddOOOOOOOOOOOOOOOO", &neighbor_dist, &max_nb, &horizon_obst, &horizon, &h,
                           &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8],
-                          &objs[9], &objs[10], &objs[11]))
+                          &objs[9], &objs[10], &objs[11], &objs[12], &objs[13], &objs[14], &objs[15]))
         return NULL;
     if (!constants_set) {
         PyErr_SetString(PyExc_RuntimeError, "fuzzynav.pedestrians._orca: set_constants() was not called");
@@ -539,13 +795,14 @@ static PyObject *substep(PyObject *self, PyObject *args) {
         return NULL;
     }
     static const char *what[S_N] = {"x", "pos_all", "vel_all", "rad_all", "share", "v", "pref", "max_speed",
-                                    "segments", "circles", "new_v", "bad"};
-    Py_ssize_t n = -1, m = -1, M = -1, C = -1;
-    Py_ssize_t four = 4, three = 3;
-    Py_ssize_t *shapes[S_N][2] = {{&n, NULL}, {&m, NULL}, {&m, NULL}, {&m, NULL}, {&m, NULL}, {&n, NULL},
-                                  {&n, NULL}, {&n, NULL}, {&M, &four}, {&C, &three}, {&n, NULL}, {&n, NULL}};
-    static const int ndims[S_N] = {2, 2, 2, 1, 1, 2, 2, 1, 2, 2, 2, 1};
-    static const char formats[S_N] = {'d', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', '?'};
+                                    "points", "directions", "next", "previous", "convex", "circles", "new_v", "bad"};
+    Py_ssize_t n = -1, m = -1, NV = -1, C = -1;
+    Py_ssize_t three = 3;
+    Py_ssize_t *shapes[S_N][2] = {{&n, NULL}, {&m, NULL},  {&m, NULL},  {&m, NULL},  {&m, NULL},  {&n, NULL},
+                                  {&n, NULL}, {&n, NULL},  {&NV, NULL}, {&NV, NULL}, {&NV, NULL}, {&NV, NULL},
+                                  {&NV, NULL}, {&C, &three}, {&n, NULL}, {&n, NULL}};
+    static const int ndims[S_N] = {2, 2, 2, 1, 1, 2, 2, 1, 2, 2, 1, 1, 1, 2, 2, 1};
+    static const char formats[S_N] = {'d', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'd', 'q', 'q', '?', 'd', 'd', '?'};
     Py_buffer b[S_N];
     int got = 0;
     PyObject *result = NULL;
@@ -559,23 +816,25 @@ static PyObject *substep(PyObject *self, PyObject *args) {
     }
     const double *x = b[S_X].buf, *pos = b[S_POS].buf, *vel = b[S_VEL].buf, *radii = b[S_RADII].buf;
     const double *share = b[S_SHARE].buf, *v = b[S_V].buf, *pref = b[S_PREF].buf, *max_speed = b[S_MAX_SPEED].buf;
-    const double *seg = b[S_SEG].buf, *circ = b[S_CIRC].buf;
+    const double *circ = b[S_CIRC].buf;
+    const Vertices vx = {b[S_PTS].buf, b[S_DIRS].buf, b[S_NEXT].buf, b[S_PREV].buf, b[S_CONVEX].buf};
     double *new_v = b[S_NEW_V].buf;
     unsigned char *bad_out = b[S_BAD].buf;
-    /* one pedestrian's lines (at most one per static and neighbour), their widened copies, solve_lp3's projected
-     * program; rel (m, 2); the neighbours' indices and distances */
+    if (check_vertices(&vx, NV, "orca substep") < 0) goto done;
+    /* one pedestrian's lines (at most one per edge, circle and neighbour), their widened copies, solve_lp3's
+     * projected program; rel (m, 2); the neighbours' and edges' indices and distances */
     Py_ssize_t nb_cap = max_nb < m ? max_nb : m;
-    Py_ssize_t cap = M + C + nb_cap + 1;
-    size_t bytes = (size_t)(3 * cap) * sizeof(Line) + (size_t)(2 * m + nb_cap + 1) * sizeof(double) +
-                   (size_t)(nb_cap + 1) * sizeof(int64_t);
+    Py_ssize_t cap = NV + C + nb_cap + 1;
+    size_t bytes = (size_t)(3 * cap) * sizeof(Line) + (size_t)(2 * m + nb_cap + 1 + NV + 1) * sizeof(double) +
+                   (size_t)(nb_cap + 1 + NV + 1) * sizeof(int64_t);
     work = PyMem_Malloc(bytes);
     if (work == NULL) {
         PyErr_NoMemory();
         goto done;
     }
     Line *lines = work, *widened = lines + cap, *projected = lines + 2 * cap;
-    double *rel = (double *)(lines + 3 * cap), *near_d = rel + 2 * m;
-    int64_t *near = (int64_t *)(near_d + nb_cap + 1);
+    double *rel = (double *)(lines + 3 * cap), *near_d = rel + 2 * m, *edge_d = near_d + nb_cap + 1;
+    int64_t *near = (int64_t *)(edge_d + NV + 1), *edges = near + nb_cap + 1;
     Py_ssize_t n_bad = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
         int bad = 0;
@@ -602,17 +861,16 @@ static PyObject *substep(PyObject *self, PyObject *args) {
             near[at] = j;
             if (count_i < nb_cap) count_i++;
         }
-        /* the statics within reach, in order (segments, then circles): static_point_line at -away * gap */
+        /* the edges within reach (edge_lines), then the circles within reach: static_point_line at -away * gap */
         double r = radii[i];
         double reach = horizon_obst * max_speed[i] + r;
         double velx = v[2 * i], vely = v[2 * i + 1];
         Py_ssize_t count = 0;
-        for (Py_ssize_t k = 0; k < M + C; k++) {
+        Py_ssize_t n_edges = edges_within_reach(&vx, NV, px, py, reach, edges, edge_d);
+        edge_lines(&vx, edges, n_edges, px, py, velx, vely, r, horizon_obst, lines, &count, &bad);
+        for (Py_ssize_t k = 0; k < C; k++) {
             double g, awx, awy;
-            if (k < M)
-                away_from_segment(px, py, seg + 4 * k, &g, &awx, &awy);
-            else
-                away_from_circle(px, py, circ + 3 * (k - M), &g, &awx, &awy);
+            away_from_circle(px, py, circ + 3 * k, &g, &awx, &awy);
             if (!((g - r) < reach)) continue;
             if (static_point_line(-awx * g, -awy * g, r, horizon_obst, h, velx, vely, &lines[count], &bad)) count++;
         }
@@ -630,15 +888,18 @@ done:
 
 static PyMethodDef methods[] = {
     {"set_constants", set_constants, METH_VARARGS,
-     "set_constants(parallel, slack_rel, slack_abs): fuzzynav.policies.orca's _PARALLEL, _SLACK_REL and _SLACK_ABS"},
+     "set_constants(parallel, slack_rel, slack_abs, covered): fuzzynav.numerics.orca_lp's _PARALLEL, _SLACK_REL, "
+     "_SLACK_ABS and _COVERED"},
     {"velocities", velocities, METH_VARARGS,
-     "velocities(time_horizon_obst_s, time_horizon_s, h, v, pref, max_speed, rel, vel, radii, share, gaps, away, "
-     "close, near, counts, new_v, bad) -> number of bad pedestrians: PedestrianOrcaModel._velocity for every own "
-     "pedestrian, into new_v (bad[i]: the Python path raises for pedestrian i)"},
+     "velocities(time_horizon_obst_s, time_horizon_s, h, x, v, pref, max_speed, rel, vel, radii, share, points, "
+     "directions, next, previous, convex, edges, edge_counts, gaps, away, close, near, counts, new_v, bad) -> "
+     "number of bad pedestrians: PedestrianOrcaModel._velocity for every own pedestrian, into new_v (bad[i]: the "
+     "Python path raises for pedestrian i)"},
     {"substep", substep, METH_VARARGS,
      "substep(neighbor_dist_cm, max_neighbors, time_horizon_obst_s, time_horizon_s, h, x, pos_all, vel_all, "
-     "rad_all, share, v, pref, max_speed, segments, circles, new_v, bad) -> number of bad pedestrians: one "
-     "substep's neighbours, statics and velocities of PedestrianOrcaModel.step, into new_v"},
+     "rad_all, share, v, pref, max_speed, points, directions, next, previous, convex, circles, new_v, bad) -> "
+     "number of bad pedestrians: one substep's neighbours, edges and circles within reach and velocities of "
+     "PedestrianOrcaModel.step, into new_v"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -10,8 +10,14 @@ Per pedestrian and substep (RVO2's ``Agent::computeNeighbors`` / ``computeNewVel
   same ``orca`` group take half of each avoidance (the paper's reciprocity: the other one takes the other half);
   against anything else (scripted obstacles, pedestrians of other models) they take it all, and against the
   robot ``robot_responsibility`` (0.5, as CrowdNav's humans, assumes the robot avoids them too);
-- one hard half-plane per wall, polygon edge and static circle within reach (its nearest point as a disc of
-  radius 0, horizon ``time_horizon_obst_s``), the robot policy's rule for static returns;
+- hard half-planes for the walls and static polygons (horizon ``time_horizon_obst_s``): RVO2's obstacle lines
+  (:func:`fuzzynav.numerics.orca_lp.edge_lines`) for each edge the pedestrian faces within ``time_horizon_obst_s``
+  · its top speed + its radius, nearest first — the velocity obstacle of the whole edge (end discs, legs,
+  cut-off segment; convex and concave corners; the line through the origin when it already overlaps the edge),
+  skipped where an earlier edge's line covers it. The walls are a polygon seen from inside (all four corners
+  concave);
+- one hard half-plane per static circle within reach: its nearest rim point as a disc of radius 0, the robot
+  policy's rule for static returns;
 - the velocity in the disc of ``max_speed_factor``·(its walking speed) nearest the preferred one.
 
 All pedestrians of a substep choose from the same state (as RVO2: compute all, then update all). Integration:
@@ -32,7 +38,16 @@ import numpy as np
 
 from fuzzynav.numerics import compiled, orca_lp
 from fuzzynav.numerics.geometry import away_from_static, keep_inside
-from fuzzynav.numerics.orca_lp import Line, choose_velocity, orca_line, static_point_line
+from fuzzynav.numerics.orca_lp import (
+    Line,
+    ObstacleVertices,
+    choose_velocity,
+    edge_lines,
+    obstacle_vertices,
+    orca_line,
+    static_point_line,
+    world_chains,
+)
 from fuzzynav.numerics.portable_math import hypot, norm2
 from fuzzynav.pedestrians.base import CrowdView, in_range, register_obstacle_model, substeps
 from fuzzynav.pedestrians.intent import Intent
@@ -44,7 +59,22 @@ if TYPE_CHECKING:
 _kernel = compiled.load("fuzzynav.pedestrians._orca")
 if _kernel is not None:
     # the linear program's tolerances have one definition, fuzzynav.numerics.orca_lp's
-    _kernel.set_constants(orca_lp._PARALLEL, orca_lp._SLACK_REL, orca_lp._SLACK_ABS)
+    _kernel.set_constants(orca_lp._PARALLEL, orca_lp._SLACK_REL, orca_lp._SLACK_ABS, orca_lp._COVERED)
+
+
+class _Obstacles:
+    """A world's walls and static polygons as RVO2's obstacle vertices (:class:`ObstacleVertices`, for the
+    per-pedestrian lines) and as arrays (for the edges within reach, and the compiled kernel): ``points`` (V, 2)
+    cm, ``directions`` (V, 2) unit vectors, ``next`` and ``previous`` (V,) vertex indices, ``convex`` (V,)."""
+
+    def __init__(self, bounds: Sequence[float], polygons: Sequence[np.ndarray]) -> None:
+        self.vertices = obstacle_vertices(world_chains(bounds, polygons))
+        ov = self.vertices
+        self.points = np.array(ov.points, dtype=np.float64).reshape(-1, 2)
+        self.directions = np.array(ov.directions, dtype=np.float64).reshape(-1, 2)
+        self.next = np.array(ov.next, dtype=np.int64)
+        self.previous = np.array(ov.previous, dtype=np.int64)
+        self.convex = np.array(ov.convex, dtype=bool)
 
 
 @dataclass(frozen=True)
@@ -84,6 +114,7 @@ class PedestrianOrcaModel:
         self.radii = np.array([o.radius for o in obstacles], dtype=float)
         self.x = self.intent.starts.copy()
         self.v = np.zeros_like(self.x)
+        self._obstacles: tuple[World, _Obstacles] | None = None
 
     def reset(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         self.intent.reset()
@@ -127,23 +158,57 @@ class PedestrianOrcaModel:
         velocities ``pref`` (n, 2) and speed limits ``max_speed`` (n,) cm/s; the walls, edges and circles of
         ``world``; the substep ``h`` (s). With ``only``, just those pedestrians, into ``out``."""
         c = self.config
-        gaps, away = away_from_static(x, world.segments, world.circles)
+        obstacles = self._obstacles_of(world)
+        edges = self._edges_within_reach(obstacles, x, max_speed)
+        gaps, away = away_from_static(x, np.zeros((0, 4)), world.circles)
         near = self._neighbours(x, pos_all)
         reach = c.time_horizon_obst_s * max_speed + self.radii
         close = (gaps - self.radii[:, None]) < reach[:, None]
         rel = pos_all[None, :, :] - x[:, None, :]
-        return self._velocities_python(v, pref, max_speed, rel, vel_all, rad_all, share, gaps, away, close, near, h,
-                                       only, out)
+        return self._velocities_python(obstacles, x, v, pref, max_speed, rel, vel_all, rad_all, share, edges, gaps,
+                                       away, close, near, h, only, out)
+
+    def _obstacles_of(self, world: World) -> _Obstacles:
+        """The walls and polygons of ``world`` as :class:`_Obstacles`, built once per world (a world is shared by
+        the episodes of a scenario and does not change)."""
+        if self._obstacles is None or self._obstacles[0] is not world:
+            self._obstacles = (world, _Obstacles(world.bounds, world.polygons))
+        return self._obstacles[1]
+
+    def _edges_within_reach(self, obstacles: _Obstacles, x: np.ndarray, max_speed: np.ndarray) -> list[list[int]]:
+        """For each own pedestrian at ``x`` (n, 2) cm, the edges (their first vertices' indices) it faces — strictly
+        on their outer side — whose nearest point is within ``time_horizon_obst_s`` · ``max_speed`` (n,) cm/s + its
+        radius (RVO2's obstacle range), nearest first (a stable sort: equal distances keep the vertices' order)."""
+        a = obstacles.points[None, :, :]
+        b = obstacles.points[obstacles.next][None, :, :]
+        e = b - a
+        x3 = x[:, None, :]
+        to_a = a - x3
+        # twice the signed area of (a, b, x): negative when x is right of the edge, outside the obstacle
+        left = to_a[..., 0] * e[..., 1] - to_a[..., 1] * e[..., 0]
+        from_a = x3 - a
+        length_sq = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1]
+        along = (from_a[..., 0] * e[..., 0] + from_a[..., 1] * e[..., 1]) / length_sq
+        from_b = x3 - b
+        foot = x3 - (a + along[..., None] * e)
+        dist_sq = np.where(along < 0.0, from_a[..., 0] * from_a[..., 0] + from_a[..., 1] * from_a[..., 1],
+                           np.where(along > 1.0, from_b[..., 0] * from_b[..., 0] + from_b[..., 1] * from_b[..., 1],
+                                    foot[..., 0] * foot[..., 0] + foot[..., 1] * foot[..., 1]))
+        reach = self.config.time_horizon_obst_s * max_speed + self.radii
+        within = (left < 0.0) & (dist_sq < (reach * reach)[:, None])
+        order = np.argsort(np.where(within, dist_sq, math.inf), axis=1, kind="stable")
+        return [row[:count] for row, count in zip(order.tolist(), within.sum(axis=1).tolist(), strict=True)]
 
     def _substep_compiled(self, x: np.ndarray, pos_all: np.ndarray, vel_all: np.ndarray, rad_all: np.ndarray,
                           share: list[float], v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray,
                           world: World, h: float) -> np.ndarray:
         """:meth:`_substep_python` (same arguments and units) in one call of the compiled kernel — the neighbours,
-        the walls', edges' and circles' gaps and directions, the statics within reach and every pedestrian's
-        velocity, with the same operations in the same order: the same bits. A pedestrian for which the Python
-        path would raise (a division by zero) is flagged by the kernel and recomputed by the Python path, which
-        raises the same error."""
+        the edges within reach, the circles' gaps and directions and every pedestrian's velocity, with the same
+        operations in the same order: the same bits. A pedestrian for which the Python path would raise (a
+        division by zero) is flagged by the kernel and recomputed by the Python path, which raises the same
+        error."""
         c = self.config
+        obstacles = self._obstacles_of(world)
         f64 = np.float64
         new_v = np.empty((len(x), 2), dtype=f64)
         bad = np.zeros(len(x), dtype=bool)
@@ -152,38 +217,43 @@ class PedestrianOrcaModel:
             float(h), np.ascontiguousarray(x, dtype=f64), np.ascontiguousarray(pos_all, dtype=f64),
             np.ascontiguousarray(vel_all, dtype=f64), np.ascontiguousarray(rad_all, dtype=f64),
             np.asarray(share, dtype=f64), np.ascontiguousarray(v, dtype=f64), np.ascontiguousarray(pref, dtype=f64),
-            np.ascontiguousarray(max_speed, dtype=f64),
-            np.ascontiguousarray(world.segments, dtype=f64).reshape(-1, 4),
-            np.ascontiguousarray(world.circles, dtype=f64).reshape(-1, 3), new_v, bad)
+            np.ascontiguousarray(max_speed, dtype=f64), obstacles.points, obstacles.directions, obstacles.next,
+            obstacles.previous, obstacles.convex, np.ascontiguousarray(world.circles, dtype=f64).reshape(-1, 3),
+            new_v, bad)
         if n_bad:
             self._substep_python(x, pos_all, vel_all, rad_all, share, v, pref, max_speed, world, h,
                                  only=np.flatnonzero(bad).tolist(), out=new_v)
         return new_v
 
-    def _velocities_python(self, v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray, rel: np.ndarray,
-                           vel_all: np.ndarray, rad_all: np.ndarray, share: list[float], gaps: np.ndarray,
-                           away: np.ndarray, close: np.ndarray, near: list[list[int]], h: float,
-                           only: Sequence[int] | None = None, out: np.ndarray | None = None) -> np.ndarray:
-        """The new velocities (n, 2) cm/s of the own pedestrians moving at ``v`` (n, 2) cm/s, by :meth:`_velocity`
-        (the reference): ``pref`` (n, 2) cm/s preferred velocities, ``max_speed`` (n,) cm/s, ``rel`` (n, m, 2) cm
-        everyone's positions relative to each own pedestrian, ``vel_all`` (m, 2) cm/s, ``rad_all`` (m,) cm,
-        ``share`` (m,) the responsibilities, ``gaps`` (n, K) cm and ``away`` (n, K, 2) the walls', edges' and
-        circles' distances and unit directions away from them, ``close`` (n, K) the ones within reach, ``near``
-        the neighbours' indices, ``h`` the substep (s). With ``only``, just those pedestrians, into ``out``."""
+    def _velocities_python(self, obstacles: _Obstacles, x: np.ndarray, v: np.ndarray, pref: np.ndarray,
+                           max_speed: np.ndarray, rel: np.ndarray, vel_all: np.ndarray, rad_all: np.ndarray,
+                           share: list[float], edges: list[list[int]], gaps: np.ndarray, away: np.ndarray,
+                           close: np.ndarray, near: list[list[int]], h: float, only: Sequence[int] | None = None,
+                           out: np.ndarray | None = None) -> np.ndarray:
+        """The new velocities (n, 2) cm/s of the own pedestrians at ``x`` (n, 2) cm moving at ``v`` (n, 2) cm/s, by
+        :meth:`_velocity` (the reference): ``obstacles`` the walls and polygons, ``pref`` (n, 2) cm/s preferred
+        velocities, ``max_speed`` (n,) cm/s, ``rel`` (n, m, 2) cm everyone's positions relative to each own
+        pedestrian, ``vel_all`` (m, 2) cm/s, ``rad_all`` (m,) cm, ``share`` (m,) the responsibilities, ``edges``
+        each one's edges to avoid (vertex indices, nearest first), ``gaps`` (n, C) cm and ``away`` (n, C, 2) the
+        static circles' distances and unit directions away from them, ``close`` (n, C) the ones within reach,
+        ``near`` the neighbours' indices, ``h`` the substep (s). With ``only``, just those pedestrians, into
+        ``out``."""
         # every pedestrian's inputs as Python floats at once (the same values): indexing numpy element by element
         # inside the per-pedestrian loop would cost more than the loop's own arithmetic
-        rows = _Rows(rel, vel_all, rad_all, gaps, away)
+        rows = _Rows(x, rel, vel_all, rad_all, gaps, away)
         close_rows = close.tolist()
         new_v = np.empty_like(v) if out is None else out
         v_rows, pref_rows, top_rows = v.tolist(), pref.tolist(), max_speed.tolist()
         for i in range(len(v_rows)) if only is None else only:
             statics = [k for k, ok in enumerate(close_rows[i]) if ok]
-            new_v[i] = self._velocity(i, v_rows[i], pref_rows[i], top_rows[i], statics, near[i], rows, share, h)
+            new_v[i] = self._velocity(i, v_rows[i], pref_rows[i], top_rows[i], obstacles.vertices, edges[i],
+                                      statics, near[i], rows, share, h)
         return new_v
 
-    def _velocities_compiled(self, v: np.ndarray, pref: np.ndarray, max_speed: np.ndarray, rel: np.ndarray,
-                             vel_all: np.ndarray, rad_all: np.ndarray, share: list[float], gaps: np.ndarray,
-                             away: np.ndarray, close: np.ndarray, near: list[list[int]], h: float) -> np.ndarray:
+    def _velocities_compiled(self, obstacles: _Obstacles, x: np.ndarray, v: np.ndarray, pref: np.ndarray,
+                             max_speed: np.ndarray, rel: np.ndarray, vel_all: np.ndarray, rad_all: np.ndarray,
+                             share: list[float], edges: list[list[int]], gaps: np.ndarray, away: np.ndarray,
+                             close: np.ndarray, near: list[list[int]], h: float) -> np.ndarray:
         """:meth:`_velocities_python` (same arguments and units) in one call of the compiled kernel: the same
         bits. The kernel's velocity part alone, for given statics and neighbour lists (:meth:`_substep_compiled`
         computes those too, and is what :meth:`step` uses): the tests drive it with arbitrary ones. A
@@ -191,25 +261,23 @@ class PedestrianOrcaModel:
         recomputed by the Python path, which raises the same error."""
         c = self.config
         n = len(v)
-        # the neighbour lists padded to one (n, max_neighbors) array, with their lengths
-        near_arr = np.zeros((n, c.max_neighbors), dtype=np.int64)
-        counts = np.zeros(n, dtype=np.int64)
-        for i, row in enumerate(near):
-            near_arr[i, :len(row)] = row
-            counts[i] = len(row)
+        near_arr, counts = _padded(near, c.max_neighbors)
+        edge_arr, edge_counts = _padded(edges, len(obstacles.points))
         f64 = np.float64
         new_v = np.empty((n, 2), dtype=f64)
         bad = np.zeros(n, dtype=bool)
         n_bad = _kernel.velocities(
-            float(c.time_horizon_obst_s), float(c.time_horizon_s), float(h),
+            float(c.time_horizon_obst_s), float(c.time_horizon_s), float(h), np.ascontiguousarray(x, dtype=f64),
             np.ascontiguousarray(v, dtype=f64), np.ascontiguousarray(pref, dtype=f64),
             np.ascontiguousarray(max_speed, dtype=f64), np.ascontiguousarray(rel, dtype=f64),
             np.ascontiguousarray(vel_all, dtype=f64), np.ascontiguousarray(rad_all, dtype=f64),
-            np.asarray(share, dtype=f64), np.ascontiguousarray(gaps, dtype=f64), np.ascontiguousarray(away, dtype=f64),
-            np.ascontiguousarray(close, dtype=bool), near_arr, counts, new_v, bad)
+            np.asarray(share, dtype=f64), obstacles.points, obstacles.directions, obstacles.next, obstacles.previous,
+            obstacles.convex, edge_arr, edge_counts, np.ascontiguousarray(gaps, dtype=f64),
+            np.ascontiguousarray(away, dtype=f64), np.ascontiguousarray(close, dtype=bool), near_arr, counts, new_v,
+            bad)
         if n_bad:
-            self._velocities_python(v, pref, max_speed, rel, vel_all, rad_all, share, gaps, away, close, near, h,
-                                    only=np.flatnonzero(bad).tolist(), out=new_v)
+            self._velocities_python(obstacles, x, v, pref, max_speed, rel, vel_all, rad_all, share, edges, gaps, away,
+                                    close, near, h, only=np.flatnonzero(bad).tolist(), out=new_v)
         return new_v
 
     def _neighbours(self, x: np.ndarray, pos_all: np.ndarray) -> list[list[int]]:
@@ -224,17 +292,20 @@ class PedestrianOrcaModel:
         return [[j for j, ok in zip(row, inside, strict=True) if ok][:c.max_neighbors]
                 for row, inside in zip(order.tolist(), within, strict=True)]
 
-    def _velocity(self, i: int, vi: list[float], pref: list[float], max_speed: float, statics: list[int],
-                  near: list[int], rows: _Rows, share: list[float], h: float) -> tuple[float, float]:
-        """The new velocity (cm/s) of own pedestrian ``i`` moving at ``vi``: ``statics`` are the walls, edges and
-        circles within its reach, ``near`` its neighbours (indices into ``rows``)."""
+    def _velocity(self, i: int, vi: list[float], pref: list[float], max_speed: float, vertices: ObstacleVertices,
+                  edges: list[int], statics: list[int], near: list[int], rows: _Rows, share: list[float],
+                  h: float) -> tuple[float, float]:
+        """The new velocity (cm/s) of own pedestrian ``i`` moving at ``vi``: ``edges`` are the wall and polygon
+        edges within its reach (nearest first), ``statics`` the circles within it, ``near`` its neighbours
+        (indices into ``rows``)."""
         c = self.config
         velocity = (vi[0], vi[1])
         r = rows.radii[i]
-        lines: list[Line] = []
+        position = (rows.x[i][0], rows.x[i][1])
+        lines: list[Line] = edge_lines(vertices, edges, position, velocity, r, c.time_horizon_obst_s)
         gaps, away = rows.gaps[i], rows.away[i]
         for k in statics:
-            # the nearest point of the edge or rim, relative to the pedestrian (cm)
+            # the nearest point of the rim, relative to the pedestrian (cm)
             g = gaps[k]
             rel = (-away[k][0] * g, -away[k][1] * g)
             line = static_point_line(rel, r, c.time_horizon_obst_s, h, velocity)
@@ -253,12 +324,23 @@ class PedestrianOrcaModel:
         return choose_velocity(lines, hard, max_speed, preferred).velocity
 
 
-class _Rows:
-    """One substep's inputs of :meth:`PedestrianOrcaModel._velocity` as Python floats: relative positions (n, m, 2)
-    of everyone from each own pedestrian (cm), velocities (m, 2) cm/s and radii (m,) cm of everyone (own
-    pedestrians first), and each own pedestrian's gaps (n, K) cm to the walls, edges and circles with the unit
-    vectors (n, K, 2) pointing away from them."""
+def _padded(rows: list[list[int]], width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index lists as one (n, ``width``) int64 array, zero-padded, and their lengths (n,): the kernel's form."""
+    arr = np.zeros((len(rows), width), dtype=np.int64)
+    counts = np.zeros(len(rows), dtype=np.int64)
+    for i, row in enumerate(rows):
+        arr[i, :len(row)] = row
+        counts[i] = len(row)
+    return arr, counts
 
-    def __init__(self, rel: np.ndarray, vel: np.ndarray, radii: np.ndarray, gaps: np.ndarray, away: np.ndarray) -> None:
-        self.rel, self.vel, self.radii = rel.tolist(), vel.tolist(), radii.tolist()
+
+class _Rows:
+    """One substep's inputs of :meth:`PedestrianOrcaModel._velocity` as Python floats: the own pedestrians'
+    positions (n, 2) cm, relative positions (n, m, 2) of everyone from each own pedestrian (cm), velocities (m, 2)
+    cm/s and radii (m,) cm of everyone (own pedestrians first), and each own pedestrian's gaps (n, C) cm to the
+    static circles with the unit vectors (n, C, 2) pointing away from them."""
+
+    def __init__(self, x: np.ndarray, rel: np.ndarray, vel: np.ndarray, radii: np.ndarray, gaps: np.ndarray,
+                 away: np.ndarray) -> None:
+        self.x, self.rel, self.vel, self.radii = x.tolist(), rel.tolist(), vel.tolist(), radii.tolist()
         self.gaps, self.away = gaps.tolist(), away.tolist()

@@ -43,12 +43,18 @@ class World:
         segs = [[xmin, ymin, xmax, ymin], [xmax, ymin, xmax, ymax], [xmax, ymax, xmin, ymax],
                 [xmin, ymax, xmin, ymin]]
         circles = []
+        polygons = []
         for o in static_obstacles:
             if o.circle is not None:
                 circles.append([*o.circle.center, o.circle.radius])
             else:
                 pts = [*o.polygon, o.polygon[0]]
                 segs.extend([[*a, *b] for a, b in itertools.pairwise(pts)])
+                polygons.append(np.array(o.polygon, dtype=float).reshape(-1, 2))
+                polygons[-1].flags.writeable = False
+        #: each static polygon's vertices (k, 2) cm as the scenario gives them (either orientation, a closing
+        #: repeat of the first vertex kept): the ORCA pedestrians need the edges' order, not just the edges
+        self.polygons: tuple[np.ndarray, ...] = tuple(polygons)
         #: (M, 4) wall and polygon edges; (C, 3) static circles (exact, for ray casting); read-only, as a world is
         #: shared by the episodes of one scenario (:func:`world_of`)
         self.segments = np.array(segs, dtype=float)
