@@ -3,7 +3,11 @@ target 3 asks for a step on ``mixed`` (laser perception, with logging) at least 
 issue was filed against, which a number printed on another day cannot show.
 
 The earlier commit's ``fuzzynav``, ``runners``, ``analysis`` and ``conf`` are taken from this checkout's git history
-(``git archive``, into a temporary directory) and imported from there, with this environment's libraries; each
+(``git archive``, into a temporary directory) and imported from there, with this environment's libraries. A commit
+that has compiled kernels gets them built from its own sources and build file (``pip wheel`` of its
+``pyproject.toml``/``setup.py``, the kernels copied into the tree): both sides run what their commit ships, and
+the result lists each side's kernels; where the build fails (no compiler) the earlier side runs its Python forms
+and the result says so. Each
 tree runs in its own child process, the trees alternating round by round (the first in one round is the second in
 the next), so that a slow spell of the machine hits both alike. A child runs its own tree's ``mixed`` scenario
 (``_scenario_and_config`` of ``runners.benchmarks.simulation``, earlier ``runners.bench``, and
@@ -27,6 +31,7 @@ import subprocess
 import sys
 import tarfile
 import tempfile
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +41,7 @@ ROOT = Path(__file__).resolve().parents[2]
 #: the commit issue #19 was filed against (its numbers: ~670 µs per logged step on ``mixed``); pure Python/numpy
 ISSUE_19_COMMIT = "c90ff8656d1b33455b27065835ab322b90ef7e3c"
 _TREE_PARTS = ("fuzzynav", "runners", "analysis", "conf")
+_BUILD_FILES = ("pyproject.toml", "setup.py", "setup.cfg", "MANIFEST.in", "README.md")  # what a wheel build reads
 _COMMIT_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./~^-]{0,199}")
 
 # Run in a child with the tree as its working directory: the tree's packages come first on sys.path, so they,
@@ -46,6 +52,17 @@ import json, sys, tempfile, time, warnings
 from pathlib import Path
 tree, episodes, passes = Path(sys.argv[1]).resolve(), int(sys.argv[2]), int(sys.argv[3])
 sys.path.insert(0, str(tree))
+# this checkout's editable install answers for module names it knows before the tree's paths are searched (a
+# compiled kernel the tree was built without came from here): the tree alone supplies the project's modules
+sys.meta_path[:] = [f for f in sys.meta_path if "__editable__" not in getattr(f, "__module__", "")
+                    and "__editable__" not in getattr(type(f), "__module__", "")]
+if (tree / "conf" / "__init__.py").exists() and not (tree / "fuzzynav" / "conf").exists():
+    # an install maps conf/ to fuzzynav.conf (pyproject's package-dir); so does the tree here
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("fuzzynav.conf", tree / "conf" / "__init__.py",
+                                                  submodule_search_locations=[str(tree / "conf")])
+    sys.modules["fuzzynav.conf"] = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sys.modules["fuzzynav.conf"])
 warnings.filterwarnings("ignore")
 def only_the_trees():
     # every module of the project imported must be the tree's (the editable install's finder would supply one that
@@ -145,12 +162,57 @@ def baseline_tree(commit: str, dest: Path) -> Path:
         first = (res.stderr.decode(errors="replace").strip().splitlines() or ["no output"])[0]
         raise BaselineUnavailable(f"commit {commit[:12]} is not in this checkout's history (a shallow clone?): "
                                   f"{first}")
-    with tarfile.open(fileobj=io.BytesIO(res.stdout)) as tar:
+    _extract(res.stdout, dest)
+    return dest
+
+
+def _extract(archive: bytes, dest: Path) -> None:
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         try:
             tar.extractall(dest, filter="data")
         except TypeError:  # Python 3.11.0-3.11.3 have no extraction filters (the archive is this checkout's own)
             tar.extractall(dest)
-    return dest
+
+
+def build_kernels(commit: str, tree: Path) -> str:
+    """Build ``commit``'s compiled kernels from its own sources into ``tree`` (made by :func:`baseline_tree`): its
+    build files are added to a copy, ``pip wheel`` builds it (isolated, as an install does), and the wheel's
+    extension modules are put beside their sources in ``tree``. Returns "" when built or when the commit has no
+    kernels, else why not (the earlier side then runs its Python forms)."""
+    listed = subprocess.run(["git", "-C", str(ROOT), "ls-tree", "--name-only", commit, *_BUILD_FILES],
+                            capture_output=True, text=True, timeout=60)
+    files = listed.stdout.split() if listed.returncode == 0 else []
+    if not any(name.endswith(".c") for name in subprocess.run(
+            ["git", "-C", str(ROOT), "ls-tree", "-r", "--name-only", commit, "fuzzynav"],
+            capture_output=True, text=True, timeout=60).stdout.split()):
+        return ""  # a commit from before the kernels
+    if "pyproject.toml" not in files and "setup.py" not in files:
+        return f"commit {commit[:12]} has C sources but no build file"
+    with tempfile.TemporaryDirectory(prefix="fuzzynav-baseline-build-") as tmp:
+        source = Path(tmp) / "source"
+        shutil.copytree(tree, source)
+        res = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", commit, *files],
+                             capture_output=True, timeout=120)
+        if res.returncode != 0:
+            return "git archive of the build files failed"
+        _extract(res.stdout, source)
+        wheels = Path(tmp) / "wheels"
+        try:
+            built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels),
+                                    str(source)], capture_output=True, text=True, timeout=900)
+        except (OSError, subprocess.SubprocessError) as err:
+            return f"pip wheel failed: {err}"
+        found = sorted(wheels.glob("*.whl")) if built.returncode == 0 else []
+        if not found:
+            tail = (built.stderr.strip().splitlines() or ["no output"])[-1]
+            return f"pip wheel failed: {tail[:200]}"
+        with zipfile.ZipFile(found[0]) as wheel:
+            for name in wheel.namelist():
+                if name.endswith((".so", ".pyd")) and name.split("/")[0] in _TREE_PARTS:
+                    target = tree / name
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    target.write_bytes(wheel.read(name))
+    return ""
 
 
 def _measure(tree: Path, episodes: int, passes: int) -> dict[str, float]:
@@ -177,6 +239,7 @@ def bench_baseline(commit: str = ISSUE_19_COMMIT, rounds: int = 5, episodes: int
             earlier = baseline_tree(commit, Path(tmp))
         except BaselineUnavailable as err:
             return {"measured": False, "commit": commit, "why": str(err)}
+        unbuilt = build_kernels(commit, earlier)
         per_round = []
         try:
             for k in range(rounds):
@@ -188,7 +251,8 @@ def bench_baseline(commit: str = ISSUE_19_COMMIT, rounds: int = 5, episodes: int
             return {"measured": False, "commit": commit, "why": str(err)}
     plain = [r["earlier"]["plain_us_per_step"] / r["this"]["plain_us_per_step"] for r in per_round]
     logged = [r["earlier"]["logged_us_per_step"] / r["this"]["logged_us_per_step"] for r in per_round]
-    return {"measured": True, "commit": commit, "scenario": "mixed", "rounds": rounds, "episodes": episodes,
+    return {"measured": True, "commit": commit, "kernels_not_built": unbuilt, "scenario": "mixed", "rounds": rounds,
+            "episodes": episodes,
             "passes": passes, "per_round": per_round, "plain_ratio_per_round": plain,
             "logged_ratio_per_round": logged, "plain_ratio": statistics.median(plain),
             "logged_ratio": statistics.median(logged),
@@ -216,6 +280,9 @@ def print_baseline(result: dict[str, Any]) -> None:
           f"{result['rounds']} alternated rounds): logged step {result['earlier_logged_us_per_step']:.0f} -> "
           f"{result['this_logged_us_per_step']:.0f} µs; compiled kernels in use: {kernels['earlier']} -> "
           f"{kernels['this']}")
+    if result.get("kernels_not_built"):
+        print(f"  the earlier commit's kernels could not be built ({result['kernels_not_built']}): it ran its "
+              "Python forms")
     print(f"  target 3 (issue #19, >= 2 meets it): {result['logged_ratio']:.2f} x with logging (rounds: "
           + ", ".join(f"{r:.2f}" for r in result["logged_ratio_per_round"])
           + f"), {result['plain_ratio']:.2f} x without (rounds: "
