@@ -269,9 +269,15 @@ def _median_stages(rounds: list[dict[str, float]]) -> dict[str, float]:
     return dict(sorted(medians.items(), key=lambda kv: -kv[1]))
 
 
+def _shown(text: str) -> str:
+    """``text`` on one line: control characters (a newline, U+0085) escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def print_baseline(result: dict[str, Any]) -> None:
     if not result["measured"]:
-        print(f"target 3 (issue #19, step vs commit {result['commit'][:7]}): not measured: {result['why']}")
+        print(f"target 3 (issue #19, step vs commit {_shown(result['commit'][:7])}): not measured: "
+              f"{_shown(result['why'])}")
         return
     steps = {r[name]["steps"] for r in result["per_round"] for name in ("earlier", "this")}
     kernels = {name: len(result["per_round"][0][name]["kernels"]) for name in ("earlier", "this")}

@@ -100,14 +100,19 @@ def _section(title: str, results: dict[str, Any], key: str, render: Callable[[An
         return f"## {title}\n\nNot measured in this run.\n"
     try:
         body = render(value)
-    except (KeyError, TypeError, ValueError) as e:  # a bench.json of another version
-        body = f"Not shown: this run's results lack a field the page reads ({type(e).__name__}: {e}).\n"
+    except Exception as e:  # a bench.json of another version, or edited: the section says so
+        body = (f"Not shown: `{key}` in this run's results is not what the page reads "
+                f"({type(e).__name__}: {str(e)[:80]}).\n")
     return f"## {title}\n\n{body}"
 
 
 def _machine(results: dict[str, Any]) -> str:
     m = results.get("machine", {})
+    if not isinstance(m, dict):
+        m = {}
     kernels = m.get("compiled_kernels", {})
+    if not isinstance(kernels, dict):
+        kernels = {}
     used = [name for name, on in kernels.items() if on]
     lines = ["| | |", "|---|---|",
              f"| Python | {m.get('python', '–')} |",

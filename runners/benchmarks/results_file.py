@@ -18,6 +18,19 @@ from pathlib import Path
 
 def out_problem(out: Path) -> str | None:
     """Why the results cannot be written to ``out``, or None (one line naming the path)."""
+    try:
+        problem = _out_problem(out)
+    except ValueError as err:  # a NUL byte in the name
+        problem = f"{str(out)[:60]}: not a file name ({err})"
+    except OSError as err:  # a name too long, a component that is not a directory, ...
+        problem = f"{str(out)[:60]}: cannot be used ({err.strerror or err})"
+    # one line, whatever the name holds: control characters (a newline, a record separator) shown escaped
+    return None if problem is None else "".join(c if c.isprintable() else repr(c)[1:-1] for c in problem)
+
+
+def _out_problem(out: Path) -> str | None:
+    if str(out) in ("", "."):
+        return f"{str(out)!r}: not a file name"
     if out.is_dir():
         return f"{out}: is a directory, not a file name"
     if out.exists() and not out.is_file():
