@@ -20,7 +20,7 @@ from fuzzynav.pedestrians.base import model_factory, registered_models
 from fuzzynav.pedestrians.crowd import Crowd
 from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
 from fuzzynav.pedestrians.random_walk import RandomWalkConfig
-from fuzzynav.pedestrians.social_force import SocialForceConfig
+from fuzzynav.pedestrians.social_force import STEP_AHEAD, SocialForceConfig
 from fuzzynav.scenarios.generator import generate
 from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict, validate_geometry
 from fuzzynav.scenarios.world import World
@@ -28,6 +28,8 @@ from tests.conftest import load_controller
 
 MODEL_NAMES = sorted(registered_models())  # every model found, plug-ins included
 CONFIGS = {"social_force": SocialForceConfig, "orca": PedestrianOrcaConfig, "random_walk": RandomWalkConfig}
+#: the accepted values of the models' string parameters
+STRING_CHOICES = {"step_ahead": STEP_AHEAD}
 PARAM_NAMES = sorted({f for c in CONFIGS.values() for f in c.__dataclass_fields__})
 ROBOT = RobotState(100.0, 400.0, 0.0, 0.0)
 HUGE_INT = 10 ** 400  # a YAML integer literal of 401 digits, or a Hydra override `x=1000...0`
@@ -109,6 +111,8 @@ def in_range_params(config_class):
         hint = fields[name].type
         if hint in (bool, "bool"):
             out[name] = st.booleans()
+        elif hint in (str, "str"):
+            out[name] = st.sampled_from(STRING_CHOICES[name])
         elif hint in (int, "int"):
             out[name] = st.integers(0, 100)
         else:

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.kinematics import RobotState
+from fuzzynav.pedestrians import social_force as sf
 from fuzzynav.pedestrians.base import MODELS, model_factory, register_obstacle_model
 from fuzzynav.pedestrians.crowd import Crowd
 from fuzzynav.pedestrians.motion import ObstacleMotion
@@ -145,6 +146,10 @@ def test_a_model_that_returns_the_wrong_shape_is_named(returned, says):
      "dynamic_obstacles[0].model_params.relaxation_s: must be finite"),
     ({"model": "social_force", "model_params": {"sees_robot": "yes"}},
      "dynamic_obstacles[0].model_params.sees_robot: expected true or false"),
+    ({"model": "social_force", "model_params": {"step_ahead": 1}},
+     "dynamic_obstacles[0].model_params.step_ahead: expected a string, got 1"),
+    ({"model": "social_force", "model_params": {"step_ahead": "heading"}},
+     "dynamic_obstacles[0].model_params.step_ahead: unknown value 'heading' (known: velocity, desired_direction)"),
     ({"model": "social_force", "model_params": {"speed": 3}},
      "dynamic_obstacles[0].model_params.speed: unknown parameter of model 'social_force'"),
     ({"model": "orca", "model_params": {"max_neighbors": 2.5}},
@@ -206,6 +211,49 @@ def test_a_walker_repels_more_in_front_of_it_than_behind_it():
     front = agent_repulsion(np.array([90.0, 0.0]), v, 21_000.0, 30.0, 2.0)
     behind = agent_repulsion(np.array([-90.0, 0.0]), v, 21_000.0, 30.0, 2.0)
     assert front[0] > 0 > behind[0] and abs(front[0]) > abs(behind[0])
+
+
+@pytest.mark.parametrize("compiled_kernel", [False, True])
+def test_step_ahead_readings_by_hand(compiled_kernel):
+    """Helbing & Molnár 1995: f = −∇V(b), V = V⁰ e^(−b/σ), 2b = √((‖r‖ + ‖r − v_β Δt e_β‖)² − (v_β Δt)²),
+    so −∇V = V⁰/σ e^(−b/σ) ∇b with ∇b = (‖r‖ + ‖a‖)/(4b) · (r/‖r‖ + a/‖a‖), a = r − v_β Δt e_β.
+    β at the origin walks east at v_β = 30 cm/s (velocity (30, 0)) but wants to go north (preferred velocity
+    (0, 40)); α stands 80 cm north of it (r = (0, 80)); Δt = 2 s, so s = v_β Δt = 60 cm; V⁰/σ = 700 cm/s².
+    - ``velocity``: e_β = (1, 0), a = (−60, 80), ‖a‖ = 100, b = ½√(180² − 60²) = 60√2,
+      ∇b = 180/(240√2) · ((0, 1) + (−0.6, 0.8)) = (0.75/√2)·(−0.6, 1.8): f = 700 e^(−2√2) (0.75/√2)(−0.6, 1.8);
+    - ``desired_direction``: e_β = (0, 1), a = (0, 20), b = ½√(100² − 60²) = 40, ∇b = 100/160 · (0, 2):
+      f = (0, 875 e^(−4/3)) = (0, 230.6), 5.5 times the other reading's 41.6 cm/s², straight away from β's
+      intended path.
+    α stands with no preferred velocity (no driving force, nothing outside its view), so its force is β's
+    repulsion alone. A β that is not of the group (another model's pedestrian, a scripted obstacle, the robot)
+    steps along its velocity in both readings; so does a group member standing with no preferred velocity."""
+    if compiled_kernel and sf._kernel is None:
+        pytest.skip("the compiled kernel is not built")
+    substep_force = sf._substep_force_kernel if compiled_kernel else sf._substep_force_numpy
+    by_velocity = 700.0 * math.exp(-2.0 * math.sqrt(2.0)) * 0.75 / math.sqrt(2.0) * np.array([-0.6, 1.8])
+    by_desire = np.array([0.0, 875.0 * math.exp(-4.0 / 3.0)])
+    x, v, radii = np.array([[0.0, 80.0], [0.0, 0.0]]), np.array([[0.0, 0.0], [30.0, 0.0]]), np.full(2, 20.0)
+    none2, none4, none3 = np.zeros((0, 2)), np.zeros((0, 4)), np.zeros((0, 3))
+    for reading, want in [("velocity", by_velocity), ("desired_direction", by_desire)]:
+        c = sf.SocialForceConfig(step_ahead=reading)
+        cos_fov = math.cos(math.radians(c.fov_deg))
+        group = substep_force(x, v, np.array([[0.0, 0.0], [0.0, 40.0]]), none2, none2, 0.0, radii, none4, none3,
+                              c, cos_fov)
+        assert group[0] == pytest.approx(want, rel=1e-13, abs=1e-13)
+        # β standing with no preferred velocity, or not of this group: its velocity
+        standing = substep_force(x, v, np.zeros((2, 2)), none2, none2, 0.0, radii, none4, none3, c, cos_fov)
+        other = substep_force(x[:1], v[:1], np.zeros((1, 2)), x[1:], v[1:], 0.0, radii[:1], none4, none3, c,
+                              cos_fov)
+        assert standing[0] == pytest.approx(by_velocity, rel=1e-13)
+        assert other[0] == pytest.approx(by_velocity, rel=1e-13)
+    assert (by_desire[1], np.hypot(*by_velocity)) == pytest.approx((230.6, 41.6), abs=0.05)
+
+
+def test_step_ahead_is_checked():
+    assert SocialForceConfig().step_ahead == "velocity"  # the logs' reading
+    with pytest.raises(ValueError, match=r"^step_ahead: unknown value 'desired' \(known: velocity, "
+                                         r"desired_direction\)$"):
+        SocialForceConfig(step_ahead="desired")
 
 
 def test_wall_repulsion_by_hand():

@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fuzzynav.kinematics import RobotLimits, RobotState, step_unicycle
 from fuzzynav.numerics.geometry import segment_point_distance, swept_distance
@@ -158,7 +160,7 @@ def test_overlap_forbids_approaching():
     assert violation(track_line, (-14.0, 0.0)) > 0.0
 
 
-def test_static_returns_are_bounded_nearest_first_and_far_tracks_dropped():
+def test_static_returns_are_bounded_nearest_first_and_every_track_kept():
     wall = np.column_stack([np.full(100, 50.0), np.arange(-250.0, 250.0, 5.0)])
     picked = nearest_static_points(wall, 0.0, 0.0, 110.0, CFG.max_static_points)
     assert len(picked) == CFG.max_static_points
@@ -166,10 +168,62 @@ def test_static_returns_are_bounded_nearest_first_and_far_tracks_dropped():
     assert np.all(np.diff(d) >= 0.0) and tuple(picked[0]) == (50.0, 0.0)
     # reach = τ_obst·v_max + r = 2·40 + 30 = 110 cm: a return at 111 cm cannot matter
     assert len(nearest_static_points(np.array([[111.0, 0.0]]), 0.0, 0.0, 110.0, 32)) == 0
-    far = (Track(1, 400.0, 0.0, -20.0, 0.0, 20.0),)  # (400 − 50)/5 = 70 > 40 + 20
-    near = (Track(1, 300.0, 0.0, -20.0, 0.0, 20.0),)  # (300 − 50)/5 = 50 <= 60
-    assert orca_lines(0.0, 0.0, (25.0, 0.0), far, NO_POINTS, CFG, RADIUS, 40.0, 1.0)[0] == ()
-    assert len(orca_lines(0.0, 0.0, (25.0, 0.0), near, NO_POINTS, CFG, RADIUS, 40.0, 1.0)[0]) == 1
+    # every track adds its line, nearest first, however far (its VO need not meet the speed disc)
+    far = Track(1, 2_000.0, 0.0, -20.0, 0.0, 20.0)
+    near = Track(2, 300.0, 0.0, -20.0, 0.0, 20.0)
+    lines, hard = orca_lines(0.0, 0.0, (25.0, 0.0), (far, near), NO_POINTS, CFG, RADIUS, 40.0, 1.0)
+    assert hard == 0
+    assert lines == tuple(orca_line((t.x, t.y), (25.0 - t.vx, 0.0), 50.0, 5.0, 1.0, 1.0, (25.0, 0.0))
+                          for t in (near, far))
+
+
+def test_far_head_on_track_binds_at_half_reciprocity():
+    """#37 item 10: the robot at rest, a walker 401 cm ahead closing at 30 cm/s, ρ = 0.5. Its VO cannot meet
+    the speed disc ((401 − 50)/5 = 70.2 > 40 + 30, the rule that used to drop it), but the line is placed at
+    ρ·u from the current velocity. By hand: relative velocity (30, 0), cut-off centre p/τ = (80.2, 0),
+    w = (−50.2, 0) with w·p < 0 and (w·p)² > r²|w|², so the cut-off arc is nearest: n = (−1, 0),
+    u = (r/τ − |w|)·n = (40.2, 0), point = 0.5·u = (20.1, 0), direction (0, 1): v_x ≤ 20.1 cm/s, below the
+    preferred 25. RVO2 (pyrvo 0.4.3, single precision) chooses (20.1000, 0) too; the robot used to take 25.
+    At ρ = 1 the same line is v_x ≤ 40.2 and does not bind."""
+    walker = (Track(1, 401.0, 0.0, -30.0, 0.0, 20.0),)
+    half = OrcaConfig(reciprocity=0.5)
+    lines, _ = orca_lines(0.0, 0.0, (0.0, 0.0), walker, NO_POINTS, half, RADIUS, 40.0, 1.0)
+    assert lines[0].point == pytest.approx((20.1, 0.0), abs=1e-12)
+    assert lines[0].direction == pytest.approx((0.0, 1.0), abs=1e-15)
+    a = act(observe(RobotState(0.0, 0.0, 0.0, 0.0), (1_000.0, 0.0), tracks=walker), {"reciprocity": 0.5})
+    assert (a.mode, a.dtheta_deg) == ("orca", 0.0)
+    assert a.v_cm_s == pytest.approx(20.1, abs=1e-12)
+    assert a.fields["vx_cm_s"] == pytest.approx(20.1, abs=1e-12) and a.fields["lines"] == 1
+    assert act(observe(RobotState(0.0, 0.0, 0.0, 0.0), (1_000.0, 0.0), tracks=walker)).v_cm_s == 25.0
+
+
+tracks_st = st.lists(st.tuples(st.floats(60.0, 1_500.0), st.floats(-180.0, 180.0), st.floats(0.0, 60.0),
+                               st.floats(-180.0, 180.0)), min_size=1, max_size=6)
+
+
+@settings(max_examples=300, deadline=None)
+@given(tracks=tracks_st, speed=st.floats(0.0, 40.0), heading=st.floats(-180.0, 180.0),
+       goal_bearing=st.floats(-180.0, 180.0), reciprocity=st.sampled_from([0.5, 0.75, 1.0]))
+def test_chosen_velocity_respects_every_tracks_line(tracks, speed, heading, goal_bearing, reciprocity):
+    """RVO2's rule: the line of every neighbour constrains the choice. For tracks anywhere (60–1500 cm away,
+    any direction, 0–60 cm/s), each track's half-plane, computed on its own, contains the chosen velocity
+    whenever the 2-D program was feasible; the old rule (drop a track whose VO cannot meet the speed disc)
+    broke this at ρ < 1."""
+    def polar(r, deg):
+        return r * math.cos(math.radians(deg)), r * math.sin(math.radians(deg))
+
+    obs_tracks = tuple(Track(i, *polar(d, a), *polar(s, b), 20.0) for i, (d, a, s, b) in enumerate(tracks))
+    velocity = polar(speed, heading)
+    config = OrcaConfig(reciprocity=reciprocity)
+    lines, hard = orca_lines(0.0, 0.0, velocity, obs_tracks, NO_POINTS, config, RADIUS, 40.0, 1.0)
+    assert hard == 0 and len(lines) == len(obs_tracks)
+    result = choose_velocity(lines, hard, 40.0, polar(25.0, goal_bearing))
+    if result.fallback:
+        return
+    for t in obs_tracks:
+        line = orca_line((t.x, t.y), (velocity[0] - t.vx, velocity[1] - t.vy), 50.0, 5.0, 1.0, reciprocity,
+                         velocity)
+        assert violation(line, result.velocity) <= 1e-9, (t, result.velocity)
 
 
 def test_velocity_command_conversion():

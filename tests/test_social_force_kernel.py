@@ -60,14 +60,16 @@ CONFIG_FIELDS = {  # each field's valid range (SocialForceConfig.__post_init__)
 
 @st.composite
 def configs(draw: st.DrawFn) -> sf.SocialForceConfig:
-    """The paper's defaults, or random valid values (bounds included; integers too, as YAML gives them)."""
+    """The paper's defaults, or random valid values (bounds included; integers too, as YAML gives them); either
+    reading of the step ahead."""
+    step_ahead = draw(st.sampled_from(sf.STEP_AHEAD))
     if draw(st.booleans()):
-        return sf.SocialForceConfig()
+        return sf.SocialForceConfig(step_ahead=step_ahead)
     values = {}
     for name, (lo, hi) in CONFIG_FIELDS.items():
         values[name] = draw(st.one_of(st.sampled_from([lo, hi]), st.floats(lo, hi),
                                       st.integers(math.ceil(lo), math.floor(hi))))
-    return sf.SocialForceConfig(**values)
+    return sf.SocialForceConfig(**values, step_ahead=step_ahead)
 
 
 def messy(lo: float, hi: float) -> st.SearchStrategy[float]:
@@ -174,11 +176,12 @@ def random_scene(rng: np.random.Generator) -> tuple:
             t = rng.uniform(0.0, 1.0)
             x[i] = (x0 + t * (x1 - x0) + rng.normal(0.0, 40.0), y0 + t * (y1 - y0) + rng.normal(0.0, 40.0))
     radii = rng.uniform(15.0, 35.0, n)
+    step_ahead = str(rng.choice(sf.STEP_AHEAD))
     if rng.random() < 0.5:
-        config = sf.SocialForceConfig()
+        config = sf.SocialForceConfig(step_ahead=step_ahead)
     else:
         config = sf.SocialForceConfig(**{name: float(rng.uniform(lo, min(hi, 100 * max(lo, 1.0))))
-                                         for name, (lo, hi) in CONFIG_FIELDS.items()})
+                                         for name, (lo, hi) in CONFIG_FIELDS.items()}, step_ahead=step_ahead)
     tau = float(rng.choice([0.0, 0.25, 0.5, 0.75]))
     return x, v, pref, o_pos0, o_vel, tau, radii, segments, circles, config, sin_cos_deg(config.fov_deg)[1]
 
@@ -195,9 +198,9 @@ def test_substep_force_same_bits_random_scenes() -> None:
 def test_substep_force_handmade_cases() -> None:
     """Cases a random draw rarely makes exactly: two pedestrians at one place, a pedestrian on a wall's line, on
     a wall's end, at a circle's centre, on another's path Δt ahead (b = 0), standing with no preferred
-    velocity; no walls or circles at all; an empty group."""
-    c = sf.SocialForceConfig()
-    cos_fov = sin_cos_deg(c.fov_deg)[1]
+    velocity, moving across its preferred velocity; no walls or circles at all; an empty group; both readings
+    of the step ahead."""
+    cos_fov = sin_cos_deg(sf.SocialForceConfig().fov_deg)[1]
     x = np.array([[0.0, 0.0], [0.0, 0.0], [50.0, 0.0], [100.0, 0.0], [300.0, 300.0], [-0.0, 200.0],
                   [10.0, 100.0]])
     v = np.array([[0.0, 0.0], [100.0, 0.0], [-0.0, 0.0], [0.0, -50.0], [0.0, 0.0], [1.0, 1.0], [5.0, 0.0]])
@@ -209,19 +212,22 @@ def test_substep_force_handmade_cases() -> None:
     segments = np.array([[0.0, 0.0, 100.0, 0.0], [100.0, 0.0, 100.0, 0.0], [-0.0, 200.0, -0.0, 400.0]])
     circles = np.array([[300.0, 300.0, 40.0], [0.0, 0.0, 0.0]])
     cases = [(segments, circles), (segments[:0], circles), (segments, circles[:0]), (segments[:0], circles[:0])]
-    for segs, circs in cases:
-        for tau in (0.0, 0.5):
-            for group in (slice(None), slice(0, 1), slice(0, 0)):
-                args = (x[group], v[group], pref[group], o_pos0, o_vel, tau, radii[group], segs, circs, c, cos_fov)
-                with np.errstate(all="ignore"):
-                    want = sf._substep_force_numpy(*args)
-                assert_same_bits(sf._substep_force_kernel(*args), want)
+    for c in (sf.SocialForceConfig(step_ahead=reading) for reading in sf.STEP_AHEAD):
+        for segs, circs in cases:
+            for tau in (0.0, 0.5):
+                for group in (slice(None), slice(0, 1), slice(0, 0)):
+                    args = (x[group], v[group], pref[group], o_pos0, o_vel, tau, radii[group], segs, circs, c,
+                            cos_fov)
+                    with np.errstate(all="ignore"):
+                        want = sf._substep_force_numpy(*args)
+                    assert_same_bits(sf._substep_force_kernel(*args), want)
 
 
-def test_non_finite_inputs_give_nan_where_numpy_does() -> None:
+@pytest.mark.parametrize("step_ahead", sf.STEP_AHEAD)
+def test_non_finite_inputs_give_nan_where_numpy_does(step_ahead: str) -> None:
     """An infinite or NaN position makes NaN or infinite forces in both paths, at the same places (the NaNs'
     payloads are the CPU's, so only their places are compared; every other value bitwise)."""
-    c = sf.SocialForceConfig()
+    c = sf.SocialForceConfig(step_ahead=step_ahead)
     cos_fov = sin_cos_deg(c.fov_deg)[1]
     x = np.array([[0.0, 0.0], [math.inf, 0.0], [10.0, math.nan], [1e200, -1e200], [40.0, 40.0]])
     v = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 0.0], [math.inf, 0.0]])
@@ -244,7 +250,7 @@ def test_kernel_rejects_wrong_buffers() -> None:
     good = [np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((1, 2)), np.zeros((1, 2)), 0.0,
             np.zeros(2), np.zeros((1, 4)), np.zeros((0, 3))]
     floats = [c.relaxation_s, c.agent_strength_cm2_s2, c.agent_range_cm, c.step_time_s, c.wall_strength_cm2_s2,
-              c.wall_range_cm, 0.5, c.fov_weight]
+              c.wall_range_cm, 0.5, c.fov_weight, False]
     sf._kernel.forces(*good, *floats, np.zeros((2, 2)))
     for i, bad in [(0, np.zeros((3, 2))), (2, np.zeros((2, 2), dtype=np.float32)), (4, np.zeros((2, 2))),
                    (6, np.zeros(3)), (7, np.zeros((1, 3))), (3, np.zeros((4, 2))[::2])]:

@@ -143,9 +143,11 @@ static void exp_many(const double *x, double *out, Py_ssize_t n) {
 
 /* forces(x (n, 2), v (n, 2), pref (n, 2), o_pos0 (k, 2), o_vel (k, 2), tau, radii (n,), segments (M, 4),
  *        circles (C, 3), relaxation_s, agent_strength, agent_range, step_time, wall_strength, wall_range,
- *        cos_fov, fov_weight, out (n, 2))
+ *        cos_fov, fov_weight, desired, out (n, 2))
  * The others at this substep are the group (x, v), then the other obstacles at o_pos0 + o_vel * tau moving at
- * o_vel (m = n + k of them). out = (pref - v) / relaxation_s + Σ_j (FOV-weighted pair force of other j)
+ * o_vel (m = n + k of them). Each other's step ahead is its velocity times step_time; with `desired` (the
+ * step_ahead reading desired_direction) a group member with a preferred velocity steps at its speed along that
+ * velocity's direction instead. out = (pref - v) / relaxation_s + Σ_j (FOV-weighted pair force of other j)
  * + Σ_k (force of static item k), each sum left to right (j in that order; k over the segments, then the
  * circles). An empty sum adds nothing (as _substep_force_numpy). */
 static PyObject *forces(PyObject *self, PyObject *args) {
@@ -153,9 +155,10 @@ static PyObject *forces(PyObject *self, PyObject *args) {
     PyObject *objs[9];
     double tau, relaxation_s, agent_strength, agent_range, step_time, wall_strength, wall_range, cos_fov,
         fov_weight;
-    if (!PyArg_ParseTuple(args, "OOOOOdOOOddddddddO", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &tau,
+    int desired;
+    if (!PyArg_ParseTuple(args, "OOOOOdOOOddddddddpO", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &tau,
                           &objs[5], &objs[6], &objs[7], &relaxation_s, &agent_strength, &agent_range, &step_time,
-                          &wall_strength, &wall_range, &cos_fov, &fov_weight, &objs[8]))
+                          &wall_strength, &wall_range, &cos_fov, &fov_weight, &desired, &objs[8]))
         return NULL;
     static const char *what[9] = {"x", "v", "pref", "o_pos0", "o_vel", "radii", "segments", "circles", "out"};
     static const Py_ssize_t widths[9] = {2, 2, 2, 2, 2, 1, 4, 3, 2};
@@ -176,8 +179,8 @@ static PyObject *forces(PyObject *self, PyObject *args) {
     double *out = b[8].buf;
     const Py_ssize_t m = n + n_other, n_static = n_seg + n_circ;
 
-    /* per other j (the numpy path's all_pos / all_vel rows and its (1, m) arrays: the same operations, done
-     * once): position, velocity * step_time and s = norm2(velocity) * step_time; per static item: segments'
+    /* per other j (the numpy path's all_pos / all_step rows and its (1, m) arrays: the same operations, done
+     * once): position, step * step_time and s = norm2(step) * step_time; per static item: segments'
      * a, edge b - a, dd = dot2(edge, edge) and left normal / where(edge_len > 0, edge_len, 1); circles' centre
      * and radius. Then per pedestrian, scratch rows of m + n_static terms. */
     const Py_ssize_t n_pre = 5 * m + 7 * n_static + 5 * (m + n_static) + 1;
@@ -199,6 +202,18 @@ static PyObject *forces(PyObject *self, PyObject *args) {
             py = x[2 * j + 1];
             vx = v[2 * j];
             vy = v[2 * j + 1];
+            if (desired) {
+                /* step = where(speed > 0, e * norm2(v), v), speed = norm2(pref), e = pref / speed (a NaN
+                 * speed fails the comparison, as in numpy) */
+                const double prx = pref[2 * j], pry = pref[2 * j + 1];
+                const double speed = sqrt(prx * prx + pry * pry);
+                if (speed > 0.0) {
+                    const double e_x = prx / speed, e_y = pry / speed;
+                    const double speed_v = sqrt(vx * vx + vy * vy);
+                    vx = e_x * speed_v;
+                    vy = e_y * speed_v;
+                }
+            }
         } else {
             const Py_ssize_t o = j - n;
             vx = o_vel[2 * o];
@@ -208,7 +223,7 @@ static PyObject *forces(PyObject *self, PyObject *args) {
         }
         opx[j] = px;
         opy[j] = py;
-        ovx[j] = vx * step_time; /* other_vel * step_time */
+        ovx[j] = vx * step_time; /* other_vel * step_time (other_vel: all_step's row) */
         ovy[j] = vy * step_time;
         os[j] = sqrt(vx * vx + vy * vy) * step_time; /* norm2(other_vel) * step_time */
     }
@@ -371,8 +386,8 @@ static PyObject *exp_(PyObject *self, PyObject *args) {
 static PyMethodDef methods[] = {
     {"forces", forces, METH_VARARGS,
      "forces(x, v, pref, o_pos0, o_vel, tau, radii, segments, circles, relaxation_s, agent_strength, agent_range, "
-     "step_time, wall_strength, wall_range, cos_fov, fov_weight, out): each pedestrian's force (cm/s²) for one "
-     "substep, into out"},
+     "step_time, wall_strength, wall_range, cos_fov, fov_weight, desired, out): each pedestrian's force (cm/s²) "
+     "for one substep, into out (desired: the step_ahead reading desired_direction)"},
     {"exp", exp_, METH_VARARGS, "exp(x, out): portable_math.exp_array(x) into out"},
     {NULL, NULL, 0, NULL},
 };

@@ -166,10 +166,14 @@ def model_config(name: str, params: Any, field: str) -> Any:
 
 
 def _coerce(hint: Any, value: Any, where: str) -> Any:
-    """``value`` as the parameter's type: bool, int, float, or a tuple of floats (lists in YAML)."""
+    """``value`` as the parameter's type: bool, str, int, float, or a tuple of floats (lists in YAML)."""
     if hint is bool:
         if not isinstance(value, bool):
             raise ValueError(f"{where}: expected true or false, got {show(value)}")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            raise ValueError(f"{where}: expected a string, got {show(value)}")
         return value
     if typing.get_origin(hint) is tuple:
         if not isinstance(value, list | tuple) or len(value) > 1_000:
@@ -194,3 +198,9 @@ def in_range(value: float, name: str, lo: float, hi: float, unit: str = "", lo_o
     if not ok:
         bracket = "(" if lo_open else "["
         raise ValueError(f"{name}: must be in {bracket}{lo:g}, {hi:g}]{' ' + unit if unit else ''}, got {value!r}")
+
+
+def one_of(value: str, name: str, choices: tuple[str, ...]) -> None:
+    """For the config classes' ``__post_init__``: ``ValueError("name: unknown value 'x' (known: a, b)")``."""
+    if value not in choices:
+        raise ValueError(f"{name}: unknown value {show(value)} (known: {', '.join(choices)})")

@@ -7,10 +7,22 @@ Each pedestrian α feels, in cm/s²:
   relaxing within τ: ``(v⁰ e − v) / τ`` (Eq. 2);
 - a **repulsion from every other moving obstacle** β (pedestrians of any model, scripted obstacles, and the
   robot when ``sees_robot``): ``−∇_r V(b)`` with ``V(b) = V⁰ exp(−b/σ)`` (Eq. 4), where b is the semi-minor
-  axis of the ellipse through α's position with foci at β and at β's position a step ``Δt`` ahead
-  (``2b = √((|r| + |r − v_β Δt|)² − (v_β Δt)²)``, Eq. 3, r = r_α − r_β): people keep more room in front of a
-  walker than behind. The gradient is computed in closed form:
-  ``∇_r b = (|r| + |r − v_β Δt|) / (4b) · (r/|r| + (r − v_β Δt)/|r − v_β Δt|)``;
+  axis of the ellipse through α's position with foci at β and at β's position a step ahead
+  (``2b = √((‖r‖ + ‖r − v_β Δt e_β‖)² − (v_β Δt)²)``, Eq. 3, r = r_α − r_β, v_β β's speed): people keep
+  more room in front of a walker than behind. The paper writes the step with e, its symbol for a
+  pedestrian's desired direction (Eq. 1), and describes the ellipse as pointing in the direction of motion;
+  ``step_ahead`` chooses the reading (both keep the step's length ``s = v_β Δt`` at β's actual speed):
+
+  - ``velocity`` (default): e_β is the direction β moves in, so the step is β's velocity vector times Δt;
+  - ``desired_direction``: e_β is β's desired direction (pysocialforce's reading: ``r_ab − Δt·speed_b·e_b``
+    with e_b its desired direction). This model knows it for the pedestrians of its own group (their
+    preferred velocity's direction, as for the field of view); a group member standing with no preferred
+    velocity, the other models' pedestrians, scripted obstacles and the robot step along their velocity as
+    in ``velocity``.
+
+  The readings differ where a pedestrian does not move where it wants to (pushed aside, turning towards its
+  next waypoint). The gradient is computed in closed form, with ``a = r − s e_β``:
+  ``∇_r b = (‖r‖ + ‖a‖) / (4b) · (r/‖r‖ + a/‖a‖)``;
 - a **repulsion from walls and static obstacles** B: ``−∇ U`` with ``U = U⁰ exp(−d/R)`` (Eq. 5), d the gap
   between α's disc and the nearest point of each wall, polygon edge and circle (one term per edge: a corner
   counts twice, which the paper's "nearest point of the border" does not; the difference is a few cm/s²
@@ -42,11 +54,14 @@ import numpy as np
 from fuzzynav.numerics import compiled
 from fuzzynav.numerics.geometry import away_from_static, keep_inside
 from fuzzynav.numerics.portable_math import exp_array, norm2, sequential_sum, sin_cos_deg
-from fuzzynav.pedestrians.base import CrowdView, in_range, register_obstacle_model, substeps
+from fuzzynav.pedestrians.base import CrowdView, in_range, one_of, register_obstacle_model, substeps
 from fuzzynav.pedestrians.intent import Intent
 
 if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle
+
+#: the readings of the other's step ahead in Eq. 3 (module docstring)
+STEP_AHEAD = ("velocity", "desired_direction")
 
 #: floor of b (cm) in the gradient's 1/b (see :func:`agent_repulsion`): 1 cm bounds the factor u/(4b) to a
 #: quarter of the pedestrians' distance in cm
@@ -65,6 +80,9 @@ class SocialForceConfig:
     agent_strength_cm2_s2: float = 21_000.0  # V⁰_αβ
     agent_range_cm: float = 30.0  # σ
     step_time_s: float = 2.0  # Δt, how far ahead the other's step is seen
+    # e_β of the step ahead: β's direction of motion (velocity) or its desired direction (desired_direction,
+    # pysocialforce's reading); the paper's words allow both (module docstring)
+    step_ahead: str = "velocity"
     wall_strength_cm2_s2: float = 100_000.0  # U⁰_αB
     wall_range_cm: float = 20.0  # R
     fov_deg: float = 100.0  # φ, half the angle of sight
@@ -80,6 +98,7 @@ class SocialForceConfig:
         in_range(self.agent_strength_cm2_s2, "agent_strength_cm2_s2", 0, 1e9, "cm²/s²")
         in_range(self.agent_range_cm, "agent_range_cm", 1, 10_000, "cm")
         in_range(self.step_time_s, "step_time_s", 0, 60, "s")
+        one_of(self.step_ahead, "step_ahead", STEP_AHEAD)
         in_range(self.wall_strength_cm2_s2, "wall_strength_cm2_s2", 0, 1e9, "cm²/s²")
         in_range(self.wall_range_cm, "wall_range_cm", 1, 10_000, "cm")
         in_range(self.fov_deg, "fov_deg", 0, 180, "deg")
@@ -93,7 +112,9 @@ class SocialForceConfig:
 def agent_repulsion(rel: np.ndarray, other_vel: np.ndarray, strength: float, range_cm: float,
                     step_time_s: float) -> np.ndarray:
     """−∇_r V(b(r)) (cm/s²) for relative positions ``rel`` = r_α − r_β (…, 2) cm of pedestrians α from others
-    β moving at ``other_vel`` (…, 2) cm/s: Eqs. 3–4 in closed form. Zero where r = 0 (α is β: no direction).
+    β whose step ahead is ``other_vel`` · ``step_time_s`` (``other_vel`` (…, 2) cm/s: β's velocity, or its
+    speed along its desired direction, module docstring): Eqs. 3–4 in closed form. Zero where r = 0 (α is β:
+    no direction).
 
     The paper's b has an infinite gradient on the segment from β to β's position Δt ahead (b = 0 there): b is
     floored at :data:`B_FLOOR_CM` in the factor 1/b, which bounds the push (on the segment itself the two unit
@@ -133,17 +154,20 @@ def _substep_force_numpy(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0:
     (C, 3) cm. ``cos_fov``: cos φ. The reference form (numpy), which :func:`_substep_force_kernel` reproduces
     bit for bit."""
     force = (pref - v) / c.relaxation_s
+    # e: each pedestrian's desired direction (0 for one standing without a preferred velocity)
+    speed = norm2(pref)
+    e = pref / np.where(speed > 0.0, speed, 1.0)[:, None]
+    # the group's steps ahead: at its speed along e in the desired_direction reading, when it has a direction
+    step = np.where((speed > 0.0)[:, None], e * norm2(v)[:, None], v) if c.step_ahead == "desired_direction" else v
     # the group's pedestrians and every other obstacle at this substep; a pedestrian's pair with itself (r = 0)
     # has no direction and gives no force
     all_pos = np.vstack([x, o_pos0 + o_vel * tau]) if len(o_pos0) else x
-    all_vel = np.vstack([v, o_vel]) if len(o_pos0) else v
+    all_step = np.vstack([step, o_vel]) if len(o_pos0) else step
     if len(all_pos):  # (always, but for an empty group with no others: sequential_sum needs a term)
         rel = x[:, None, :] - all_pos[None, :, :]
-        pair_f = agent_repulsion(rel, all_vel[None, :, :], c.agent_strength_cm2_s2, c.agent_range_cm,
+        pair_f = agent_repulsion(rel, all_step[None, :, :], c.agent_strength_cm2_s2, c.agent_range_cm,
                                  c.step_time_s)
         # Eq. 7: a repulsion whose source is outside the angle of sight around e counts c times
-        speed = norm2(pref)
-        e = pref / np.where(speed > 0.0, speed, 1.0)[:, None]
         towards = -(e[:, None, 0] * pair_f[..., 0] + e[:, None, 1] * pair_f[..., 1])
         seen = towards >= norm2(pair_f) * cos_fov
         pair_f = pair_f * np.where(seen, 1.0, c.fov_weight)[..., None]
@@ -165,7 +189,8 @@ def _substep_force_kernel(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0
                    np.ascontiguousarray(o_vel, dtype=f64), tau, np.ascontiguousarray(radii, dtype=f64),
                    np.ascontiguousarray(segments, dtype=f64), np.ascontiguousarray(circles, dtype=f64),
                    c.relaxation_s, c.agent_strength_cm2_s2, c.agent_range_cm, c.step_time_s,
-                   c.wall_strength_cm2_s2, c.wall_range_cm, cos_fov, c.fov_weight, out)
+                   c.wall_strength_cm2_s2, c.wall_range_cm, cos_fov, c.fov_weight,
+                   c.step_ahead == "desired_direction", out)
     return out
 
 

@@ -21,12 +21,17 @@ Each step the policy chooses a velocity (cm/s, world frame) and turns it into th
    - *Static obstacles*: each static laser return is a point (radius 0) with zero velocity, full
      responsibility, ``τ = time_horizon_obst_s`` (RVO2's ``timeHorizonObst``), in place of RVO2's polygon
      edges (the robot senses points, not polygons; a wall is a row of returns a few cm apart, narrower than
-     the robot, so the row of discs closes it). Only returns whose VO can meet the speed disc matter:
-     those nearer than ``τ_obst·v_max + r`` (RVO2's obstacle neighbour range); of these the
-     ``max_static_points`` nearest are used (ties: the earlier return), which bounds the work per step.
-   - A track is dropped when its VO cannot meet the speed disc either (its cut-off circle is farther than
-     ``v_max + |v_o|`` from the relative-velocity origin): its linearised half-plane could still cut the
-     disc and would only restrict the choice for nothing.
+     the robot, so the row of discs closes it). Only returns nearer than ``τ_obst·v_max + r`` are used,
+     RVO2's obstacle neighbour range (those whose VO can meet the speed disc; a farther return's half-plane
+     can still cut the disc, in RVO2 as here); of these the ``max_static_points`` nearest are used (ties:
+     the earlier return), which bounds the work per step.
+   - *Which tracks*: every track adds its half-plane, nearest first — RVO2's neighbour rule
+     (``Agent::computeNeighbors``: the ``maxNeighbors`` nearest agents within ``neighborDist``, each of
+     which adds its ORCA line) with both bounds open, since the laser's range already bounds the tracks
+     and there are few of them. A far track is not dropped because its VO cannot meet the speed disc: the half-plane is
+     placed at ``v + ρ·u``, not on the VO, so with ``ρ < 1`` it lies between the current velocity and the
+     VO and still binds (a walker 401 cm ahead closing at 30 cm/s limits a robot at rest to 20.1 cm/s at
+     ``ρ = 0.5``, as in RVO2; ``docs/policies.md``).
    - *Overlap* (already within ``r``; the margin makes this possible without contact): as RVO2, the cut-off
      circle of the time step ``dt`` replaces that of ``τ`` for tracks, so the robot leaves the overlap
      within one step; for a static return the half-plane is RVO2's obstacle rule, "do not move towards
@@ -135,8 +140,8 @@ def nearest_static_points(points: np.ndarray, x: float, y: float, reach_cm: floa
 def orca_lines(x: float, y: float, velocity: Vec, tracks: Sequence[Track], static_points: np.ndarray,
                config: OrcaConfig, robot_radius: float, v_max: float, dt: float) -> tuple[tuple[Line, ...], int]:
     """(the half-planes, how many of them are static) for a robot at (x, y) (cm) moving at ``velocity``
-    (cm/s): the nearest static returns within reach first, then the tracks whose VO can meet the speed
-    disc, nearest first."""
+    (cm/s): the nearest static returns within reach first, then every track, nearest first (ties in input
+    order; module docstring, step 2)."""
     reach = config.time_horizon_obst_s * v_max + robot_radius + config.margin_cm
     static = nearest_static_points(static_points, x, y, reach, config.max_static_points)
     r_static = robot_radius + config.margin_cm
@@ -146,15 +151,12 @@ def orca_lines(x: float, y: float, velocity: Vec, tracks: Sequence[Track], stati
         if line is not None:
             lines.append(line)
     hard = len(lines)
-    relevant = []
+    # RVO2 adds the line of every neighbour: one whose VO cannot meet the speed disc still binds at ρ < 1
+    neighbours = []
     for index, t in enumerate(tracks):
         rel = (t.x - x, t.y - y)
-        r = robot_radius + t.radius + config.margin_cm
-        centre = hypot(rel[0], rel[1])
-        if (centre - r) / config.time_horizon_s > v_max + t.speed:
-            continue
-        relevant.append((centre, index, rel, r, t))
-    for _, _, rel, r, t in sorted(relevant, key=lambda item: (item[0], item[1])):
+        neighbours.append((hypot(rel[0], rel[1]), index, rel, robot_radius + t.radius + config.margin_cm, t))
+    for _, _, rel, r, t in sorted(neighbours, key=lambda item: (item[0], item[1])):
         lines.append(orca_line(rel, (velocity[0] - t.vx, velocity[1] - t.vy), r, config.time_horizon_s, dt,
                                config.reciprocity, velocity))
     return tuple(lines), hard
