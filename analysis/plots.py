@@ -270,13 +270,18 @@ def draw_world(ax, world: World, margin_cm: float = 20.0) -> None:
 
 def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
     """Robot paths as thin lines in ``color`` (overlapping paths darken each other), contacts as black ``x``;
-    the moving obstacles' true paths dotted in faint red (each distinct path once)."""
+    the moving obstacles' true paths dotted in faint red (each distinct path once), and an obstacle that never
+    moved (a dotted path of no length would not show) as a faint red circle where it stood."""
     seen: set[bytes] = set()
     for trace in traces:
         for path in trace.obstacle_paths:
             key = path.round(1).tobytes()
-            if key not in seen and len(path) > 1:
-                seen.add(key)
+            if key in seen or not len(path):
+                continue
+            seen.add(key)
+            if np.ptp(path, axis=0).max() < 1.0:
+                ax.plot(path[:1, 0], path[:1, 1], "o", mfc="none", color=OBSTACLE, alpha=0.7, ms=4, zorder=2)
+            elif len(path) > 1:
                 ax.plot(path[:, 0], path[:, 1], ":", color=OBSTACLE, alpha=0.5, lw=0.8, zorder=2)
     ax.add_collection(LineCollection([t.positions for t in traces if len(t.positions) > 1], colors=color,
                                      linewidths=lw, alpha=0.7 if len(traces) < 5 else 0.45, zorder=3))
@@ -336,5 +341,6 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     if worlds:
         xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
         size = f"; walls {xmax - xmin:.0f} x {ymax - ymin:.0f} cm"
-    fig.suptitle(f"{scenario}: robot paths of every seed (x: contact; dotted: moving obstacles{size})", fontsize=9)
+    fig.suptitle(f"{scenario}: robot paths of every seed\n(x: contact; dotted: moving obstacles; o: one standing"
+                 f"{size})", fontsize=9)
     return _save(fig, out / f"trajectories_{_file_part(scenario)}.png")
