@@ -49,6 +49,7 @@ from runners.configuration import schema
 from runners.configuration.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
 from runners.logs import yaml_text
 from runners.logs.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
+from runners.logs.provenance import prefetch as prefetch_provenance
 from runners.logs.provenance import provenance
 from runners.sweeping import process_tree, stop
 from runners.sweeping import resume as sweep_resume
@@ -400,6 +401,7 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
             sys.exit(2)
     # Hydra's way below for a config file that sets hydra.mode, and for hydra.verbose (Hydra's debug report)
     if composed and composed[0].hydra.mode is None and not composed[0].hydra.verbose:
+        prefetch_provenance()  # the git commit the log records: looked up while the job starts
         interrupts.defer()  # until the task function: Hydra turns an interrupt inside OmegaConf into its own error
         run_composed(composed[0])
         return
