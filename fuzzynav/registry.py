@@ -16,6 +16,7 @@ is therefore one module (plus its YAML); no list in fuzzynav names it.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import inspect
@@ -54,6 +55,18 @@ def source_digest(obj: Any) -> str:
     return hashlib.sha256(data).hexdigest() if data else ""
 
 
+@functools.cache
+def _installed_entry_points() -> Any:  # EntryPoints (SelectableGroups on Python 3.11)
+    return metadata.entry_points()
+
+
+def entry_points(group: str) -> metadata.EntryPoints:
+    """The entry points of ``group`` of every installed package, as ``importlib.metadata.entry_points(group=...)``
+    gives them; the installed packages' metadata is read once per process (each reading opens every installed
+    distribution's ``entry_points.txt``, ~3 ms, and a run's start looks up four groups)."""
+    return _installed_entry_points().select(group=group)
+
+
 def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
                  registered: Callable[[str], Any]) -> None:
     """Import every public module of ``package`` (they register themselves), then load the entry points of
@@ -69,7 +82,7 @@ def load_plugins(package: str, group: str, register: Callable[[str, Any], None],
         for info in pkgutil.iter_modules(pkg.__path__):
             if not info.name.startswith("_"):
                 importlib.import_module(f"{package}.{info.name}")
-        for entry in metadata.entry_points(group=group):
+        for entry in entry_points(group):
             where = f"entry point {entry.name[:40]!r} of group {group!r} ({entry.value[:80]})"
             try:
                 obj = entry.load()

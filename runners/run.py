@@ -25,7 +25,7 @@ from typing import Any
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from analysis import interrupts
 
@@ -49,6 +49,7 @@ from runners.configuration import schema
 from runners.configuration.run_inputs import ConfigFileError, episode_config, load_evaluator, load_run, load_scenario
 from runners.logs import yaml_text
 from runners.logs.mcap_log import EpisodeLogWriter, LogWriteError, run_metadata
+from runners.logs.provenance import prefetch as prefetch_provenance
 from runners.logs.provenance import provenance
 from runners.sweeping import process_tree, stop
 from runners.sweeping import resume as sweep_resume
@@ -258,8 +259,9 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
     return results
 
 
-@hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="config")  # absolute: any working dir
-def main(cfg: DictConfig) -> list[dict[str, Any]]:
+def task(cfg: DictConfig) -> list[dict[str, Any]]:
+    """The task function of a run (and of each sweep job): run the job, print each episode's line (a run) or
+    one line for a problem, exit non-zero on a failure."""
     logging.raiseExceptions = False  # a job's log file on a full disk must not print a traceback per record
     interrupts.resume()  # a signal during Hydra's start, raised now that Hydra has handed over: one line, 128 + sig
     try:
@@ -296,8 +298,83 @@ def main(cfg: DictConfig) -> list[dict[str, Any]]:
     return results
 
 
+#: Hydra's entry point: composes the config (twice: once to read ``hydra.mode``, once to run) and runs
+#: :func:`task`; a plain single run goes through :func:`run_composed` instead, with the config already composed
+main = hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="config")(task)  # absolute: any cwd
+
+#: ``hydra.job.name`` of a run and of each sweep job: Hydra names it after the task function's file (run.py)
+JOB_NAME = Path(__file__).stem
+
+
+def run_composed(cfg: DictConfig) -> None:
+    """A single run from the config that the command-line check composed (with Hydra's node), as ``hydra.main``
+    runs one: logging configured, the ``hydra.callbacks`` notified, the job run by Hydra's own
+    :func:`hydra.core.utils.run_job` (output directory, ``.hydra/`` snapshot, job logging, ``HydraConfig``).
+    ``hydra.main`` composed the same config twice more (~0.1 s each: once for ``hydra.mode``, once to run); the
+    config Hydra would have composed is this one with ``hydra.mode=RUN`` added, as Hydra adds it."""
+    from hydra import initialize_config_dir
+    from hydra.core.utils import configure_log, run_job
+    from hydra.types import HydraContext
+
+    with open_dict(cfg.hydra):  # what Hydra does for a run whose config leaves hydra.mode unset
+        cfg.hydra.mode = RunMode.RUN
+        cfg.hydra.overrides.hydra.append("hydra.mode=RUN")
+    # Hydra global state as during hydra.main's job (a job's code may compose a config of its own)
+    with initialize_config_dir(config_dir=str(CONF_DIR), job_name=JOB_NAME, version_base="1.3"):
+        configure_log(cfg.hydra.hydra_logging, cfg.hydra.verbose)
+        callbacks = RunCallbacks(cfg)
+        callbacks.on_run_start(config=cfg, config_name="config")
+        ret = run_job(task_function=task, config=cfg, job_dir_key="hydra.run.dir", job_subdir_key=None,
+                      hydra_context=HydraContext(config_loader=None, callbacks=callbacks),  # type: ignore[arg-type]
+                      configure_logging=True)
+        callbacks.on_run_end(config=cfg, config_name="config", job_return=ret)
+    try:
+        ret.return_value  # noqa: B018 -- a job's exception: Hydra's line naming the overrides, then raised
+    except Exception as err:  # as Hydra reports it: the traceback from the task function on, exit 1
+        tb = err.__traceback__
+        while tb is not None and tb.tb_frame.f_code is not task.__code__:
+            tb = tb.tb_next
+        traceback.print_exception(type(err), err, tb or err.__traceback__)
+        print("\nSet the environment variable HYDRA_FULL_ERROR=1 for a complete stack trace.", file=sys.stderr)
+        sys.exit(1)
+
+
+class RunCallbacks:
+    """The ``hydra.callbacks`` of a config, instantiated and notified as Hydra does (a callback that raises an
+    ``Exception`` is a warning; ``on_*_end`` in reverse order)."""
+
+    def __init__(self, cfg: DictConfig) -> None:
+        from hydra.utils import instantiate
+
+        self.callbacks = [instantiate(spec) for spec in (OmegaConf.select(cfg, "hydra.callbacks") or {}).values()]
+
+    def _notify(self, name: str, reverse: bool = False, **kwargs: Any) -> None:
+        import warnings
+
+        for callback in reversed(self.callbacks) if reverse else self.callbacks:
+            try:
+                getattr(callback, name)(**kwargs)
+            except Exception as err:
+                warnings.warn(f"Callback {type(callback).__name__}.{name} raised {type(err).__name__}: {err}",
+                              stacklevel=2)
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._notify("on_run_start", config=config, **kwargs)
+
+    def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
+        self._notify("on_run_end", reverse=True, config=config, **kwargs)
+
+    def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._notify("on_job_start", config=config, **kwargs)
+
+    def on_job_end(self, config: DictConfig, **kwargs: Any) -> None:
+        self._notify("on_job_end", reverse=True, config=config, **kwargs)
+
+
 def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = False) -> None:
-    """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra.
+    """``python -m runners.run``: a one-line error for a bad override or config file, then Hydra. A plain run (config
+    overrides only) is composed once, by the check, and run from that config (:func:`run_composed`); Hydra's
+    options (``--cfg``, ``--info``, ``--help`` ...), ``--debug`` and a sweep go through ``hydra.main``.
     ``on_config`` gets the first config the check composes (see :func:`runners.configuration.precheck.precheck`).
     ``sweep``: called by ``runners.sweep``, which adds ``--multirun``; a user's own ``-m`` is refused in one line
     naming the ``runners.sweep`` command (Hydra's multirun of ``runners.run`` wrote logs but printed no outcome,
@@ -312,16 +389,24 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
         args.remove("--debug")
         sys.argv = [sys.argv[0], *args]
         os.environ["HYDRA_FULL_ERROR"] = "1"
+    composed: list[DictConfig] = []  # a plain single run: the config the check composed, run as it is
     if not debug_requested(args) and "--help" not in args and "-h" not in args:
-        overrides, problem = hydra_overrides(args)
+        overrides, problem, plain_run = hydra_overrides(args)
         if not problem and "--multirun" not in args and "-m" not in args:
             problem = single_run_sweep(overrides)
-        problem = problem or precheck(overrides, on_config, multirun="--multirun" in args or "-m" in args)
+        keep = composed.append if plain_run and not sweep and on_config is None else on_config
+        problem = problem or precheck(overrides, keep, multirun="--multirun" in args or "-m" in args)
         if problem:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)
+    # Hydra's way below for a config file that sets hydra.mode, and for hydra.verbose (Hydra's debug report)
+    if composed and composed[0].hydra.mode is None and not composed[0].hydra.verbose:
+        prefetch_provenance()  # the git commit the log records: looked up while the job starts
+        interrupts.defer()  # until the task function: Hydra turns an interrupt inside OmegaConf into its own error
+        run_composed(composed[0])
+        return
     register_sweeper()
-    interrupts.defer()  # until the task function: Hydra turns an interrupt inside OmegaConf into its own error
+    interrupts.defer()
     main()
 
 
@@ -364,10 +449,12 @@ def single_run_sweep(overrides: list[str]) -> str | None:
     return None
 
 
-def hydra_overrides(args: list[str]) -> tuple[list[str], str | None]:
+def hydra_overrides(args: list[str]) -> tuple[list[str], str | None, bool]:
     """The config overrides among the command-line arguments (as Hydra's own parser reads them: ``--cfg job`` is
-    an option and its value), and one line about the first argument that looks like an option but is none of
-    Hydra's: Hydra printed its 8-line usage for ``--planner.h_wait=2``, a config override written with dashes."""
+    an option and its value), one line about the first argument that looks like an option but is none of
+    Hydra's (Hydra printed its 8-line usage for ``--planner.h_wait=2``, a config override written with dashes),
+    and whether the command is a plain run: overrides only (``--run`` at most: no ``--cfg``, ``--info``,
+    ``--config-dir`` ...) and none of ``hydra.mode``."""
     import io
 
     from hydra._internal.utils import get_args_parser
@@ -376,13 +463,16 @@ def hydra_overrides(args: list[str]) -> tuple[list[str], str | None]:
         with contextlib.redirect_stderr(io.StringIO()):  # a malformed Hydra option: Hydra's own message follows
             known, unknown = get_args_parser().parse_known_args(args)
     except SystemExit:
-        return [a for a in args if not a.startswith("-")], None
+        return [a for a in args if not a.startswith("-")], None, False
     for arg in unknown:
         if arg.startswith("-"):
             bare = arg.lstrip("-")
             hint = f" (a config override has no dashes: {bare[:80]})" if "=" in bare and bare else ""
-            return [], f"{arg[:80]}: unknown option{hint}; see --help"
-    return list(known.overrides) + [a for a in unknown if not a.startswith("-")], None
+            return [], f"{arg[:80]}: unknown option{hint}; see --help", False
+    overrides = list(known.overrides) + [a for a in unknown if not a.startswith("-")]
+    options = not any(value for name, value in vars(known).items() if name not in ("overrides", "run"))
+    mode = any(o.lstrip("+~").partition("=")[0].strip() == "hydra.mode" for o in overrides)
+    return overrides, None, options and not mode
 
 
 def register_sweeper() -> None:

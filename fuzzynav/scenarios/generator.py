@@ -95,9 +95,12 @@ def registered_generators() -> dict[str, Generator]:
 
 def generator_source_digest(name: Any) -> str:
     """SHA-256 of the source of generator ``name``'s module when another package registered it ('' for fuzzynav's
-    own and for unknown names): part of the identity of the episodes it generates the scenarios of."""
+    own and for unknown names and None, a scenario file): part of the identity of the episodes it generates the
+    scenarios of."""
+    if not isinstance(name, str):  # no generator: nothing to load (every episode of a scenario file asks)
+        return ""
     generators = registered_generators()
-    return source_digest(generators[name]) if isinstance(name, str) and name in generators else ""
+    return source_digest(generators[name]) if name in generators else ""
 
 
 def generate(data: Mapping[str, Any], seed: int):

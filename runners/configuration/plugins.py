@@ -19,7 +19,6 @@ from __future__ import annotations
 import importlib
 import re
 from functools import cache
-from importlib import metadata
 from pathlib import Path
 
 from hydra.core.config_search_path import ConfigSearchPath
@@ -27,6 +26,7 @@ from hydra.core.plugins import Plugins
 from hydra.plugins.search_path_plugin import SearchPathPlugin
 
 from fuzzynav.conf import CONF_DIR
+from fuzzynav.registry import entry_points
 
 ENTRY_POINT_GROUP = "fuzzynav.conf"
 _PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
@@ -41,7 +41,7 @@ def plugin_config_dirs() -> tuple[tuple[str, Path], ...]:
     """(package, folder) of every ``fuzzynav.conf`` entry point, sorted by entry-point name (a fixed order, so
     that a composition does not depend on the order packages were installed in)."""
     found = []
-    for entry in sorted(metadata.entry_points(group=ENTRY_POINT_GROUP), key=lambda e: (e.name, e.value)):
+    for entry in sorted(entry_points(ENTRY_POINT_GROUP), key=lambda e: (e.name, e.value)):
         package = entry.value.strip()
         where = f"entry point {entry.name!r} of group {ENTRY_POINT_GROUP!r}"
         if not _PACKAGE.fullmatch(package):

@@ -400,7 +400,9 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
         return problem
     schema.register()
     config_plugins.register()  # other packages' config folders (entry points)
-    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+    # job_name: hydra.job.name as Hydra gives it to runners.run's jobs (the task function's file, run.py): a single
+    # run is run from the config composed here (runners.run.run_composed)
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3", job_name="run"):
         for k, overrides in enumerate(trials):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")

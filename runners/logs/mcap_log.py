@@ -29,7 +29,6 @@ import foxglove
 import numpy as np
 import orjson
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from mcap.reader import make_reader
 
 from analysis.log_format import SCHEMAS, TOPICS
 from fuzzynav.episode import Episode, StepRecord
@@ -386,6 +385,9 @@ def _other_episode(path: Path, identity: tuple[str | None, str | None]) -> str |
     unreadable (a corrupt or partial file is no result to protect)."""
     if not path.is_file():
         return None
+    # imported here: the MCAP reader (~8 ms to import) is needed only where a log is already there
+    from mcap.reader import make_reader
+
     try:
         with open(path, "rb") as f:
             for record in make_reader(f).iter_metadata():
