@@ -11,6 +11,7 @@ these flags and the contacts recomputed from the geometry disagree).
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,13 +76,17 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
     return plots._save(fig, path)
 
 
-def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP,
-            logs_from: Path | None = None) -> tuple[list[Failure], pd.DataFrame]:
-    """Write ``failures.csv`` (every failure; ``first_contact_step`` where its log was read, i.e. in ``traces``:
-    :func:`logs_to_read`; empty for a failure without a flagged contact, a timeout; ``log`` relative to
-    ``logs_from``, the folder ``failures.csv`` ends up in, default ``out``)
-    and a picture ``failure_<scenario>__<variant>__s<seed>.png`` of each failure :func:`shown` picks; returns the
-    pictured failures and the counts per group (``failed``, ``pictured``, ``not pictured``)."""
+def gallery(df: pd.DataFrame, traces: Mapping[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP,
+            logs_from: Path | None = None, contacts: Mapping[str, int | None] | None = None
+            ) -> tuple[list[Failure], pd.DataFrame]:
+    """Write ``failures.csv`` (every failure; ``first_contact_step`` where its log was read, i.e. in ``contacts``,
+    log -> first contact step (default: those of ``traces``): :func:`logs_to_read`; empty for a failure without a
+    flagged contact, a timeout; ``log`` relative to ``logs_from``, the folder ``failures.csv`` ends up in, default
+    ``out``) and a picture ``failure_<scenario>__<variant>__s<seed>.png`` of each failure :func:`shown` picks
+    whose trace is in ``traces``; returns the pictured failures and the counts per group (``failed``,
+    ``pictured``, ``not pictured``)."""
+    if contacts is None:
+        contacts = {log: trace.first_contact_step for log, trace in traces.items()}
     pal = plots.palette(df)
     every = failed(df)
     pictured = set(shown(df, max_per_group).index)
@@ -91,11 +96,12 @@ def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group
     records = every[needed].astype(object).to_dict("records")
     for index, episode in zip(every.index, records, strict=True):
         trace = traces.get(episode["log"])
+        read = episode["log"] in contacts
         row = {"scenario": episode["scenario_label"], "variant": episode["variant"], "seed": episode["seed"],
                "outcome": episode["outcome"], "steps": episode["steps"],
                "collisions_static": episode["collisions_static"], "collisions_dynamic": episode["collisions_dynamic"],
-               "first_contact_step": trace.first_contact_step if trace is not None else None,
-               "log_read": trace is not None,  # False: first_contact_step unknown (not "no contact")
+               "first_contact_step": contacts[episode["log"]] if read else None,
+               "log_read": read,  # False: first_contact_step unknown (not "no contact")
                "log": relative_log(str(episode["log"]), logs_from or out), "picture": ""}
         if index in pictured and trace is not None:
             name = (f"failure_{plots._file_part(episode['scenario_label'])}__{plots._file_part(episode['variant'])}"

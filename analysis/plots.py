@@ -25,12 +25,9 @@ from matplotlib.ticker import MaxNLocator
 from analysis.palette import CONTACT, OBSTACLE, Style, group_styles
 from analysis.run_parameters import SEP
 from analysis.stats import bootstrap_mean, wilson
-from analysis.trace import Trace, World
+from analysis.trace import MAX_SEEDS_PER_PANEL, Trace, World
 
 DPI = 90
-MAX_SEEDS_PER_PANEL = 20
-"""Trajectories drawn per group and scenario (the failed episodes first, then the lowest seeds); the panel's title
-says when there are more."""
 
 
 def panel_episodes(df: pd.DataFrame, max_seeds: int = MAX_SEEDS_PER_PANEL) -> pd.DataFrame:

@@ -41,7 +41,7 @@ from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_wa
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import with_relative_logs, write_tables
 from analysis.tpt_errors import models_of_columns
-from analysis.trace import load_traces
+from analysis.trace import Trace, load_traces
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
            "collisions_static", "collisions_dynamic", "min_clearance_static_cm", "min_clearance_dynamic_cm",
@@ -377,7 +377,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     failures, the paired differences whose interval excludes zero; then the tables behind them."""
     out.mkdir(parents=True, exist_ok=True)
     sources = [str(p) for p in paths]
-    analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance)
+    analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance, traces=True)
     df, grouping = analysis.episodes, analysis.grouping
     excluded = analysis.excluded[["log", "kind", "outcome", "scenario_label", "variant", "reason"]].rename(
         columns={"scenario_label": "scenario"})
@@ -419,8 +419,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
 
     _crowd_sections(report, df, out)
 
-    drawn = plots.panel_episodes(df)
-    traces, unreadable = load_traces([*drawn["log"], *gallery.logs_to_read(df)], jobs)
+    traces, contacts, unreadable = pictured_logs(analysis, jobs)
     report.add("h2", "Trajectories")
     report.add("p", "Per scenario, a panel per group with the robot paths of its seeds (thin lines; up to "
                     f"{plots.MAX_SEEDS_PER_PANEL} per panel: the failed episodes first, then the lowest seeds), "
@@ -433,7 +432,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                         f"analysis?), e.g. {next(iter(unreadable.values()))[:300]}")
 
     report.add("h2", "Failures")
-    failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir)
+    failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir, contacts=contacts)
     n_failed = int(counts["failed"].sum()) if not counts.empty else 0
     read_all = n_failed <= gallery.READ_ALL_MAX
     report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the goal "
@@ -490,6 +489,33 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     _left_out(report, excluded)
     _write(report, out, df, long, paired, tables_dir)
     return report
+
+
+def pictured_logs(analysis: Analysis, jobs: int = -1
+                  ) -> tuple[dict[str, Trace], dict[str, int | None], dict[str, str]]:
+    """What the pictures and ``failures.csv`` need of the logs: (log -> :class:`analysis.trace.Trace` of each
+    episode a trajectory panel or the failures gallery draws, log -> first contact step of each failure whose log
+    the gallery reads (:func:`analysis.gallery.logs_to_read`, and the failures a panel draws), log -> why it could
+    not be read). Taken from the analysis where its reading of the logs kept them (``analyse_logs(...,
+    traces=True)``); the other logs are read again (in ``jobs`` worker processes from
+    :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on)."""
+    df = analysis.episodes
+    drawn = list(plots.panel_episodes(df)["log"])
+    to_draw = list(dict.fromkeys([*drawn, *gallery.shown(df)["log"]]))
+    read_for = {*drawn, *gallery.logs_to_read(df)}
+    to_date = [log for log in gallery.failed(df)["log"] if log in read_for]  # first contact steps
+    have, known = analysis.traces, analysis.first_contacts
+    missing = [log for log in to_draw if log not in have]
+    missing += [log for log in to_date if log not in have and log not in known and log not in missing]
+    read, unreadable = load_traces(missing, jobs) if missing else ({}, {})
+    traces = {log: have[log] if log in have else read[log] for log in to_draw if log in have or log in read}
+    contacts: dict[str, int | None] = {}
+    for log in to_date:
+        if log in have or log in read:
+            contacts[log] = (have[log] if log in have else read[log]).first_contact_step
+        elif log in known and log not in to_draw:
+            contacts[log] = known[log]
+    return traces, contacts, unreadable
 
 
 def _left_out(report: Report, excluded: pd.DataFrame) -> None:
@@ -602,7 +628,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     options = MetricOptions(turn_threshold_deg=args.turn_threshold_deg, near_miss_cm=args.near_miss_cm,
                             stall_speed_cm_s=args.stall_speed_cm_s, personal_space_cm=args.personal_space_cm)
-    analysis = analyse_logs(args.paths, options, jobs=args.jobs, split_provenance=args.split_provenance)
+    analysis = analyse_logs(args.paths, options, jobs=args.jobs, split_provenance=args.split_provenance,
+                            traces=True)
     if analysis.episodes.empty and analysis.excluded.empty:  # an empty report with exit 0 looked like a result
         if not existed:
             with contextlib.suppress(OSError):

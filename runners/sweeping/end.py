@@ -49,7 +49,8 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
             print(f"resume: {superseded} log(s) of episodes this sweep ran again with other code (a changed plug-in "
                   f"or fuzzynav version) kept in {holding_dir(sweep_dir).parent / sweep_resume.SUPERSEDED}, not "
                   "analysed")
-    analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
+    # on the launcher's worker pool, still running; keeping what the report's pictures need (it reads no log again)
+    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True)
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
     if signum is None and not run.errors:
