@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from analysis import plots
+from analysis.drawing import Figures
 from analysis.tables import relative_log
 from analysis.trace import Trace
 
@@ -77,14 +78,14 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
 
 
 def gallery(df: pd.DataFrame, traces: Mapping[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP,
-            logs_from: Path | None = None, contacts: Mapping[str, int | None] | None = None
-            ) -> tuple[list[Failure], pd.DataFrame]:
+            logs_from: Path | None = None, contacts: Mapping[str, int | None] | None = None,
+            figures: Figures | None = None) -> tuple[list[Failure], pd.DataFrame]:
     """Write ``failures.csv`` (every failure; ``first_contact_step`` where its log was read, i.e. in ``contacts``,
     log -> first contact step (default: those of ``traces``): :func:`logs_to_read`; empty for a failure without a
     flagged contact, a timeout; ``log`` relative to ``logs_from``, the folder ``failures.csv`` ends up in, default
     ``out``) and a picture ``failure_<scenario>__<variant>__s<seed>.png`` of each failure :func:`shown` picks
-    whose trace is in ``traces``; returns the pictured failures and the counts per group (``failed``,
-    ``pictured``, ``not pictured``)."""
+    whose trace is in ``traces`` (drawn now, or planned in ``figures``: :mod:`analysis.drawing`); returns the
+    pictured failures and the counts per group (``failed``, ``pictured``, ``not pictured``)."""
     if contacts is None:
         contacts = {log: trace.first_contact_step for log, trace in traces.items()}
     pal = plots.palette(df)
@@ -108,8 +109,12 @@ def gallery(df: pd.DataFrame, traces: Mapping[str, Trace], out: Path, max_per_gr
                     f"__s{episode['seed']}.png")
             contact = (f", contact at step {trace.first_contact_step}" if trace.first_contact_step is not None
                        else "")
-            thumbnail(trace, pal[episode["variant"]].color, f"seed {episode['seed']}: {episode['outcome']}{contact}",
-                      out / name)
+            args = (trace, pal[episode["variant"]].color, f"seed {episode['seed']}: {episode['outcome']}{contact}",
+                    out / name)
+            if figures is None:
+                thumbnail(*args)
+            else:
+                figures.add(thumbnail, *args, cost=0.6)
             row["picture"] = name
             pictures.append(Failure(row=row, picture=name))
         rows.append(row)

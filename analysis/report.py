@@ -35,6 +35,7 @@ import pandas as pd
 from analysis import gallery, plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
 from analysis.density import density_figure, density_table
+from analysis.drawing import Figure, Figures
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.overview import overview
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
@@ -292,7 +293,8 @@ def _bounded(table: pd.DataFrame, csv_name: str, what: str, limit: int = INLINE_
 @dataclass
 class Report:
     """The report's content as blocks, rendered to Markdown and HTML alike. Kinds: ``h2``, ``p``, ``list``,
-    ``table`` (a DataFrame), ``img`` (a PNG's path) and ``gallery`` (a list of
+    ``table`` (a DataFrame), ``img`` (a PNG's path, or a :class:`analysis.drawing.Figure` drawn before the report
+    is rendered) and ``gallery`` (a list of
     :class:`analysis.gallery.Failure`)."""
 
     title: str
@@ -313,7 +315,7 @@ class Report:
             elif kind == "table":
                 lines += [value.to_markdown(index=False) if not value.empty else "_none_", ""]  # type: ignore
             elif kind == "img":
-                lines += [f"![{Path(value).stem}]({Path(value).name})", ""]  # type: ignore[arg-type]
+                lines += [f"![{_image(value).stem}]({_image(value).name})", ""]
             elif kind == "gallery":
                 table = pd.DataFrame([{"picture": f"![{f.picture}]({f.picture})", "scenario": f.row["scenario"],
                                        "group": f.row["variant"], "seed": f.row["seed"], "outcome": f.row["outcome"],
@@ -335,8 +337,8 @@ class Report:
                 body.append(value.to_html(index=False, border=0, classes="t", na_rep="–")  # type: ignore
                             if not value.empty else "<p><em>none</em></p>")  # type: ignore[attr-defined]
             elif kind == "img":
-                name = html.escape(Path(value).name)  # type: ignore[arg-type]
-                body.append(f'<p><img id="{html.escape(Path(value).stem)}" src="{name}" alt="{name}"></p>')
+                name = html.escape(_image(value).name)
+                body.append(f'<p><img id="{html.escape(_image(value).stem)}" src="{name}" alt="{name}"></p>')
             elif kind == "gallery":
                 cards = [f'<figure><img src="{html.escape(f.picture)}" alt="{html.escape(f.picture)}">'
                          f"<figcaption>{html.escape(str(f.row['scenario']))} · {html.escape(str(f.row['variant']))}"
@@ -358,6 +360,15 @@ class Report:
                 f"<style>{style}</style>{check}</head><body>{''.join(body)}</body></html>")
 
 
+def _image(value: object) -> Path:
+    """The file of an ``img`` block: a path, or a :class:`analysis.drawing.Figure` once drawn."""
+    if isinstance(value, Figure):
+        if value.path is None:
+            raise ValueError("the report's figures are rendered before they are drawn")
+        return value.path
+    return Path(value)  # type: ignore[arg-type]
+
+
 def _step(value: object) -> str:
     """A first contact step as text: ``–`` when no contact was flagged (a timeout without contact)."""
     return "–" if value is None or pd.isna(value) else str(int(value))  # type: ignore[arg-type]
@@ -367,8 +378,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                  jobs: int = -1, analysis: Analysis | None = None, split_provenance: bool = False,
                  final_dir: Path | None = None) -> Report:
     """Compute everything and write the report files into ``out``; returns the report content. ``jobs``:
-    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`), for the
-    metrics and for the pictures (from :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on). ``analysis``: the logs
+    worker processes reading the logs (-1: every core; see :func:`analysis.metrics.metrics_table`) and drawing
+    the figures (:mod:`analysis.drawing`). ``analysis``: the logs
     already analysed (the sweep shares it with its summary); ``split_provenance``: logs from different code
     versions form separate groups instead of being pooled with a warning.
 
@@ -400,7 +411,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         return report
     main, long = group_table(df, grouping)
     paired = paired_table(df, grouping)
-    report.add("img", overview(df, long, out))
+    figures = Figures()  # planned where the report shows them, drawn together at the end (in parallel)
+    report.add("img", figures.add(overview, df, long, out, cost=6))
     report.add("p", logs_line + " Groups: every combination of the run parameters that differ among these logs "
                     "(see Run parameters); one colour per group in every figure.")
     report.add("h2", "What the data says")
@@ -412,12 +424,13 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                         "setting of the other differing parameters) with its 95 % interval (success: Wilson; "
                         "others: bootstrap); groups that do not read h_wait as horizontal lines with their interval "
                         "as a band. Every metric per group: groups.csv.")
-        report.add("img", plots.h_wait_effect(df, plots.H_WAIT_METRICS, out))
+        report.add("img", figures.add(plots.h_wait_effect, df, plots.H_WAIT_METRICS, out,
+                                      cost=len(plots.H_WAIT_METRICS) * df["scenario_label"].nunique()))
     else:
         report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
                         "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
 
-    _crowd_sections(report, df, out)
+    _crowd_sections(report, df, out, figures)
 
     traces, contacts, unreadable = pictured_logs(analysis, jobs)
     report.add("h2", "Trajectories")
@@ -425,14 +438,15 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                     f"{plots.MAX_SEEDS_PER_PANEL} per panel: the failed episodes first, then the lowest seeds), "
                     "contacts the simulator flagged as black x, moving obstacles' true paths dotted; axes fitted to "
                     "the walls.")
+    groups = df.groupby("scenario_label", sort=False)["variant"].nunique()
     for scenario in pd.unique(df["scenario_label"]):
-        report.add("img", plots.trajectories(df, scenario, traces, out))
+        report.add("img", figures.add(plots.trajectories, df, scenario, traces, out, cost=0.7 * groups[scenario]))
     if unreadable:
         report.add("p", f"{len(unreadable)} log(s) could not be read again for the pictures (changed since the "
                         f"analysis?), e.g. {next(iter(unreadable.values()))[:300]}")
 
     report.add("h2", "Failures")
-    failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir, contacts=contacts)
+    failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir, contacts=contacts, figures=figures)
     n_failed = int(counts["failed"].sum()) if not counts.empty else 0
     read_all = n_failed <= gallery.READ_ALL_MAX
     report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the goal "
@@ -467,7 +481,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                     "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
     report.add("table", main)
     report.add("h2", "Distributions per variant")
-    report.add("img", plots.box_by_variant(df, BOX_METRICS, out))
+    report.add("img", figures.add(plots.box_by_variant, df, BOX_METRICS, out,
+                                  cost=1.3 * len(BOX_METRICS) * df["scenario_label"].nunique()))
     report.add("h2", "Run parameters")
     others = (f"here {', '.join(grouping.dimensions)}, named in labels by the end of the key"
               if grouping.dimensions else "here none differs")
@@ -487,6 +502,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         if note:
             report.add("p", note)
     _left_out(report, excluded)
+    figures.draw(jobs)  # in worker processes (analysis.drawing)
     _write(report, out, df, long, paired, tables_dir)
     return report
 
@@ -527,7 +543,7 @@ def _left_out(report: Report, excluded: pd.DataFrame) -> None:
         report.add("p", note)
 
 
-def _crowd_sections(report: Report, df: pd.DataFrame, out: Path) -> None:
+def _crowd_sections(report: Report, df: pd.DataFrame, out: Path, figures: Figures) -> None:
     """Crowds: success and clearance against the pedestrian count where a sweep varied it, and the TPT's
     prediction error per obstacle model where logs have reactive pedestrians (each group's mean, never pooled)."""
     table = density_table(df)
@@ -538,7 +554,7 @@ def _crowd_sections(report: Report, df: pd.DataFrame, out: Path) -> None:
                         "its own group (density.csv).")
         table.to_csv(out / "density.csv", index=False)
         colours = {variant: style.color for variant, style in plots.palette(df).items()}
-        report.add("img", density_figure(table, out, colours))
+        report.add("img", figures.add(density_figure, table, out, colours, cost=2))
     by_model = tpt_error_table(df)
     if not by_model.empty:
         report.add("h2", "TPT prediction error by obstacle model")
@@ -608,7 +624,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--personal-space-cm", type=number_in(0.0, 10_000.0, "cm"), default=45.0,
                         help="personal-space radius beyond a moving obstacle's surface (cm, default 45)")
     parser.add_argument("--jobs", type=jobs, default=-1,
-                        help="worker processes reading the logs (default -1: every core; 1: this process only)")
+                        help="worker processes reading the logs and drawing the figures (default -1: every core; 1: "
+                             "this process only)")
     parser.add_argument("--split-provenance", action="store_true",
                         help="logs written by different code (fuzzynav version, git commit, library versions) form "
                              "separate groups (default: pooled, with a warning)")

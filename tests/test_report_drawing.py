@@ -1,0 +1,103 @@
+"""The report's figures drawn together in forked worker processes (analysis.drawing, analysis.forked, issue #36):
+the same files as one process draws, every error raised in the report's process, a dead worker's figures drawn by
+the report's process, no fork where other threads run."""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+import pytest
+
+from analysis import forked
+from analysis.drawing import Figures
+from analysis.report import build_report
+from tests.test_report_layout import many_seeds  # noqa: F401 - a fixture
+
+PARENT = os.getpid()
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(f"{text} by {'parent' if os.getpid() == PARENT else 'worker'}")
+    return path
+
+
+def _fail(path: Path) -> Path:
+    raise OSError(28, "No space left on device", str(path))
+
+
+def _die_in_worker(path: Path) -> Path:
+    if os.getpid() != PARENT:
+        os._exit(3)  # a worker killed while drawing: nothing sent back
+    return _write(path, "redrawn")
+
+
+needs_fork = pytest.mark.skipif(not forked.can_fork(), reason="no fork here (other threads, or no fork)")
+
+
+@needs_fork
+def test_every_figure_is_drawn_once_and_gets_its_file(tmp_path):
+    figures = Figures()
+    planned = [figures.add(_write, tmp_path / f"f{i}.txt", f"figure {i}", cost=i % 3) for i in range(12)]
+    figures.draw(jobs=2)
+    assert [f.path for f in planned] == [tmp_path / f"f{i}.txt" for i in range(12)]
+    texts = [f.path.read_text() for f in planned]
+    assert all(t.startswith(f"figure {i} by ") for i, t in enumerate(texts))
+
+
+@needs_fork
+def test_the_first_error_is_raised_in_the_reports_process_after_the_others_are_drawn(tmp_path):
+    figures = Figures()
+    ok = [figures.add(_write, tmp_path / f"ok{i}.txt", "x") for i in range(4)]
+    figures.add(_fail, tmp_path / "full.png")
+    figures.add(_fail, tmp_path / "second.png")
+    with pytest.raises(OSError) as err:
+        figures.draw(jobs=2)
+    assert err.value.errno == 28 and err.value.filename == str(tmp_path / "full.png")  # type and file kept
+    assert all(f.path is not None and f.path.exists() for f in ok)
+
+
+@needs_fork
+def test_a_dead_workers_figures_are_drawn_by_the_reports_process(tmp_path):
+    figures = Figures()
+    planned = [figures.add(_die_in_worker, tmp_path / f"d{i}.txt", cost=10) for i in range(3)]
+    figures.draw(jobs=2)
+    assert all(f.path is not None and f.path.read_text() == "redrawn by parent" for f in planned)
+
+
+def test_no_worker_is_forked_with_other_threads_running_or_one_job(tmp_path):
+    assert forked.worker_count(1, 10) == 1 and forked.worker_count(-1, 1) == 1 and forked.worker_count(3, 2) == 2
+    stop = threading.Event()
+    thread = threading.Thread(target=stop.wait)
+    thread.start()
+    try:
+        assert not forked.can_fork()
+        figures = Figures()
+        planned = [figures.add(_write, tmp_path / f"t{i}.txt", "x") for i in range(3)]
+        figures.draw(jobs=2)
+        assert all(f.path.read_text() == "x by parent" for f in planned)
+    finally:
+        stop.set()
+        thread.join()
+
+
+@needs_fork
+def test_a_report_drawn_in_workers_is_the_report_drawn_in_one_process(many_seeds, tmp_path):  # noqa: F811
+    outs = {}
+    for jobs in (1, 2):
+        outs[jobs] = tmp_path / f"jobs{jobs}"
+        build_report([many_seeds], outs[jobs], jobs=jobs)
+    names = sorted(p.name for p in outs[1].iterdir())
+    assert names == sorted(p.name for p in outs[2].iterdir()) and sum(n.endswith(".png") for n in names) >= 5
+    for name in names:
+        assert (outs[1] / name).read_bytes() == (outs[2] / name).read_bytes(), name
+
+
+def test_the_collector_is_back_after_drawing(tmp_path):
+    import gc
+
+    figures = Figures()
+    figures.add(_write, tmp_path / "g.txt", "x")
+    figures.draw(jobs=1)
+    assert gc.get_freeze_count() == 0 and gc.isenabled()
