@@ -513,8 +513,7 @@ def pictured_logs(analysis: Analysis, jobs: int = -1
     episode a trajectory panel or the failures gallery draws, log -> first contact step of each failure whose log
     the gallery reads (:func:`analysis.gallery.logs_to_read`, and the failures a panel draws), log -> why it could
     not be read). Taken from the analysis where its reading of the logs kept them (``analyse_logs(...,
-    traces=True)``); the other logs are read again (in ``jobs`` worker processes from
-    :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on)."""
+    traces=True)``); the other logs are read again (in ``jobs`` worker processes: :func:`analysis.logs.read_logs`)."""
     df = analysis.episodes
     drawn = list(plots.panel_episodes(df)["log"])
     to_draw = list(dict.fromkeys([*drawn, *gallery.shown(df)["log"]]))

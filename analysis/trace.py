@@ -141,7 +141,7 @@ def _read_traces(paths: list[Path]) -> list[Trace | str]:
 
 def load_traces(paths: list[str], jobs: int = -1) -> tuple[dict[str, Trace], dict[str, str]]:
     """(log path -> :class:`Trace`, log path -> why it could not be read) for each distinct path; read in ``jobs``
-    worker processes from :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on (-1: every core)."""
+    worker processes (-1: every core; :func:`analysis.logs.read_logs`)."""
     unique = list(dict.fromkeys(paths))
     results = [r for part in read_logs(_read_traces, [Path(p) for p in unique], jobs) for r in part]
     traces = {p: r for p, r in zip(unique, results, strict=True) if isinstance(r, Trace)}

@@ -101,3 +101,15 @@ def test_the_collector_is_back_after_drawing(tmp_path):
     figures.add(_write, tmp_path / "g.txt", "x")
     figures.draw(jobs=1)
     assert gc.get_freeze_count() == 0 and gc.isenabled()
+
+
+@needs_fork
+def test_logs_read_in_forked_workers_give_the_same_analysis_and_traces(many_seeds):  # noqa: F811
+    """24 logs in chunks over 2 processes (analysis.logs.FORK_MIN_LOGS): the same episodes, and the traces each
+    process kept joined into those one process keeps."""
+    from analysis.metrics import analyse_logs
+
+    one, two = analyse_logs([many_seeds], jobs=1, traces=True), analyse_logs([many_seeds], jobs=2, traces=True)
+    assert one.episodes.equals(two.episodes) and one.excluded.equals(two.excluded)
+    assert list(one.traces) == list(two.traces) and one.first_contacts == two.first_contacts
+    assert all((one.traces[log].positions == two.traces[log].positions).all() for log in one.traces)
