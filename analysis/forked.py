@@ -50,11 +50,13 @@ def collector_frozen() -> Iterator[None]:
         gc.unfreeze()
 
 
-def run(work: Callable[[int], Any], count: int, workers: int) -> list[Any]:
+def run(work: Callable[[int], Any], count: int, workers: int, meanwhile: Callable[[], object] | None = None
+        ) -> list[Any]:
     """``work(i)`` for ``i`` in ``range(count)``, in this process and ``workers - 1`` forked workers (see the
     module's docstring; the caller checks :func:`can_fork`). Returns each item's result, or the exception it
     raised (an ``Exception``; an interrupt of this process propagates), in order. Items are taken in order: put
-    the costliest first."""
+    the costliest first. ``meanwhile``: work of this process's own to do once the workers are started, before it
+    takes its share (the report imports matplotlib while its workers read the logs)."""
     ctx = multiprocessing.get_context("fork")
     shared = (ctx.RawValue("i", 0), ctx.Lock())
     children: list[tuple[Any, Any]] = []
@@ -66,6 +68,8 @@ def run(work: Callable[[int], Any], count: int, workers: int) -> list[Any]:
                 child.start()
                 send.close()
                 children.append((child, receive))
+            if meanwhile is not None:
+                meanwhile()
             done = _share(work, count, shared)
             for child, receive in children:
                 with contextlib.suppress(EOFError, OSError):  # a worker that died sent nothing: its items are redone

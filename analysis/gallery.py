@@ -15,10 +15,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import pandas as pd
 
 from analysis import plots
@@ -68,7 +64,7 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
         xmin, ymin, xmax, ymax = world.bounds
         aspect = max(0.25, min(1.5, (ymax - ymin + 40) / max(xmax - xmin + 40, 1e-9)))
     width = 2.45  # inches: 220 px at the report's 90 dpi
-    fig = plt.figure(figsize=(width, width * aspect + 0.25))
+    fig = plots.pyplot().figure(figsize=(width, width * aspect + 0.25))
     ax = fig.add_axes((0.01, 0.01, 0.98, 0.98 - 0.25 / (width * aspect + 0.25)))
     plots.draw_world(ax, world)
     plots.draw_traces(ax, [trace], color, lw=1.4)

@@ -283,12 +283,14 @@ FORK_MIN_LOGS = 16
 this process."""
 
 
-def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1) -> list[T]:
+def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1,
+              meanwhile: Callable[[], object] | None = None) -> list[T]:
     """``read`` applied to consecutive chunks of ``logs``, results in order: in this process, or with ``jobs``
     > 1 (-1: every core) in that many processes: workers forked from this one (:mod:`analysis.forked`) from
     :data:`FORK_MIN_LOGS` logs on, or where this process cannot fork (other threads run: a sweep's launcher)
     joblib's loky pool, which a sweep has already started, from :data:`PARALLEL_MIN_LOGS` logs on. ``read``
-    must be a module-level function (the pool pickles it)."""
+    must be a module-level function (the pool pickles it). ``meanwhile``: work of this process's own, done while
+    forked workers read (not called without them)."""
     from analysis import forked
 
     if jobs == 1 or len(logs) < min(FORK_MIN_LOGS, PARALLEL_MIN_LOGS):
@@ -300,7 +302,7 @@ def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1) 
     size = max(1, -(-len(logs) // (4 * workers)))  # a few chunks per worker balance the load
     chunks = [logs[i:i + size] for i in range(0, len(logs), size)]
     if fork:
-        results = forked.run(lambda k: read(chunks[k]), len(chunks), workers)
+        results = forked.run(lambda k: read(chunks[k]), len(chunks), workers, meanwhile)
         error = next((r for r in results if isinstance(r, BaseException)), None)
         if error is not None:
             raise error

@@ -416,10 +416,10 @@ def _metrics_row(path: Path, options: MetricOptions | None, parameters: Callable
     return row, {}
 
 
-def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int, traces: bool = False
-          ) -> tuple[list[dict], list[dict], KeptTraces | None]:
+def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int, traces: bool = False,
+          meanwhile: Callable[[], object] | None = None) -> tuple[list[dict], list[dict], KeptTraces | None]:
     logs = find_logs(paths)
-    parts = read_logs(functools.partial(_metrics_rows, options=options, traces=traces), logs, jobs)
+    parts = read_logs(functools.partial(_metrics_rows, options=options, traces=traces), logs, jobs, meanwhile)
     rows, excluded = [r for rows, _, _ in parts for r in rows], [e for _, excluded, _ in parts for e in excluded]
     kept = KeptTraces() if traces else None
     for _, _, part in parts:
@@ -485,12 +485,14 @@ class Analysis:
 
 
 def analyse_logs(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1,
-                 split_provenance: bool = False, traces: bool = False) -> Analysis:
+                 split_provenance: bool = False, traces: bool = False,
+                 meanwhile: Callable[[], object] | None = None) -> Analysis:
     """Metrics of every usable log and the group of each episode. The grouping is found over every log whose
     metadata is readable (left-out ones too, so that the summary can count them in their group). ``traces``: also
     keep what the report's pictures need of the logs (:class:`analysis.trace.KeptTraces`), so that a report of this
-    analysis reads each log once."""
-    rows, excluded, kept = _read(paths, options, jobs, traces)
+    analysis reads each log once. ``meanwhile``: work of this process's own, done while workers forked from it read
+    the logs (:func:`analysis.logs.read_logs`; not called without them)."""
+    rows, excluded, kept = _read(paths, options, jobs, traces, meanwhile)
     distinct = {text: json.loads(text) for text in {r[RUN_PARAMETERS] for r in rows + excluded if RUN_PARAMETERS in r}}
     grouping = find_grouping(list(distinct.values()), split_provenance)
     labels = {text: grouping.columns(run) for text, run in distinct.items()}

@@ -388,7 +388,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     failures, the paired differences whose interval excludes zero; then the tables behind them."""
     out.mkdir(parents=True, exist_ok=True)
     sources = [str(p) for p in paths]
-    analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance, traces=True)
+    analysis = analysis or analyse_logs(sources, options, jobs=jobs, split_provenance=split_provenance, traces=True,
+                                        meanwhile=plots.pyplot)  # matplotlib imported while workers read
     df, grouping = analysis.episodes, analysis.grouping
     excluded = analysis.excluded[["log", "kind", "outcome", "scenario_label", "variant", "reason"]].rename(
         columns={"scenario_label": "scenario"})
@@ -645,7 +646,7 @@ def main(argv: list[str] | None = None) -> int:
     options = MetricOptions(turn_threshold_deg=args.turn_threshold_deg, near_miss_cm=args.near_miss_cm,
                             stall_speed_cm_s=args.stall_speed_cm_s, personal_space_cm=args.personal_space_cm)
     analysis = analyse_logs(args.paths, options, jobs=args.jobs, split_provenance=args.split_provenance,
-                            traces=True)
+                            traces=True, meanwhile=plots.pyplot)  # matplotlib imported while workers read
     if analysis.episodes.empty and analysis.excluded.empty:  # an empty report with exit 0 looked like a result
         if not existed:
             with contextlib.suppress(OSError):

@@ -99,7 +99,7 @@ def test_bad_logs_are_left_out_with_a_reason(tmp_path):
 
 
 @pytest.mark.parametrize("workers", ["forked", "joblib"])
-def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch, workers):
+def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch, workers, request):
     """In workers forked from this process (analysis.forked), or in joblib's pool where it cannot fork (a sweep's
     launcher runs threads): the same rows in the same order."""
     import analysis.forked
@@ -112,8 +112,7 @@ def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch, wor
     (tmp_path / "junk.mcap").write_bytes(b"\x00not an mcap" * 10)
     serial_rows, serial_bad = metrics_table([tmp_path])
     if workers == "forked":
-        if not analysis.forked.can_fork():
-            pytest.skip("this process cannot fork (other threads run)")
+        request.getfixturevalue("forkable")  # tests/conftest.py
         monkeypatch.setattr(analysis.logs, "FORK_MIN_LOGS", 1)  # 9 logs in 5 chunks over 2 processes
     else:
         monkeypatch.setattr(analysis.forked, "can_fork", lambda: False)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -18,7 +19,8 @@ from tests.test_report_layout import many_seeds  # noqa: F401 - a fixture
 PARENT = os.getpid()
 
 
-def _write(path: Path, text: str) -> Path:
+def _write(path: Path, text: str, seconds: float = 0.0) -> Path:
+    time.sleep(seconds)
     path.write_text(f"{text} by {'parent' if os.getpid() == PARENT else 'worker'}")
     return path
 
@@ -33,17 +35,18 @@ def _die_in_worker(path: Path) -> Path:
     return _write(path, "redrawn")
 
 
-needs_fork = pytest.mark.skipif(not forked.can_fork(), reason="no fork here (other threads, or no fork)")
+needs_fork = pytest.mark.usefixtures("forkable")  # tests/conftest.py
 
 
 @needs_fork
 def test_every_figure_is_drawn_once_and_gets_its_file(tmp_path):
     figures = Figures()
-    planned = [figures.add(_write, tmp_path / f"f{i}.txt", f"figure {i}", cost=i % 3) for i in range(12)]
+    planned = [figures.add(_write, tmp_path / f"f{i}.txt", f"figure {i}", 0.05, cost=i % 3) for i in range(12)]
     figures.draw(jobs=2)
     assert [f.path for f in planned] == [tmp_path / f"f{i}.txt" for i in range(12)]
     texts = [f.path.read_text() for f in planned]
     assert all(t.startswith(f"figure {i} by ") for i, t in enumerate(texts))
+    assert {t.split(" by ")[1] for t in texts} == {"parent", "worker"}  # both took figures
 
 
 @needs_fork
@@ -113,3 +116,17 @@ def test_logs_read_in_forked_workers_give_the_same_analysis_and_traces(many_seed
     assert one.episodes.equals(two.episodes) and one.excluded.equals(two.excluded)
     assert list(one.traces) == list(two.traces) and one.first_contacts == two.first_contacts
     assert all((one.traces[log].positions == two.traces[log].positions).all() for log in one.traces)
+
+
+def test_matplotlib_is_imported_when_a_figure_is_drawn_not_with_the_report():
+    """The report plans its figures without matplotlib and imports it while its workers read the logs (a quarter
+    of a second that was spent before anything else)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, analysis.report, analysis.gallery, analysis.density, analysis.overview; "
+            "print('matplotlib' in sys.modules); from analysis import plots; plots.plt.figure(); "
+            "import matplotlib; print(matplotlib.get_backend())")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "MPLBACKEND": ""})
+    assert res.returncode == 0 and res.stdout.lower().split() == ["false", "agg"], res.stderr
