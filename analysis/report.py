@@ -673,5 +673,17 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _exit_now(code: int) -> None:
+    """End the command once everything is written and closed, without the interpreter's teardown (freeing every
+    object one by one: 0.13-0.19 s, a tenth of the default sweep's report); where the output cannot be flushed,
+    the ordinary exit reports it."""
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        raise SystemExit(code) from None
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    _exit_now(main())
