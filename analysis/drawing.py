@@ -5,17 +5,36 @@ A figure is planned with :meth:`Figures.add` (the function that draws it and ret
 rough cost) where the report shows it; :meth:`Figures.draw` then draws them all, the costliest first, in workers
 forked from this process (:mod:`analysis.forked`: they inherit the tables and traces, and take the next figure
 as they finish one, this process drawing its share too). Where this process cannot fork (other threads run: a
-sweep's launcher, a notebook) or with ``jobs=1``, every figure is drawn here. Either way the files are the same.
+notebook, a caller's worker pool) or with ``jobs=1``, every figure is drawn here. Either way the files are the
+same.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+import gc
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from analysis import forked
+
+COLLECT_EVERY = 8
+"""Figures a process draws between two runs of the garbage collector, which is off while they are drawn (a
+matplotlib figure is thousands of objects in reference cycles: the collector ran again and again while they were
+built, a tenth of the drawing time; collected every few figures, they do not pile up)."""
+
+
+@contextlib.contextmanager
+def _collector_off() -> Iterator[None]:
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 @dataclass
@@ -47,16 +66,22 @@ class Figures:
         order) is raised once every figure has been tried."""
         order = sorted(range(len(self.planned)), key=lambda i: -self.planned[i].cost)
         workers = forked.worker_count(jobs, len(order)) if forked.can_fork() else 1
+        drawn = [0]  # by this process (each worker counts its own)
 
         def draw(position: int) -> Path:
             figure = self.planned[order[position]]
-            return Path(figure.draw(*figure.args))
+            path = Path(figure.draw(*figure.args))
+            drawn[0] += 1
+            if drawn[0] % COLLECT_EVERY == 0:
+                gc.collect()  # the closed figures' cycles: the collector is off while drawing
+            return path
 
-        if workers > 1:
-            results = forked.run(draw, len(order), workers)
-        else:
-            with forked.collector_frozen():
-                results = [forked.attempt(draw, position) for position in range(len(order))]
+        with _collector_off():
+            if workers > 1:
+                results = forked.run(draw, len(order), workers)
+            else:
+                with forked.collector_frozen():
+                    results = [forked.attempt(draw, position) for position in range(len(order))]
         by_figure = dict(zip(order, results, strict=True))
         for i, result in by_figure.items():
             if isinstance(result, Path):

@@ -124,7 +124,6 @@ def _worker(work: Callable[[int], Any], count: int, shared: tuple[Any, Any], con
     it, or Ctrl-C reaches the whole process group) ends it at once without a word: the report's process says what
     happened."""
     try:
-        gc.enable()
         done = _share(work, count, shared)
         conn.send({i: _travels(r) for i, r in done.items()})
         conn.close()
