@@ -18,14 +18,18 @@ import gc
 import multiprocessing
 import os
 import pickle
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
 
 def can_fork() -> bool:
-    """Whether worker processes can be forked from this process: the platform forks, and no other thread runs."""
-    return "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1
+    """Whether worker processes can be forked from this process: the platform forks safely (not Windows; not macOS,
+    whose system libraries do not survive a fork: Python stopped forking there by default), and no other thread
+    runs."""
+    return (sys.platform != "darwin" and "fork" in multiprocessing.get_all_start_methods()
+            and threading.active_count() == 1)
 
 
 def worker_count(jobs: int, items: int) -> int:
