@@ -130,3 +130,50 @@ def test_matplotlib_is_imported_when_a_figure_is_drawn_not_with_the_report():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                          env={**os.environ, "MPLBACKEND": ""})
     assert res.returncode == 0 and res.stdout.lower().split() == ["false", "agg"], res.stderr
+
+
+STOPPED_WHILE_DRAWING = """
+import os, sys, time
+from pathlib import Path
+from analysis import interrupts, plots
+from analysis.report import main
+interrupts.guard_startup()  # as python -m analysis.report has it
+pids = Path(sys.argv[3])
+
+def slow(fig, path):  # every process that draws says so, then draws for a long time
+    with open(pids, "a") as f:
+        f.write(f"{os.getpid()}\\n")
+    time.sleep(60)
+    return path
+
+plots._save = slow
+main([sys.argv[1], "--out", sys.argv[2], "--jobs", "2"])
+"""
+
+
+@pytest.mark.parametrize("signum, code", [(2, 130), (15, 143)])
+def test_a_report_stopped_while_its_workers_draw_ends_them_with_one_line(many_seeds, tmp_path, signum, code,  # noqa: F811
+                                                                         forkable):
+    """SIGINT or SIGTERM to the report's process while it and its forked workers draw: its workers end with it, one
+    line, exit 128 + signal, no report left behind."""
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+
+    out, pids = tmp_path / "rep", tmp_path / "pids"
+    proc = subprocess.Popen([sys.executable, "-c", STOPPED_WHILE_DRAWING, str(many_seeds), str(out), str(pids)],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while (not pids.exists() or len(pids.read_text().split()) < 2) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    drawing = [int(p) for p in pids.read_text().split()]
+    assert len(drawing) == 2 and proc.pid in drawing  # the report's process and its worker
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert proc.returncode == code and len(lines) == 1 and "stopped before it finished" in lines[0], err
+    worker = next(p for p in drawing if p != proc.pid)
+    with pytest.raises(ProcessLookupError):
+        os.kill(worker, 0)  # ended (and reaped) with the report's process
+    assert not out.exists() or not list(out.iterdir())  # whole or nothing
