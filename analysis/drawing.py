@@ -60,10 +60,11 @@ class Figures:
         self.planned.append(figure)
         return figure
 
-    def draw(self, jobs: int = -1) -> None:
+    def draw(self, jobs: int = -1, meanwhile: Callable[[], object] | None = None) -> None:
         """Draw every planned figure: in ``jobs`` processes (-1: every core; 1: this one only), forked from this one
-        (:mod:`analysis.forked`; in this process alone where it cannot fork). The first error (in the figures'
-        order) is raised once every figure has been tried."""
+        (:mod:`analysis.forked`; in this process alone where it cannot fork). ``meanwhile``: work of this process's
+        own, done while the workers draw (before it draws its share; without workers, before the figures). The
+        first error (in the figures' order) is raised once every figure has been tried."""
         order = sorted(range(len(self.planned)), key=lambda i: -self.planned[i].cost)
         workers = forked.worker_count(jobs, len(order)) if forked.can_fork() else 1
         drawn = [0]  # by this process (each worker counts its own)
@@ -78,8 +79,10 @@ class Figures:
 
         with _collector_off():
             if workers > 1:
-                results = forked.run(draw, len(order), workers)
+                results = forked.run(draw, len(order), workers, meanwhile)
             else:
+                if meanwhile is not None:
+                    meanwhile()
                 with forked.collector_frozen():
                     results = [forked.attempt(draw, position) for position in range(len(order))]
         by_figure = dict(zip(order, results, strict=True))

@@ -411,99 +411,119 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         _write(report, out, df, pd.DataFrame(), pd.DataFrame(), tables_dir)
         return report
     main, long = group_table(df, grouping)
-    paired = paired_table(df, grouping)
-    figures = Figures()  # planned where the report shows them, drawn together at the end (in parallel)
-    report.add("img", figures.add(overview, df, long, out, cost=6))
-    report.add("p", logs_line + " Groups: every combination of the run parameters that differ among these logs "
-                    "(see Run parameters); one colour per group in every figure.")
-    report.add("h2", "What the data says")
-    report.add("list", warnings(df, analysis) + findings(df, paired) + unchanged_by(df, grouping))
-
-    report.add("h2", "Effect of h_wait")
-    if (df.groupby("scenario_label")["variant"].nunique() >= 2).any():
-        report.add("p", "Mean against h_wait for auto (a point per group in its colour, joined by a grey line per "
-                        "setting of the other differing parameters) with its 95 % interval (success: Wilson; "
-                        "others: bootstrap); groups that do not read h_wait as horizontal lines with their interval "
-                        "as a band. Every metric per group: groups.csv.")
-        report.add("img", figures.add(plots.h_wait_effect, df, plots.H_WAIT_METRICS, out,
-                                      cost=len(plots.H_WAIT_METRICS) * df["scenario_label"].nunique()))
-    else:
-        report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
-                        "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
-
-    _crowd_sections(report, df, out, figures)
-
+    # the figures first, drawn in worker processes while this one computes and writes the rest (analysis.drawing)
+    figures = Figures()
+    overview_figure = figures.add(overview, df, long, out, cost=6)
+    h_wait_shown = bool((df.groupby("scenario_label")["variant"].nunique() >= 2).any())
+    h_wait_figure = (figures.add(plots.h_wait_effect, df, plots.H_WAIT_METRICS, out,
+                                 cost=len(plots.H_WAIT_METRICS) * df["scenario_label"].nunique())
+                     if h_wait_shown else None)
+    density = density_table(df)
+    density_figure_ = None
+    if not density.empty:
+        density.to_csv(out / "density.csv", index=False)
+        colours = {variant: style.color for variant, style in plots.palette(df).items()}
+        density_figure_ = figures.add(density_figure, density, out, colours, cost=2)
     traces, contacts, unreadable = pictured_logs(analysis, jobs)
-    report.add("h2", "Trajectories")
-    report.add("p", "Per scenario, a panel per group with the robot paths of its seeds (thin lines; up to "
-                    f"{plots.MAX_SEEDS_PER_PANEL} per panel: the failed episodes first, then the lowest seeds), "
-                    "contacts the simulator flagged as black x, moving obstacles' true paths dotted; axes fitted to "
-                    "the walls.")
     groups = df.groupby("scenario_label", sort=False)["variant"].nunique()
-    for scenario in pd.unique(df["scenario_label"]):
-        report.add("img", figures.add(plots.trajectories, df, scenario, traces, out, cost=0.7 * groups[scenario]))
-    if unreadable:
-        report.add("p", f"{len(unreadable)} log(s) could not be read again for the pictures (changed since the "
-                        f"analysis?), e.g. {next(iter(unreadable.values()))[:300]}")
-
-    report.add("h2", "Failures")
+    trajectory_figures = [figures.add(plots.trajectories, df, scenario, traces, out, cost=0.7 * groups[scenario])
+                          for scenario in pd.unique(df["scenario_label"])]
     failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir, contacts=contacts, figures=figures)
-    n_failed = int(counts["failed"].sum()) if not counts.empty else 0
-    read_all = n_failed <= gallery.READ_ALL_MAX
-    report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the goal "
-                    f"reached after a contact); pictured: the first {gallery.MAX_PER_GROUP} of each group (lowest "
-                    f"seeds), {len(failures)} in all. Every failure with its log: failures.csv, with the first "
-                    "contact step (the first step the simulator flagged as in contact; empty with log_read true: none "
-                    "flagged) "
-                    + ("of each." if read_all else f"of those whose log the pictures read (more than "
-                       f"{gallery.READ_ALL_MAX} failures: the others' logs are not read again; "
-                       "`python -m runners.replay <log>` shows any episode's steps)."))
-    if not counts.empty:
-        report.add("table", counts)
-    report.add("gallery", failures)
+    box_figure = figures.add(plots.box_by_variant, df, BOX_METRICS, out,
+                             cost=1.3 * len(BOX_METRICS) * df["scenario_label"].nunique())
+    paired = pd.DataFrame()
 
-    report.add("h2", "Paired comparisons (same scenario and seed)")
-    significant = paired[paired["excludes_zero"]]
-    report.add("p", f"Differences A − B whose 95 % bootstrap interval excludes zero: {len(significant)} of "
-                    f"{len(paired)} comparisons (variants differing in one factor, on the same scenario and seed). "
-                    "Every comparison, with its interval: paired.csv (also paired.parquet, with units).")
-    if not significant.empty:
-        shown_rows = significant.copy()
-        shown_rows["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in zip(
-            shown_rows["mean_a_minus_b"], shown_rows["ci_low"], shown_rows["ci_high"], strict=True)]
-        table, note = _bounded(shown_rows[["scenario", "A", "B", "metric", "pairs", "mean A−B [95% CI]"]],
-                               "paired.csv (excludes_zero true)", "differences")
-        report.add("table", table)
-        if note:
-            report.add("p", note)
+    def compose() -> None:
+        """The report's text and tables, in the reader's order, with the figures where they show."""
+        nonlocal paired
+        paired = paired_table(df, grouping)
+        report.add("img", overview_figure)
+        report.add("p", logs_line + " Groups: every combination of the run parameters that differ among these "
+                        "logs (see Run parameters); one colour per group in every figure.")
+        report.add("h2", "What the data says")
+        report.add("list", warnings(df, analysis) + findings(df, paired) + unchanged_by(df, grouping))
 
-    report.add("h2", "Outcomes per scenario and variant")
-    report.add("p", "Success = goal reached with no contact before the step limit; 95 % Wilson interval. Other "
-                    "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
-    report.add("table", main)
-    report.add("h2", "Distributions per variant")
-    report.add("img", figures.add(plots.box_by_variant, df, BOX_METRICS, out,
-                                  cost=1.3 * len(BOX_METRICS) * df["scenario_label"].nunique()))
-    report.add("h2", "Run parameters")
-    others = (f"here {', '.join(grouping.dimensions)}, named in labels by the end of the key"
-              if grouping.dimensions else "here none differs")
-    report.add("p", "Episodes are grouped by scenario, strategy and h_wait, and by every other run parameter whose "
-                    f"value differs among these logs ({others}); seeds are pooled.")
-    report.add("table", parameter_table(df, grouping))
-    disagree = df[~df["collision_check_agrees"]]
-    report.add("h2", "Collision cross-check")
-    report.add("p", "Contacts recomputed from the logged geometry agree with the simulator's flags in "
-                    f"{len(df) - len(disagree)} of {len(df)} episodes.")
-    if not disagree.empty:
-        table, note = _bounded(disagree[["log", "scenario_label", "variant", "collisions_static",
-                                         "collisions_logged_static", "collisions_dynamic",
-                                         "collisions_logged_dynamic"]].rename(columns={"scenario_label": "scenario"}),
-                               "episodes.csv (collision_check_agrees false)", "disagreements")
-        report.add("table", table)
-        if note:
-            report.add("p", note)
-    _left_out(report, excluded)
-    figures.draw(jobs)  # in worker processes (analysis.drawing)
+        report.add("h2", "Effect of h_wait")
+        if h_wait_figure is not None:
+            report.add("p", "Mean against h_wait for auto (a point per group in its colour, joined by a grey line "
+                            "per setting of the other differing parameters) with its 95 % interval (success: "
+                            "Wilson; others: bootstrap); groups that do not read h_wait as horizontal lines with "
+                            "their interval as a band. Every metric per group: groups.csv.")
+            report.add("img", h_wait_figure)
+        else:
+            report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
+                            "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
+
+        _crowd_sections(report, df, density_figure_)
+
+        report.add("h2", "Trajectories")
+        report.add("p", "Per scenario, a panel per group with the robot paths of its seeds (thin lines; up to "
+                        f"{plots.MAX_SEEDS_PER_PANEL} per panel: the failed episodes first, then the lowest seeds), "
+                        "contacts the simulator flagged as black x, moving obstacles' true paths dotted; axes fitted "
+                        "to the walls.")
+        for figure in trajectory_figures:
+            report.add("img", figure)
+        if unreadable:
+            report.add("p", f"{len(unreadable)} log(s) could not be read again for the pictures (changed since the "
+                            f"analysis?), e.g. {next(iter(unreadable.values()))[:300]}")
+
+        report.add("h2", "Failures")
+        n_failed = int(counts["failed"].sum()) if not counts.empty else 0
+        read_all = n_failed <= gallery.READ_ALL_MAX
+        report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the "
+                        f"goal reached after a contact); pictured: the first {gallery.MAX_PER_GROUP} of each group "
+                        f"(lowest seeds), {len(failures)} in all. Every failure with its log: failures.csv, with the "
+                        "first contact step (the first step the simulator flagged as in contact; empty with log_read "
+                        "true: none flagged) "
+                        + ("of each." if read_all else f"of those whose log the pictures read (more than "
+                           f"{gallery.READ_ALL_MAX} failures: the others' logs are not read again; "
+                           "`python -m runners.replay <log>` shows any episode's steps)."))
+        if not counts.empty:
+            report.add("table", counts)
+        report.add("gallery", failures)
+
+        report.add("h2", "Paired comparisons (same scenario and seed)")
+        significant = paired[paired["excludes_zero"]]
+        report.add("p", f"Differences A − B whose 95 % bootstrap interval excludes zero: {len(significant)} of "
+                        f"{len(paired)} comparisons (variants differing in one factor, on the same scenario and "
+                        "seed). Every comparison, with its interval: paired.csv (also paired.parquet, with units).")
+        if not significant.empty:
+            shown_rows = significant.copy()
+            shown_rows["mean A−B [95% CI]"] = [_fmt(m, lo, hi, 2) for m, lo, hi in zip(
+                shown_rows["mean_a_minus_b"], shown_rows["ci_low"], shown_rows["ci_high"], strict=True)]
+            table, note = _bounded(shown_rows[["scenario", "A", "B", "metric", "pairs", "mean A−B [95% CI]"]],
+                                   "paired.csv (excludes_zero true)", "differences")
+            report.add("table", table)
+            if note:
+                report.add("p", note)
+
+        report.add("h2", "Outcomes per scenario and variant")
+        report.add("p", "Success = goal reached with no contact before the step limit; 95 % Wilson interval. Other "
+                        "columns: mean [95 % percentile bootstrap interval]. Every metric: groups.csv.")
+        report.add("table", main)
+        report.add("h2", "Distributions per variant")
+        report.add("img", box_figure)
+        report.add("h2", "Run parameters")
+        others = (f"here {', '.join(grouping.dimensions)}, named in labels by the end of the key"
+                  if grouping.dimensions else "here none differs")
+        report.add("p", "Episodes are grouped by scenario, strategy and h_wait, and by every other run parameter "
+                        f"whose value differs among these logs ({others}); seeds are pooled.")
+        report.add("table", parameter_table(df, grouping))
+        disagree = df[~df["collision_check_agrees"]]
+        report.add("h2", "Collision cross-check")
+        report.add("p", "Contacts recomputed from the logged geometry agree with the simulator's flags in "
+                        f"{len(df) - len(disagree)} of {len(df)} episodes.")
+        if not disagree.empty:
+            columns = ["log", "scenario_label", "variant", "collisions_static", "collisions_logged_static",
+                       "collisions_dynamic", "collisions_logged_dynamic"]
+            table, note = _bounded(disagree[columns].rename(columns={"scenario_label": "scenario"}),
+                                   "episodes.csv (collision_check_agrees false)", "disagreements")
+            report.add("table", table)
+            if note:
+                report.add("p", note)
+        _left_out(report, excluded)
+
+    figures.draw(jobs, meanwhile=compose)
     _write(report, out, df, long, paired, tables_dir)
     return report
 
@@ -543,18 +563,16 @@ def _left_out(report: Report, excluded: pd.DataFrame) -> None:
         report.add("p", note)
 
 
-def _crowd_sections(report: Report, df: pd.DataFrame, out: Path, figures: Figures) -> None:
-    """Crowds: success and clearance against the pedestrian count where a sweep varied it, and the TPT's
-    prediction error per obstacle model where logs have reactive pedestrians (each group's mean, never pooled)."""
-    table = density_table(df)
-    if not table.empty:
+def _crowd_sections(report: Report, df: pd.DataFrame, density: Figure | None) -> None:
+    """Crowds: success and clearance against the pedestrian count where a sweep varied it (``density``: its figure,
+    planned with density.csv written), and the TPT's prediction error per obstacle model where logs have reactive
+    pedestrians (each group's mean, never pooled)."""
+    if density is not None:
         report.add("h2", "Crowd density")
         report.add("p", "Success rate (Wilson 95 % interval) and minimum clearance to moving obstacles (bootstrap "
                         "95 % interval, cm) against the number of pedestrians: one point per group, every count "
                         "its own group (density.csv).")
-        table.to_csv(out / "density.csv", index=False)
-        colours = {variant: style.color for variant, style in plots.palette(df).items()}
-        report.add("img", figures.add(density_figure, table, out, colours, cost=2))
+        report.add("img", density)
     by_model = tpt_error_table(df)
     if not by_model.empty:
         report.add("h2", "TPT prediction error by obstacle model")

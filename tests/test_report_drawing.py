@@ -38,11 +38,14 @@ def _die_in_worker(path: Path) -> Path:
 needs_fork = pytest.mark.usefixtures("forkable")  # tests/conftest.py
 
 
+
 @needs_fork
 def test_every_figure_is_drawn_once_and_gets_its_file(tmp_path):
     figures = Figures()
     planned = [figures.add(_write, tmp_path / f"f{i}.txt", f"figure {i}", 0.05, cost=i % 3) for i in range(12)]
-    figures.draw(jobs=2)
+    meanwhile: list[int] = []  # the report's text, composed in this process while the workers draw
+    figures.draw(jobs=2, meanwhile=lambda: meanwhile.append(os.getpid()))
+    assert meanwhile == [PARENT]
     assert [f.path for f in planned] == [tmp_path / f"f{i}.txt" for i in range(12)]
     texts = [f.path.read_text() for f in planned]
     assert all(t.startswith(f"figure {i} by ") for i, t in enumerate(texts))
@@ -78,7 +81,7 @@ def test_no_worker_is_forked_with_other_threads_running_or_one_job(tmp_path):
         assert not forked.can_fork()
         figures = Figures()
         planned = [figures.add(_write, tmp_path / f"t{i}.txt", "x") for i in range(3)]
-        figures.draw(jobs=2)
+        figures.draw(jobs=2, meanwhile=lambda: not list(tmp_path.glob("t*.txt")) or pytest.fail("drawn before"))
         assert all(f.path.read_text() == "x by parent" for f in planned)
     finally:
         stop.set()
