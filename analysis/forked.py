@@ -54,13 +54,14 @@ def collector_frozen() -> Iterator[None]:
         gc.unfreeze()
 
 
-def run(work: Callable[[int], Any], count: int, workers: int, meanwhile: Callable[[], object] | None = None
-        ) -> list[Any]:
+def run(work: Callable[[int], Any], count: int, workers: int, meanwhile: Callable[[], object] | None = None,
+        pack: Callable[[dict[int, Any]], dict[int, Any]] | None = None) -> list[Any]:
     """``work(i)`` for ``i`` in ``range(count)``, in this process and ``workers - 1`` forked workers (see the
     module's docstring; the caller checks :func:`can_fork`). Returns each item's result, or the exception it
     raised (an ``Exception``; an interrupt of this process propagates), in order. Items are taken in order: put
     the costliest first. ``meanwhile``: work of this process's own to do once the workers are started, before it
-    takes its share (the report imports matplotlib while its workers read the logs)."""
+    takes its share (the report imports matplotlib while its workers read the logs). ``pack``: applied in each
+    worker to its results ({item: result}) before they are sent back, to shrink what travels."""
     ctx = multiprocessing.get_context("fork")
     shared = (ctx.RawValue("i", 0), ctx.Lock())
     children: list[tuple[Any, Any]] = []
@@ -68,7 +69,7 @@ def run(work: Callable[[int], Any], count: int, workers: int, meanwhile: Callabl
         try:
             for _ in range(workers - 1):
                 receive, send = ctx.Pipe(duplex=False)
-                child = ctx.Process(target=_worker, args=(work, count, shared, send), daemon=True)
+                child = ctx.Process(target=_worker, args=(work, count, shared, send, pack), daemon=True)
                 child.start()
                 send.close()
                 children.append((child, receive))
@@ -123,12 +124,15 @@ def _travels(result: Any) -> Any:
         return RuntimeError(f"{type(result).__name__}: {result}")
 
 
-def _worker(work: Callable[[int], Any], count: int, shared: tuple[Any, Any], conn: Any) -> None:
+def _worker(work: Callable[[int], Any], count: int, shared: tuple[Any, Any], conn: Any,
+            pack: Callable[[dict[int, Any]], dict[int, Any]] | None = None) -> None:
     """A forked worker: items until none is left, then {item: result} sent back. An interrupt (this process ends
     it, or Ctrl-C reaches the whole process group) ends it at once without a word: the report's process says what
     happened."""
     try:
         done = _share(work, count, shared)
+        if pack is not None:
+            done = pack(done)
         conn.send({i: _travels(r) for i, r in done.items()})
         conn.close()
     except BaseException:

@@ -284,13 +284,15 @@ this process."""
 
 
 def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1,
-              meanwhile: Callable[[], object] | None = None) -> list[T]:
+              meanwhile: Callable[[], object] | None = None,
+              pack: Callable[[dict[int, Any]], dict[int, Any]] | None = None) -> list[T]:
     """``read`` applied to consecutive chunks of ``logs``, results in order: in this process, or with ``jobs``
     > 1 (-1: every core) in that many processes: workers forked from this one (:mod:`analysis.forked`) from
     :data:`FORK_MIN_LOGS` logs on, or where this process cannot fork (other threads run: a sweep's launcher)
     joblib's loky pool, which a sweep has already started, from :data:`PARALLEL_MIN_LOGS` logs on. ``read``
     must be a module-level function (the pool pickles it). ``meanwhile``: work of this process's own, done while
-    forked workers read (not called without them)."""
+    forked workers read (not called without them); ``pack``: applied by each forked worker to its results (chunk
+    index -> result) before they travel back (:func:`analysis.forked.run`)."""
     from analysis import forked
 
     if jobs == 1 or len(logs) < min(FORK_MIN_LOGS, PARALLEL_MIN_LOGS):
@@ -302,7 +304,7 @@ def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1,
     size = max(1, -(-len(logs) // (4 * workers)))  # a few chunks per worker balance the load
     chunks = [logs[i:i + size] for i in range(0, len(logs), size)]
     if fork:
-        results = forked.run(lambda k: read(chunks[k]), len(chunks), workers, meanwhile)
+        results = forked.run(lambda k: read(chunks[k]), len(chunks), workers, meanwhile, pack)
         error = next((r for r in results if isinstance(r, BaseException)), None)
         if error is not None:
             raise error

@@ -419,7 +419,8 @@ def _metrics_row(path: Path, options: MetricOptions | None, parameters: Callable
 def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int, traces: bool = False,
           meanwhile: Callable[[], object] | None = None) -> tuple[list[dict], list[dict], KeptTraces | None]:
     logs = find_logs(paths)
-    parts = read_logs(functools.partial(_metrics_rows, options=options, traces=traces), logs, jobs, meanwhile)
+    parts = read_logs(functools.partial(_metrics_rows, options=options, traces=traces), logs, jobs, meanwhile,
+                      _join_kept if traces else None)
     rows, excluded = [r for rows, _, _ in parts for r in rows], [e for _, excluded, _ in parts for e in excluded]
     kept = KeptTraces() if traces else None
     for _, _, part in parts:
@@ -427,6 +428,24 @@ def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int,
             kept.merge(part)
     rows, excluded = _copies_for_lost_logs(logs, rows, excluded, options, kept)
     return rows, excluded, kept
+
+
+def _join_kept(done: dict[int, Any]) -> dict[int, Any]:
+    """In a forked worker, before its chunks' results travel back: the traces each chunk kept (up to 20 per run
+    configuration each) joined into its first chunk's (20 per run configuration in all), so that a worker sends
+    back at most what the report keeps, however many chunks it read."""
+    first: KeptTraces | None = None
+    out: dict[int, Any] = {}
+    for i in sorted(done):
+        result = done[i]
+        if isinstance(result, tuple) and isinstance(result[2], KeptTraces):
+            if first is None:
+                first = result[2]
+            else:
+                first.merge(result[2])
+                result = (result[0], result[1], None)
+        out[i] = result
+    return out
 
 
 def _copies_for_lost_logs(logs: list[Path], rows: list[dict], excluded: list[dict], options: MetricOptions | None,
