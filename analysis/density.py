@@ -12,10 +12,6 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import pandas as pd
 
 from analysis.stats import bootstrap_mean, wilson
@@ -62,6 +58,9 @@ def density_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] 
     variant (``colors``: variant -> matplotlib colour, the report's palette). None for an empty table."""
     if table.empty:
         return None
+    from analysis.plots import pyplot
+
+    plt = pyplot()
     scenarios = list(pd.unique(table["scenario"]))
     fig, axes = plt.subplots(len(scenarios), 2, figsize=(9.0, 3.0 * len(scenarios)), squeeze=False,
                              layout="constrained")

@@ -11,16 +11,14 @@ these flags and the contacts recomputed from the geometry disagree).
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import pandas as pd
 
 from analysis import plots
+from analysis.drawing import Figures
 from analysis.tables import relative_log
 from analysis.trace import Trace
 
@@ -66,7 +64,7 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
         xmin, ymin, xmax, ymax = world.bounds
         aspect = max(0.25, min(1.5, (ymax - ymin + 40) / max(xmax - xmin + 40, 1e-9)))
     width = 2.45  # inches: 220 px at the report's 90 dpi
-    fig = plt.figure(figsize=(width, width * aspect + 0.25))
+    fig = plots.pyplot().figure(figsize=(width, width * aspect + 0.25))
     ax = fig.add_axes((0.01, 0.01, 0.98, 0.98 - 0.25 / (width * aspect + 0.25)))
     plots.draw_world(ax, world)
     plots.draw_traces(ax, [trace], color, lw=1.4)
@@ -75,13 +73,17 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
     return plots._save(fig, path)
 
 
-def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP,
-            logs_from: Path | None = None) -> tuple[list[Failure], pd.DataFrame]:
-    """Write ``failures.csv`` (every failure; ``first_contact_step`` where its log was read, i.e. in ``traces``:
-    :func:`logs_to_read`; empty for a failure without a flagged contact, a timeout; ``log`` relative to
-    ``logs_from``, the folder ``failures.csv`` ends up in, default ``out``)
-    and a picture ``failure_<scenario>__<variant>__s<seed>.png`` of each failure :func:`shown` picks; returns the
+def gallery(df: pd.DataFrame, traces: Mapping[str, Trace], out: Path, max_per_group: int = MAX_PER_GROUP,
+            logs_from: Path | None = None, contacts: Mapping[str, int | None] | None = None,
+            figures: Figures | None = None) -> tuple[list[Failure], pd.DataFrame]:
+    """Write ``failures.csv`` (every failure; ``first_contact_step`` where its log was read, i.e. in ``contacts``,
+    log -> first contact step (default: those of ``traces``): :func:`logs_to_read`; empty for a failure without a
+    flagged contact, a timeout; ``log`` relative to ``logs_from``, the folder ``failures.csv`` ends up in, default
+    ``out``) and a picture ``failure_<scenario>__<variant>__s<seed>.png`` of each failure :func:`shown` picks
+    whose trace is in ``traces`` (drawn now, or planned in ``figures``: :mod:`analysis.drawing`); returns the
     pictured failures and the counts per group (``failed``, ``pictured``, ``not pictured``)."""
+    if contacts is None:
+        contacts = {log: trace.first_contact_step for log, trace in traces.items()}
     pal = plots.palette(df)
     every = failed(df)
     pictured = set(shown(df, max_per_group).index)
@@ -91,19 +93,24 @@ def gallery(df: pd.DataFrame, traces: dict[str, Trace], out: Path, max_per_group
     records = every[needed].astype(object).to_dict("records")
     for index, episode in zip(every.index, records, strict=True):
         trace = traces.get(episode["log"])
+        read = episode["log"] in contacts
         row = {"scenario": episode["scenario_label"], "variant": episode["variant"], "seed": episode["seed"],
                "outcome": episode["outcome"], "steps": episode["steps"],
                "collisions_static": episode["collisions_static"], "collisions_dynamic": episode["collisions_dynamic"],
-               "first_contact_step": trace.first_contact_step if trace is not None else None,
-               "log_read": trace is not None,  # False: first_contact_step unknown (not "no contact")
+               "first_contact_step": contacts[episode["log"]] if read else None,
+               "log_read": read,  # False: first_contact_step unknown (not "no contact")
                "log": relative_log(str(episode["log"]), logs_from or out), "picture": ""}
         if index in pictured and trace is not None:
             name = (f"failure_{plots._file_part(episode['scenario_label'])}__{plots._file_part(episode['variant'])}"
                     f"__s{episode['seed']}.png")
             contact = (f", contact at step {trace.first_contact_step}" if trace.first_contact_step is not None
                        else "")
-            thumbnail(trace, pal[episode["variant"]].color, f"seed {episode['seed']}: {episode['outcome']}{contact}",
-                      out / name)
+            args = (trace, pal[episode["variant"]].color, f"seed {episode['seed']}: {episode['outcome']}{contact}",
+                    out / name)
+            if figures is None:
+                thumbnail(*args)
+            else:
+                figures.add(thumbnail, *args, cost=0.6)
             row["picture"] = name
             pictures.append(Failure(row=row, picture=name))
         rows.append(row)

@@ -275,23 +275,45 @@ def not_json(path: Path, topic: str, err: orjson.JSONDecodeError) -> LogError:
     return LogError(f"{path}: a {topic} message is not valid JSON ({err})", "schema")
 
 
-PARALLEL_MIN_LOGS = 200  # fewer logs are read in this process: starting worker processes costs about a second
+PARALLEL_MIN_LOGS = 200
+"""With joblib's worker pool (where this process cannot fork), fewer logs are read in this process: starting its
+workers costs about a second."""
+FORK_MIN_LOGS = 16
+"""With workers forked from this process (:mod:`analysis.forked`: a few milliseconds each), fewer logs are read in
+this process."""
 
 
-def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1) -> list[T]:
+def read_logs(read: Callable[[list[Path]], T], logs: list[Path], jobs: int = 1,
+              meanwhile: Callable[[], object] | None = None,
+              pack: Callable[[dict[int, Any]], dict[int, Any]] | None = None) -> list[T]:
     """``read`` applied to consecutive chunks of ``logs``, results in order: in this process, or with ``jobs``
-    > 1 (-1: every core) in that many worker processes (joblib's loky backend, whose pool a sweep has already
-    started) when there are at least ``PARALLEL_MIN_LOGS`` logs. ``read`` must be a module-level function."""
-    if jobs == 1 or len(logs) < PARALLEL_MIN_LOGS:
-        return [read(logs)]
-    from joblib import Parallel, cpu_count, delayed
+    > 1 (-1: every core) in that many processes: workers forked from this one (:mod:`analysis.forked`) from
+    :data:`FORK_MIN_LOGS` logs on, or where this process cannot fork (other threads run: a sweep's launcher)
+    joblib's loky pool, which a sweep has already started, from :data:`PARALLEL_MIN_LOGS` logs on. ``read``
+    must be a module-level function (the pool pickles it). ``meanwhile``: work of this process's own, done while
+    forked workers read (not called without them); ``pack``: applied by each forked worker to its results (chunk
+    index -> result) before they travel back (:func:`analysis.forked.run`)."""
+    from analysis import forked
 
-    workers = cpu_count() if jobs < 0 else jobs
+    if jobs == 1 or len(logs) < min(FORK_MIN_LOGS, PARALLEL_MIN_LOGS):
+        return [read(logs)]
+    fork = forked.can_fork() and len(logs) >= FORK_MIN_LOGS
+    if not fork and len(logs) < PARALLEL_MIN_LOGS:
+        return [read(logs)]
+    workers = forked.worker_count(jobs, len(logs))
     size = max(1, -(-len(logs) // (4 * workers)))  # a few chunks per worker balance the load
+    chunks = [logs[i:i + size] for i in range(0, len(logs), size)]
+    if fork:
+        results = forked.run(lambda k: read(chunks[k]), len(chunks), workers, meanwhile, pack)
+        error = next((r for r in results if isinstance(r, BaseException)), None)
+        if error is not None:
+            raise error
+        return results
+    from joblib import Parallel, delayed
+
     # max_nbytes=None as Hydra's joblib launcher sets it: with equal settings loky reuses the sweep's worker
     # pool instead of starting a new one (only paths travel to the workers: nothing to memory-map)
-    return Parallel(n_jobs=workers, max_nbytes=None)(delayed(read)(logs[i:i + size])
-                                                     for i in range(0, len(logs), size))
+    return Parallel(n_jobs=workers, max_nbytes=None)(delayed(read)(chunk) for chunk in chunks)
 
 
 def episode_summary(path: Path) -> dict[str, Any]:

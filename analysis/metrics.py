@@ -13,7 +13,7 @@ import functools
 import json
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import chain
 from operator import itemgetter
 from pathlib import Path
@@ -28,6 +28,7 @@ from analysis.log_inputs import find_logs
 from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import ADE_PREFIX, FDE_PREFIX, STANDING_MODELS, model_columns, obstacle_models, tpt_errors
+from analysis.trace import KeptTraces, Trace
 from fuzzynav.numerics.geometry import swept_distance, wrap_180
 from fuzzynav.numerics.portable_math import bearing_deg, dist, norm2
 
@@ -355,13 +356,17 @@ def _detour_extra(pos: np.ndarray, modes: list[str]) -> float:
     return extra
 
 
-def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[list[dict], list[dict]]:
+def _metrics_rows(paths: list[Path], options: MetricOptions | None, traces: bool = False
+                  ) -> tuple[list[dict], list[dict], KeptTraces | None]:
     """Metrics rows of the usable logs among ``paths``, in order, and the logs left out with their outcome (when
     unread: ``skipped`` on purpose — a copy, a conflict, not a regular file — else ``unreadable``), their ``kind``
     and the reason. Each row and left-out log whose metadata could be read
     carries its run parameters as JSON text in ``RUN_PARAMETERS``: identical texts (episodes of one
-    configuration) are one object, so a worker sends each configuration once per chunk."""
+    configuration) are one object, so a worker sends each configuration once per chunk. With ``traces``, the
+    third item keeps what the report's pictures need of these logs (:class:`analysis.trace.KeptTraces`), else it
+    is None."""
     rows, excluded = [], []
+    kept = KeptTraces() if traces else None
     texts: dict[str, str] = {}
 
     def parameters(log: EpisodeLog) -> str:
@@ -376,17 +381,19 @@ def _metrics_rows(paths: list[Path], options: MetricOptions | None) -> tuple[lis
 
     for path in paths:
         with collector_paused():
-            row, left_out = _metrics_row(path, options, parameters, seed)
+            row, left_out = _metrics_row(path, options, parameters, seed, kept)
         if row is not None:
             rows.append(row)
         else:
             excluded.append(left_out)
-    return rows, excluded
+    return rows, excluded, kept
 
 
 def _metrics_row(path: Path, options: MetricOptions | None, parameters: Callable[[EpisodeLog], str],
-                 seed: Callable[[EpisodeLog], int | None]) -> tuple[dict | None, dict]:
-    """One log's metrics row, or (None, the log left out and why): see :func:`_metrics_rows`."""
+                 seed: Callable[[EpisodeLog], int | None], kept: KeptTraces | None = None
+                 ) -> tuple[dict | None, dict]:
+    """One log's metrics row, or (None, the log left out and why): see :func:`_metrics_rows`; a usable episode is
+    offered to ``kept``."""
     try:
         log = load_episode(path)
     except LogError as err:
@@ -404,18 +411,45 @@ def _metrics_row(path: Path, options: MetricOptions | None, parameters: Callable
                       "kind": log.outcome, "reason": why}
     row = episode_metrics(log, options)
     row[RUN_PARAMETERS] = parameters(log)
+    if kept is not None:
+        kept.offer(row[RUN_PARAMETERS], row["success"], row["seed"], log, row["log"])
     return row, {}
 
 
-def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int) -> tuple[list[dict], list[dict]]:
+def _read(paths: Iterable[str | Path], options: MetricOptions | None, jobs: int, traces: bool = False,
+          meanwhile: Callable[[], object] | None = None) -> tuple[list[dict], list[dict], KeptTraces | None]:
     logs = find_logs(paths)
-    parts = read_logs(functools.partial(_metrics_rows, options=options), logs, jobs)
-    rows, excluded = [r for rows, _ in parts for r in rows], [e for _, excluded in parts for e in excluded]
-    return _copies_for_lost_logs(logs, rows, excluded, options)
+    parts = read_logs(functools.partial(_metrics_rows, options=options, traces=traces), logs, jobs, meanwhile,
+                      _join_kept if traces else None)
+    rows, excluded = [r for rows, _, _ in parts for r in rows], [e for _, excluded, _ in parts for e in excluded]
+    kept = KeptTraces() if traces else None
+    for _, _, part in parts:
+        if kept is not None and part is not None:
+            kept.merge(part)
+    rows, excluded = _copies_for_lost_logs(logs, rows, excluded, options, kept)
+    return rows, excluded, kept
 
 
-def _copies_for_lost_logs(logs: list[Path], rows: list[dict], excluded: list[dict], options: MetricOptions | None
-                          ) -> tuple[list[dict], list[dict]]:
+def _join_kept(done: dict[int, Any]) -> dict[int, Any]:
+    """In a forked worker, before its chunks' results travel back: the traces each chunk kept (up to 20 per run
+    configuration each) joined into its first chunk's (20 per run configuration in all), so that a worker sends
+    back at most what the report keeps, however many chunks it read."""
+    first: KeptTraces | None = None
+    out: dict[int, Any] = {}
+    for i in sorted(done):
+        result = done[i]
+        if isinstance(result, tuple) and isinstance(result[2], KeptTraces):
+            if first is None:
+                first = result[2]
+            else:
+                first.merge(result[2])
+                result = (result[0], result[1], None)
+        out[i] = result
+    return out
+
+
+def _copies_for_lost_logs(logs: list[Path], rows: list[dict], excluded: list[dict], options: MetricOptions | None,
+                          kept: KeptTraces | None = None) -> tuple[list[dict], list[dict]]:
     """The log counted for an episode among identical copies was chosen (and verified) before the metrics read
     it; if it cannot be read by then (deleted or damaged while the report ran), its next readable copy is counted
     instead: the episode counts once, not zero times. The lost log stays in the left-out list with its reason."""
@@ -427,9 +461,11 @@ def _copies_for_lost_logs(logs: list[Path], rows: list[dict], excluded: list[dic
         return rows, excluded
     for entry in [e for e in excluded if e["log"] in copies and e["kind"] not in SKIPPED_KINDS]:
         for copy in copies[entry["log"]]:
-            found, _ = _metrics_rows([Path(str(copy))], options)
+            found, _, copy_kept = _metrics_rows([Path(str(copy))], options, kept is not None)
             if found:
                 rows.extend(found)
+                if kept is not None and copy_kept is not None:
+                    kept.merge(copy_kept)
                 excluded = [e for e in excluded if e["log"] != str(copy)]
                 entry["reason"] = f"{entry['reason']} (its copy {copy} is counted instead)"
                 break
@@ -443,7 +479,7 @@ def metrics_table(paths: Iterable[str | Path], options: MetricOptions | None = N
 
     ``jobs`` > 1 (or -1: every core) reads the logs in that many worker processes when there are many
     (:func:`analysis.logs.read_logs`); the result is the same as with ``jobs=1``."""
-    rows, excluded = _read(paths, options, jobs)
+    rows, excluded, _ = _read(paths, options, jobs)
     table = pd.DataFrame(rows)
     return (table.drop(columns=[RUN_PARAMETERS], errors="ignore"),
             pd.DataFrame(excluded, columns=["log", "kind", "reason"]))
@@ -454,19 +490,28 @@ class Analysis:
     """Episodes of a set of logs with their groups: ``episodes`` has the metrics, each group dimension's value
     (full key), ``scenario_label``, ``variant`` and ``setting`` (see :class:`Grouping`), rows in the groups'
     natural order then by seed; ``excluded`` the logs left out (log, outcome, kind, reason, and their labels
-    when the metadata was readable); ``runs`` one parameter dict per episode row."""
+    when the metadata was readable); ``runs`` one parameter dict per episode row; ``traces`` and
+    ``first_contacts`` what the report's pictures need, kept from the same reading of the logs
+    (``analyse_logs(..., traces=True)``: :class:`analysis.trace.KeptTraces`; empty otherwise, and the report reads
+    the logs it pictures)."""
 
     episodes: pd.DataFrame
     excluded: pd.DataFrame
     grouping: Grouping
     runs: list[dict[str, Any]]
+    traces: dict[str, Trace] = field(default_factory=dict)
+    first_contacts: dict[str, int | None] = field(default_factory=dict)
 
 
 def analyse_logs(paths: Iterable[str | Path], options: MetricOptions | None = None, jobs: int = 1,
-                 split_provenance: bool = False) -> Analysis:
+                 split_provenance: bool = False, traces: bool = False,
+                 meanwhile: Callable[[], object] | None = None) -> Analysis:
     """Metrics of every usable log and the group of each episode. The grouping is found over every log whose
-    metadata is readable (left-out ones too, so that the summary can count them in their group)."""
-    rows, excluded = _read(paths, options, jobs)
+    metadata is readable (left-out ones too, so that the summary can count them in their group). ``traces``: also
+    keep what the report's pictures need of the logs (:class:`analysis.trace.KeptTraces`), so that a report of this
+    analysis reads each log once. ``meanwhile``: work of this process's own, done while workers forked from it read
+    the logs (:func:`analysis.logs.read_logs`; not called without them)."""
+    rows, excluded, kept = _read(paths, options, jobs, traces, meanwhile)
     distinct = {text: json.loads(text) for text in {r[RUN_PARAMETERS] for r in rows + excluded if RUN_PARAMETERS in r}}
     grouping = find_grouping(list(distinct.values()), split_provenance)
     labels = {text: grouping.columns(run) for text, run in distinct.items()}
@@ -479,7 +524,9 @@ def analyse_logs(paths: Iterable[str | Path], options: MetricOptions | None = No
                               "kind": e["kind"], "reason": e["reason"]} for e in excluded],
                             columns=["log", "outcome", *EPISODE_PARAMETERS, "scenario_label", "variant", "kind",
                                      "reason"])
-    return Analysis(episodes, left_out, grouping, runs)
+    if kept is None:
+        return Analysis(episodes, left_out, grouping, runs)
+    return Analysis(episodes, left_out, grouping, runs, kept.traces(), kept.contacts)
 
 
 def left_out_counts(excluded: pd.DataFrame) -> str:

@@ -2,35 +2,49 @@
 
 Every figure draws one series per group (variant label from :mod:`analysis.run_parameters`), so each value of a
 differing run parameter is its own point, box or panel, in the group's colour from :mod:`analysis.palette` (the
-same in every figure of a report). PNGs are small (90 dpi): a report of many scenarios stays light."""
+same in every figure of a report). PNGs are small (90 dpi): a report of many scenarios stays light. matplotlib is
+imported when the first figure is drawn (:func:`pyplot`), not with this module: the report plans its figures
+without it, and imports it while its worker processes read the logs."""
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import re
 from pathlib import Path
+from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.collections import LineCollection, PatchCollection
-from matplotlib.patches import Circle
-from matplotlib.patches import Polygon as PolygonPatch
-from matplotlib.ticker import MaxNLocator
 
 from analysis.palette import CONTACT, OBSTACLE, Style, group_styles
 from analysis.run_parameters import SEP
 from analysis.stats import bootstrap_mean, wilson
-from analysis.trace import Trace, World
+from analysis.trace import MAX_SEEDS_PER_PANEL, Trace, World
 
 DPI = 90
-MAX_SEEDS_PER_PANEL = 20
-"""Trajectories drawn per group and scenario (the failed episodes first, then the lowest seeds); the panel's title
-says when there are more."""
+
+
+@functools.cache
+def pyplot() -> Any:
+    """matplotlib's ``pyplot`` on the Agg backend (files only), with the parts the figures use, imported on first
+    use (a quarter of a second)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.collections
+    import matplotlib.patches
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    return plt
+
+
+def __getattr__(name: str) -> Any:
+    if name == "plt":  # plots.plt, as when pyplot was imported with this module
+        return pyplot()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def panel_episodes(df: pd.DataFrame, max_seeds: int = MAX_SEEDS_PER_PANEL) -> pd.DataFrame:
@@ -69,7 +83,7 @@ def _file_part(label: str) -> str:
 def _save(fig, path: Path) -> Path:
     """Write a figure and free it (one place, so that tests can look at every figure before it is saved)."""
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    pyplot().close(fig)
     return path
 
 
@@ -97,7 +111,7 @@ def grid(rows: int, cols: int, panel_w: float, panel_h: float, left: float = 0.7
     several times and made a report's figures take most of its time."""
     width = left + right + cols * panel_w + (cols - 1) * wspace
     height = top + bottom + rows * panel_h + (rows - 1) * hspace
-    fig, axes = plt.subplots(rows, cols, figsize=(width, height), squeeze=False, **kwargs)
+    fig, axes = pyplot().subplots(rows, cols, figsize=(width, height), squeeze=False, **kwargs)
     fig.subplots_adjust(left=left / width, right=1 - right / width, top=1 - top / height, bottom=bottom / height,
                         wspace=wspace / panel_w, hspace=hspace / panel_h)
     return fig, axes
@@ -218,6 +232,8 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
 
 def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
     """``box_metrics.png``: a row per metric, a column per scenario group, a box per group in its colour."""
+    from matplotlib.ticker import MaxNLocator
+
     pal = palette(df)
     variants = list(pal)
     scenarios = list(pd.unique(df["scenario_label"]))
@@ -255,6 +271,10 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
 def draw_world(ax, world: World, margin_cm: float = 20.0) -> None:
     """Walls, static obstacles and the goal; the axes fitted to the walls (plus ``margin_cm``), so that paths of
     moving obstacles that start or end outside the world do not shrink it."""
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Circle
+    from matplotlib.patches import Polygon as PolygonPatch
+
     if world.polygons:
         ax.add_collection(PatchCollection([PolygonPatch(p, closed=True) for p in world.polygons], color="0.65",
                                           lw=0, zorder=1))
@@ -272,6 +292,8 @@ def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
     """Robot paths as thin lines in ``color`` (overlapping paths darken each other), contacts as black ``x``;
     the moving obstacles' true paths dotted in faint red (each distinct path once), and an obstacle that never
     moved (a dotted path of no length would not show) as a faint red circle where it stood."""
+    from matplotlib.collections import LineCollection
+
     seen: set[bytes] = set()
     for trace in traces:
         for path in trace.obstacle_paths:

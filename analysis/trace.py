@@ -8,15 +8,20 @@ it: :func:`load_traces` reads every log the figures need in one pass.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import bisect
+import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from analysis.episode_log import load_episode
+from analysis.episode_log import EpisodeLog, load_episode
 from analysis.logs import LogError, read_logs
 
 TRACE_TOPICS = ("/scene", "/robot/state", "/obstacles/truth")
+MAX_SEEDS_PER_PANEL = 20
+"""Trajectories drawn per group and scenario (the failed episodes first, then the lowest seeds); the panel's title
+says when there are more (:mod:`analysis.plots`)."""
 
 
 @dataclass(frozen=True)
@@ -54,7 +59,20 @@ class Trace:
 
 def read_trace(path: str | Path) -> Trace:
     """The :class:`Trace` of one log (:class:`analysis.logs.LogError` if it cannot be read)."""
-    log = load_episode(path, TRACE_TOPICS)
+    return trace_of(load_episode(path, TRACE_TOPICS), path)
+
+
+def first_contact_step(log: EpisodeLog) -> int | None:
+    """The logged step number of the first step the simulator flagged as in contact (None: none flagged), as
+    :attr:`Trace.first_contact_step`."""
+    return next((int(s["step"]) for s in log.states if s["contact_static"] or s["contact_dynamic"]), None)
+
+
+def trace_of(log: EpisodeLog, path: str | Path | None = None) -> Trace:
+    """The :class:`Trace` of an episode already loaded (with at least :data:`TRACE_TOPICS`): the metrics pass makes
+    the pictures' traces from the logs it reads, so that the report does not read them again. ``path``: the log's
+    name as given (default ``log.path``)."""
+    path = log.path if path is None else path
     flagged = [k for k, s in enumerate(log.states) if s["contact_static"] or s["contact_dynamic"]]
     paths: dict[str, list[tuple[float, float]]] = {}
     for message in log.truth:
@@ -66,6 +84,47 @@ def read_trace(path: str | Path) -> Trace:
                  first_contact_step=int(log.states[flagged[0]]["step"]) if flagged else None,
                  obstacle_paths=tuple(np.asarray(p, dtype=float) for p in paths.values()), world=world,
                  robot_radius_cm=log.robot_radius, outcome=log.outcome, steps=log.steps)
+
+
+@dataclass
+class KeptTraces:
+    """What the report's pictures need of the logs, kept while the metrics pass reads them, so that the report does
+    not read them again (:func:`analysis.metrics.analyse_logs` with ``traces=True``): per run configuration (the
+    run-parameters text of an episode; a group of the report is one or more of them) the :class:`Trace` of its
+    first ``per_run`` episodes in a trajectory panel's order (failed first, then by seed, then by log), which hold
+    every episode a panel (:data:`MAX_SEEDS_PER_PANEL` per group) or the failures gallery pictures; and the first
+    contact step of every failed episode (``failures.csv``). Its size is bounded whatever the number of logs, and
+    it pickles (worker processes send theirs back, :meth:`merge` joins them). A log the report needs that is not
+    here is read again: keeping less costs time, never a picture."""
+
+    per_run: int = MAX_SEEDS_PER_PANEL
+    runs: dict[str, list[tuple[tuple, Trace]]] = field(default_factory=dict)
+    contacts: dict[str, int | None] = field(default_factory=dict)
+
+    def offer(self, run: str, success: bool, seed: int | None, log: EpisodeLog, name: str) -> None:
+        """One usable episode of run configuration ``run``, its log ``name`` loaded as ``log``."""
+        if not success:
+            self.contacts[name] = first_contact_step(log)
+        self._insert(run, (bool(success), math.inf if seed is None else seed, name), None, log)
+
+    def _insert(self, run: str, key: tuple, trace: Trace | None, log: EpisodeLog | None = None) -> None:
+        kept = self.runs.setdefault(run, [])
+        if len(kept) >= self.per_run and key >= kept[-1][0]:
+            return  # not among the first: no Trace made
+        bisect.insort(kept, (key, trace if trace is not None else trace_of(log, key[2])),  # type: ignore[arg-type]
+                      key=lambda entry: entry[0])
+        del kept[self.per_run:]
+
+    def merge(self, other: KeptTraces) -> None:
+        """Add what another part of the logs kept."""
+        self.contacts.update(other.contacts)
+        for run, entries in other.runs.items():
+            for key, trace in entries:
+                self._insert(run, key, trace)
+
+    def traces(self) -> dict[str, Trace]:
+        """Log -> :class:`Trace` of every kept episode."""
+        return {trace.log: trace for entries in self.runs.values() for _key, trace in entries}
 
 
 def _read_traces(paths: list[Path]) -> list[Trace | str]:
@@ -82,7 +141,7 @@ def _read_traces(paths: list[Path]) -> list[Trace | str]:
 
 def load_traces(paths: list[str], jobs: int = -1) -> tuple[dict[str, Trace], dict[str, str]]:
     """(log path -> :class:`Trace`, log path -> why it could not be read) for each distinct path; read in ``jobs``
-    worker processes from :data:`analysis.logs.PARALLEL_MIN_LOGS` logs on (-1: every core)."""
+    worker processes (-1: every core; :func:`analysis.logs.read_logs`)."""
     unique = list(dict.fromkeys(paths))
     results = [r for part in read_logs(_read_traces, [Path(p) for p in unique], jobs) for r in part]
     traces = {p: r for p, r in zip(unique, results, strict=True) if isinstance(r, Trace)}

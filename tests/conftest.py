@@ -35,6 +35,21 @@ def require_compiled(module: object, name: str) -> None:
                 allow_module_level=True)
 
 
+@pytest.fixture
+def forkable() -> None:
+    """This process without other threads, so that the analysis forks its workers (analysis.forked): joblib's
+    worker pool, which an earlier test may have started (its threads stay), is shut down; skipped where the
+    process still cannot fork."""
+    from joblib.externals.loky import reusable_executor
+
+    from analysis import forked
+
+    if reusable_executor._executor is not None:
+        reusable_executor._executor.shutdown(wait=True)
+    if not forked.can_fork():
+        pytest.skip("this process cannot fork (other threads run, or no fork on this platform)")
+
+
 def load_yaml(path: Path) -> dict:
     with open(path) as f:
         return yaml.safe_load(f)

@@ -353,7 +353,7 @@ def test_sweep_plots_have_one_series_per_margin(margin_sweep, tmp_path, monkeypa
         return path
 
     monkeypatch.setattr(plots, "_save", spy)
-    build_report([out], tmp_path / "rep")
+    build_report([out], tmp_path / "rep", jobs=1)  # every figure drawn in this process, where the spy sees it
     assert set(seen) == {p.name for p in (out / "report").glob("*.png")}  # the same figures as the sweep's
     assert {"overview.png", "h_wait_effect.png", "box_metrics.png", "trajectories_head_on.png"} <= set(seen)
     series = {f"auto · safety_margin_cm={m}" for m in MARGINS}  # h_wait_effect: auto's line per margin

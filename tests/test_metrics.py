@@ -98,7 +98,11 @@ def test_bad_logs_are_left_out_with_a_reason(tmp_path):
     assert "junk.mcap" in reasons["junk.mcap"]
 
 
-def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch):
+@pytest.mark.parametrize("workers", ["forked", "joblib"])
+def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch, workers, request):
+    """In workers forked from this process (analysis.forked), or in joblib's pool where it cannot fork (a sweep's
+    launcher runs threads): the same rows in the same order."""
+    import analysis.forked
     import analysis.logs
 
     for k in range(6):
@@ -107,7 +111,12 @@ def test_parallel_metrics_table_equals_the_serial_one(tmp_path, monkeypatch):
     write_log(tmp_path / "cut.mcap", square_poses(), truncate=True)
     (tmp_path / "junk.mcap").write_bytes(b"\x00not an mcap" * 10)
     serial_rows, serial_bad = metrics_table([tmp_path])
-    monkeypatch.setattr(analysis.logs, "PARALLEL_MIN_LOGS", 1)  # 9 logs in 5 chunks over 2 workers
+    if workers == "forked":
+        request.getfixturevalue("forkable")  # tests/conftest.py
+        monkeypatch.setattr(analysis.logs, "FORK_MIN_LOGS", 1)  # 9 logs in 5 chunks over 2 processes
+    else:
+        monkeypatch.setattr(analysis.forked, "can_fork", lambda: False)
+        monkeypatch.setattr(analysis.logs, "PARALLEL_MIN_LOGS", 1)  # 9 logs in 5 chunks over 2 workers
     rows, bad = metrics_table([tmp_path], jobs=2)
     assert len(rows) == 6 and len(bad) == 3
     assert rows.equals(serial_rows) and bad.equals(serial_bad)  # same rows, same order

@@ -87,6 +87,74 @@ def test_the_report_opens_with_the_overview_and_pictures_each_failure(crash_logs
     assert html.index('<img id="overview" src="overview.png"') < html.index("<h2>")
 
 
+@pytest.fixture
+def many_seeds(tmp_path):
+    """One group on 24 seeds, more than a trajectory panel draws, failing (into a box) on seeds 5, 17 and 22: the
+    panel draws the failed first, so seed 22 is drawn and seeds 18-23 that reached the goal are not."""
+    box = [(200, -40), (300, -40), (300, 40), (200, 40)]
+    for seed in range(24):
+        if seed in (5, 17, 22):
+            write_log(tmp_path / f"crash_{seed}.mcap", [(100, 0, 0), (150, 0, 0), (190, 0, 0), (200, 0, 0)],
+                      statics=[box], goal=(400.0, 0.0), contacts_static=[False, True, True], outcome="collision",
+                      meta=meta(seed=seed))
+        else:
+            write_log(tmp_path / f"ok_{seed}.mcap", [(0, 0, 0), (50, 0, 0), (100, 0, 0)], goal=(100.0, 0.0),
+                      meta=meta(seed=seed))
+    return tmp_path
+
+
+def test_the_report_reads_each_log_once_and_pictures_the_same(many_seeds, tmp_path, monkeypatch):
+    """The metrics pass keeps what the pictures need (analyse_logs(traces=True)): the report reads no log again,
+    and its files are the same as when it reads the pictured logs again (an analysis without them)."""
+    import analysis.report as report
+    from analysis.metrics import Analysis, analyse_logs
+
+    analysis = analyse_logs([many_seeds], traces=True)
+    df = analysis.episodes
+    drawn = set(plots.panel_episodes(df)["log"])
+    assert len(drawn) == plots.MAX_SEEDS_PER_PANEL and str(many_seeds / "crash_22.mcap") in drawn
+    assert set(analysis.traces) == drawn  # the first 20 in a panel's order, nothing more
+    assert analysis.first_contacts == {str(many_seeds / f"crash_{s}.mcap"): 1 for s in (5, 17, 22)}
+    bare = Analysis(analysis.episodes, analysis.excluded, analysis.grouping, analysis.runs)
+    outs = {}
+    for name, given in (("reread", bare), ("once", analysis)):
+        if name == "once":
+            def refuse(paths, jobs=-1):
+                raise AssertionError(f"read again: {paths}")
+            monkeypatch.setattr(report, "load_traces", refuse)
+        outs[name] = tmp_path / name
+        build_report([many_seeds], outs[name], analysis=given, jobs=1)
+    files = sorted(p.name for p in outs["reread"].iterdir())
+    assert files == sorted(p.name for p in outs["once"].iterdir())
+    for name in files:
+        if name.endswith((".md", ".html", ".csv", ".png")):
+            assert (outs["reread"] / name).read_bytes() == (outs["once"] / name).read_bytes(), name
+
+
+def test_kept_traces_are_the_first_of_each_run_in_a_panels_order_whatever_the_chunks(many_seeds):
+    """Worker processes keep the first episodes of each run configuration of their part of the logs; joined, they are
+    the first of all (failed first, then by seed), as if one process had read every log."""
+    import random
+
+    from analysis.episode_log import load_episode
+    from analysis.trace import KeptTraces
+
+    logs = sorted(many_seeds.glob("*.mcap"))
+    random.Random(1).shuffle(logs)
+    parts = [KeptTraces(per_run=4) for _ in range(3)]
+    for i, path in enumerate(logs):
+        log = load_episode(path)
+        run = "b" if int(log.meta["seed"]) % 2 else "a"
+        parts[i % 3].offer(run, log.outcome == "goal", int(log.meta["seed"]), log, str(path))
+    joined = KeptTraces(per_run=4)
+    for part in parts:
+        joined.merge(part)
+    assert {run: [key[1] for key, _ in kept] for run, kept in joined.runs.items()} == {"a": [22, 0, 2, 4],
+                                                                                        "b": [5, 17, 1, 3]}
+    assert joined.contacts == {str(many_seeds / f"crash_{s}.mcap"): 1 for s in (5, 17, 22)}
+    assert all(trace.log == key[2] for kept in joined.runs.values() for key, trace in kept)
+
+
 def test_an_infinite_value_gives_an_infinite_mean_and_interval_end_without_a_warning():
     """min_ttc_s is inf for an episode never on a collision course: its group's interval was inf - inf (NaN, with a
     RuntimeWarning from numpy in every sweep)."""

@@ -7,7 +7,8 @@
 * **Time to the first step** of ``python -m runners.run`` (one episode): from the process's start to its log
   file appearing (the log is opened just before the first step).
 * **Report speed**: ``python -m analysis.report`` on the default sweep's logs, in episodes/s, against the metrics
-  alone (:func:`analysis.metrics.analyse_logs` in one process) on the same logs.
+  alone (:func:`analysis.metrics.analyse_logs` in one process) on the same logs. The report is a whole command
+  (start-up, imports, figures) on every core: it reads the logs and draws its figures in forked workers.
 * **Kernels end to end** (:func:`bench_kernels`): each compiled kernel left off in turn
   (``FUZZYNAV_KERNELS_OFF``) on the documented workloads, as ratios to all kernels on, alternated in each round.
 """

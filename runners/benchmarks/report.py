@@ -14,7 +14,8 @@
    and its real log) until it has ``--episodes`` rows, and the report stage is timed on it. Every per-episode
    cost of the report is paid for real: intervals over 10,000 rows, paired differences over the seeds, every
    failed episode's log read again for its first contact step, the capped trajectory panels and failure pictures
-   read and drawn from real logs.
+   read and drawn from real logs (an upper bound: the table carries no traces, so the report reads those logs
+   again, where ``python -m analysis.report`` takes them from its one reading of the logs).
 3. **10,000 episodes, read stage**: estimated from the real episodes: their read time per log in one process,
    shared out over every core, plus what the worker pool cost on them beyond that — the read stage costs the same
    per log whatever the number of logs (each is read on its own).
@@ -108,7 +109,7 @@ def bench_report(episodes: int = 10_000, seeds: int = 10) -> dict:
         sweep_dir = Path(tmp) / "sweep"
         sweep_s = _real_sweep(sweep_dir, seeds)
         start = time.perf_counter()
-        analysis = analyse_logs([sweep_dir], jobs=-1)
+        analysis = analyse_logs([sweep_dir], jobs=-1, traces=True)  # as the report reads them
         read_s = time.perf_counter() - start
         start = time.perf_counter()
         analyse_logs([sweep_dir], jobs=1)  # the cost per log, without the worker pool
@@ -176,7 +177,7 @@ def bench_logs(paths: list[str]) -> dict:
 
     with tempfile.TemporaryDirectory(prefix="bench_report-") as tmp:
         start = time.perf_counter()
-        analysis = analyse_logs(paths, jobs=-1)
+        analysis = analyse_logs(paths, jobs=-1, traces=True)  # as the report reads them
         read_s = time.perf_counter() - start
         build_report(paths, Path(tmp) / "report", analysis=analysis)
         total_s = time.perf_counter() - start

@@ -9,6 +9,7 @@ that died), and not run (the rest of the episodes the sweep was to run).
 
 from __future__ import annotations
 
+import contextlib
 import shlex
 import sys
 from pathlib import Path
@@ -49,7 +50,9 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
             print(f"resume: {superseded} log(s) of episodes this sweep ran again with other code (a changed plug-in "
                   f"or fuzzynav version) kept in {holding_dir(sweep_dir).parent / sweep_resume.SUPERSEDED}, not "
                   "analysed")
-    analysis = analyse_logs([sweep_dir], jobs=-1)  # on the launcher's worker pool, still running
+    # on the launcher's worker pool, still running; keeping what the report's pictures need (it reads no log again)
+    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True)
+    release_worker_pool()
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
     if signum is None and not run.errors:
@@ -70,6 +73,20 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
         run.errors.append(sweep_control.io_line(err))
         written = False
     _report_incomplete(config, run, analysis, kept, lost, written)
+
+
+def release_worker_pool() -> None:
+    """Shut down joblib's worker pool (the launcher's; its workers are idle once the logs are read): its threads
+    would keep the report from drawing its figures in worker processes forked from this one
+    (:mod:`analysis.forked`). A later use of joblib starts a new pool."""
+    try:
+        from joblib.externals.loky import reusable_executor
+    except ImportError:
+        return
+    executor = getattr(reusable_executor, "_executor", None)
+    if executor is not None:
+        with contextlib.suppress(Exception):  # a pool that is already broken or shutting down
+            executor.shutdown(wait=True)
 
 
 def _note_interrupted(run: sweep_control.SweepRun, analysis: Analysis) -> None:
