@@ -476,13 +476,15 @@ def hydra_overrides(args: list[str]) -> tuple[list[str], str | None, bool]:
 
 
 def register_sweeper() -> None:
-    """Register fuzzynav's sweeper (``conf/hydra/sweeper/fuzzynav.yaml``) with Hydra. Hydra finds plugins by
-    scanning the ``hydra_plugins`` package, which misses packages installed in editable mode (``pip install
-    -e``), so it is registered here by hand; without fuzzynav installed, multirun says how to install it."""
+    """Register fuzzynav's sweeper (``conf/hydra/sweeper/fuzzynav.yaml``) and launcher (``all_cores``) with Hydra.
+    Hydra finds plugins by scanning the ``hydra_plugins`` package, which misses packages installed in editable mode
+    (``pip install -e``), so they are registered here by hand; without fuzzynav installed, multirun says how to
+    install it."""
     from hydra.core.plugins import Plugins
 
     try:
         from hydra_plugins.fuzzynav_sweeper import FuzzynavSweeper
+        from hydra_plugins.fuzzynav_sweeper.launcher import FuzzynavLauncher
     except ImportError:
         multirun = "--multirun" in sys.argv or "-m" in sys.argv
         if multirun and not any(a.startswith("hydra/sweeper=") for a in sys.argv):
@@ -491,6 +493,7 @@ def register_sweeper() -> None:
             sys.exit(2)
         return
     Plugins.instance().register(FuzzynavSweeper)
+    Plugins.instance().register(FuzzynavLauncher)
     config_plugins.register()
 
 

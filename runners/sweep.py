@@ -180,7 +180,7 @@ _PREWARMED: list[bool] = []  # prewarm_workers has started the workers in this p
 
 
 def prewarm_workers(config: DictConfig) -> None:
-    """Start the joblib launcher's worker processes now, in the background, so their start-up and imports
+    """Start the launcher's worker processes (joblib's loky pool) now, in the background, so their start-up and imports
     (about a second) overlap with Hydra starting and validating every job's config in this process. loky keeps
     a pool of workers and reuses it for the next ``Parallel`` call with the same settings, which are the
     launcher's. Called as soon as the first config is composed, and again (doing nothing) when the sweep
@@ -188,18 +188,16 @@ def prewarm_workers(config: DictConfig) -> None:
     if _PREWARMED or "hydra" not in config:
         return
     launcher = config.hydra.get("launcher") or {}
-    if "joblib" not in str(launcher.get("_target_", "")):
+    if "FuzzynavLauncher" not in str(launcher.get("_target_", "")):
         return
     try:  # only an optimisation: without it the launcher starts its workers itself
-        from hydra_plugins.hydra_joblib_launcher._core import process_joblib_cfg
+        from hydra_plugins.fuzzynav_sweeper.launcher import parallel_settings
         from joblib import Parallel, cpu_count, delayed
     except ImportError:
         return
 
-    settings = {k: v for k, v in launcher.items() if k != "_target_"}
-    settings["backend"] = "loky"  # as the launcher sets it
-    process_joblib_cfg(settings)
-    n_jobs = int(settings.get("n_jobs") or 1)
+    settings = parallel_settings(int(launcher.get("n_jobs") or 1))
+    n_jobs = settings["n_jobs"]
     workers = cpu_count() if n_jobs < 0 else n_jobs
 
     def warm() -> None:

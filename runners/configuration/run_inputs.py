@@ -164,9 +164,13 @@ def check_controller_fits(spec: ControllerSpec, ep_cfg: EpisodeConfig, runtime: 
 
 
 def check_launcher(hydra_node: Any) -> None:
-    """``hydra.launcher.n_jobs`` of the joblib launcher: an integer, not 0, |n| <= the limit."""
+    """``hydra.launcher.n_jobs`` of a local launcher (fuzzynav's or Hydra's joblib launcher): an integer, not 0,
+    |n| <= the limit."""
     launcher = hydra_node.get("launcher") if hydra_node is not None else None
-    if not launcher or "joblib" not in str(launcher.get("_target_", "")) or launcher.get("n_jobs") is None:
+    target = str(launcher.get("_target_", "")) if launcher else ""
+    if "FuzzynavLauncher" in target and not isinstance(launcher.get("assemble", True), bool):
+        raise ValueError(f"hydra.launcher.assemble: must be true or false, not {launcher.get('assemble')!r:.60}")
+    if ("joblib" not in target and "FuzzynavLauncher" not in target) or launcher.get("n_jobs") is None:
         return
     n = launcher.get("n_jobs")
     rng = Range(-limits.MAX_LAUNCHER_JOBS, limits.MAX_LAUNCHER_JOBS, integer=True)

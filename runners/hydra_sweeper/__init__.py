@@ -94,8 +94,11 @@ class FuzzynavSweeper(FaultTolerantSweeper):
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
         tic = time.perf_counter()
         jobs = representative_jobs(batch)
+        configs = getattr(self.launcher, "job_configs", None)  # fuzzynav's launcher makes jobs' configs from these
         for overrides in jobs:
-            self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
+            config = self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
+            if configs is not None:
+                configs.add_composed(overrides, config)
         log.debug(f"Validated {len(jobs)} of {len(batch)} job configs in {time.perf_counter() - tic:.2f} s")
 
 

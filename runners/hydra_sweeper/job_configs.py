@@ -1,0 +1,179 @@
+"""Each job's config of a sweep, composed by Hydra once per swept value instead of once per job.
+
+Hydra composes a job's config from its overrides in about 0.1 s (defaults lists, YAML files, merges): in the default
+sweep more than its five episodes cost. A sweep is a product of swept keys, and most of its jobs differ from a
+composed one in one or two keys. :class:`JobConfigs` composes (with Hydra's own ``load_sweep_config``) the first job
+of the sweep (the *reference*) and, for each config group that the sweep varies, the reference with only that
+group changed; every other job is *assembled* from those:
+
+* a config group's option (``scenario=head_on``) contributes the top-level nodes in which its composition differs
+  from the reference's (its *delta*), and its entry in ``hydra.runtime.choices``;
+* a plain value (``seed=7``, ``planner.h_wait=3``) is applied as Hydra applies a value override after composing
+  (``OmegaConf.update(cfg, key, value, merge=True)``);
+* ``hydra.overrides.task`` and ``hydra.job.override_dirname`` are the job's, as Hydra computes them.
+
+Assembly is used only where it is the same as composing: every override a plain ``key=value`` (no ``+``, ``~``,
+``@package``), the job's keys those of the reference, and the deltas of the swept groups in different top-level
+nodes and nowhere else in Hydra's node. Anything else (or any error while assembling) is composed by Hydra, which
+also reports a bad value in its own words. ``tests/test_job_configs.py`` compares assembled and composed configs
+over the sweep presets and random products of every config group's options.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from typing import Any
+
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import Override
+from omegaconf import DictConfig, OmegaConf, open_dict, read_write
+
+# hydra's node: the fields that follow a job's overrides (everything else must be the reference's)
+_TASK_FIELDS = (("overrides", "task"), ("job", "override_dirname"), ("runtime", "choices"))
+
+
+class JobConfigs:
+    """The configs of one sweep's jobs. ``compose(overrides)`` must return what Hydra's
+    ``config_loader.load_sweep_config(master, overrides)`` returns (it is that call, or a cache of it)."""
+
+    def __init__(self, master: DictConfig, compose: Any) -> None:
+        self._master = master
+        self._compose = compose
+        self._parser = OverridesParser.create()
+        self._composed: dict[tuple[str, ...], DictConfig] = {}
+        self._reference: tuple[tuple[str, ...], list[Override], DictConfig] | None = None
+        self._deltas: dict[tuple[str, str], dict[str, Any] | None] = {}  # (group, option) -> delta or not separable
+        self.composed = 0  # how many configs Hydra composed (for the log and the tests)
+        self.assembled = 0
+
+    def add_composed(self, overrides: Sequence[str], config: DictConfig) -> None:
+        """A config Hydra has composed elsewhere in this process (the sweeper's check of each swept value)."""
+        self._composed.setdefault(tuple(overrides), config)
+
+    def config(self, overrides: Sequence[str]) -> DictConfig:
+        """The job's config, a new object the caller may change (its ``hydra.job.num`` and ``id``)."""
+        key = tuple(overrides)
+        if key in self._composed:
+            return copy.deepcopy(self._composed[key])
+        if self._reference is None:
+            self._reference = (key, self._parse(key), self._full(key))
+            return copy.deepcopy(self._reference[2])
+        try:
+            assembled = self._assemble(key)
+        except Exception:  # Hydra composes it and says what is wrong in its own words
+            assembled = None
+        if assembled is not None:
+            self.assembled += 1
+            return assembled
+        return copy.deepcopy(self._full(key))
+
+    def _full(self, key: tuple[str, ...]) -> DictConfig:
+        config = self._composed.get(key)
+        if config is None:
+            config = self._compose(list(key))
+            self.composed += 1
+            self._composed[key] = config
+        return config
+
+    def _parse(self, key: tuple[str, ...]) -> list[Override]:
+        return self._parser.parse_overrides(list(key))
+
+    def _assemble(self, key: tuple[str, ...]) -> DictConfig | None:
+        assert self._reference is not None
+        ref_key, ref_parsed, reference = self._reference
+        parsed = self._parse(key)
+        if [o.get_key_element() for o in parsed] != [o.get_key_element() for o in ref_parsed]:
+            return None
+        choices = reference.hydra.runtime.choices
+        groups: list[tuple[int, Override]] = []
+        values: list[Override] = []
+        for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
+            if not _plain(o) or not _plain(r):
+                return None
+            if o.key_or_group in choices:
+                if not isinstance(o.value(), str):
+                    return None
+                if o.value() != r.value():
+                    groups.append((i, o))
+            else:
+                values.append(o)
+        deltas = []
+        touched: set[str] = set()
+        for i, o in groups:
+            delta = self._delta(ref_key, i, o)
+            if delta is None or touched & set(delta["nodes"]):
+                return None
+            touched |= set(delta["nodes"])
+            deltas.append(delta)
+        config = copy.deepcopy(reference)
+        with read_write(config), open_dict(config):
+            for delta in deltas:
+                for name, node in delta["nodes"].items():
+                    config[name] = node  # OmegaConf copies it (a deepcopy of a child node would copy its parents)
+                config.hydra.runtime.choices[delta["group"]] = delta["choice"]
+        for o in values:  # as Hydra applies a value override once the config is composed (struct flags kept)
+            OmegaConf.update(config, o.key_or_group, o.value(), merge=True)
+        task = self._full_task_fields(key)
+        with read_write(config), open_dict(config):
+            config.hydra.overrides.task = list(key)
+            config.hydra.job.override_dirname = task
+        OmegaConf.copy_cache(from_config=self._master, to_config=config)
+        return config
+
+    def _full_task_fields(self, key: tuple[str, ...]) -> str:
+        """``hydra.job.override_dirname`` as Hydra's documentation defines it: the job's overrides but the excluded
+        keys, sorted, joined by ``item_sep``, each ``=`` written as ``kv_sep``."""
+        assert self._reference is not None
+        od = self._reference[2].hydra.job.config.override_dirname
+        excluded = set(od.exclude_keys)
+        lines = sorted(o.input_line or "" for o in self._parse(key) if o.key_or_group not in excluded)
+        return str(od.item_sep).join(lines).replace("=", str(od.kv_sep))
+
+    def _delta(self, ref_key: tuple[str, ...], index: int, override: Override) -> dict[str, Any] | None:
+        """What choosing ``override``'s option of its group changes against the reference: the top-level nodes
+        (outside Hydra's) that differ, or None where it changes anything else of Hydra's node than the choice."""
+        group, option = override.key_or_group, str(override.value())
+        if (group, option) in self._deltas:
+            return self._deltas[(group, option)]
+        assert self._reference is not None
+        reference = self._reference[2]
+        varied_key = list(ref_key)
+        varied_key[index] = override.input_line or f"{group}={option}"
+        varied = self._full(tuple(varied_key))
+        delta: dict[str, Any] | None = {"group": group, "choice": varied.hydra.runtime.choices.get(group),
+                                        "nodes": {}}
+        ref_plain = OmegaConf.to_container(reference, resolve=False)
+        var_plain = OmegaConf.to_container(varied, resolve=False)
+        assert isinstance(ref_plain, dict) and isinstance(var_plain, dict) and delta is not None
+        if list(ref_plain) != list(var_plain):  # a node added or dropped: its place in the config could differ
+            delta = None
+        else:
+            for name in var_plain:
+                if name != "hydra" and ref_plain[name] != var_plain[name]:
+                    delta["nodes"][name] = varied[name]
+            if _hydra_without_task(ref_plain["hydra"], group) != _hydra_without_task(var_plain["hydra"], group):
+                delta = None
+        self._deltas[(group, option)] = delta
+        return delta
+
+
+def _plain(o: Override) -> bool:
+    """A ``key=value`` override of one value (no ``+``/``++``/``~``, no ``@package``, not a sweep)."""
+    return (o.package is None and not o.is_add() and not o.is_force_add() and not o.is_delete()
+            and not o.is_sweep_override())
+
+
+def _hydra_without_task(hydra: dict[str, Any], group: str) -> dict[str, Any]:
+    """Hydra's node without the fields a job's overrides set (and without ``group``'s choice)."""
+    out = copy.deepcopy(hydra)
+    for parent, field in _TASK_FIELDS:
+        node = out.get(parent)
+        if isinstance(node, dict):
+            if field == "choices":
+                choices = node.get(field)
+                if isinstance(choices, dict):
+                    choices.pop(group, None)
+            else:
+                node.pop(field, None)
+    return out

@@ -1,0 +1,130 @@
+"""The launcher's job configs (runners/hydra_sweeper/job_configs.py): every assembled config is the config Hydra
+composes for the same overrides, to the last character of its YAML (Hydra's node included), over the sweep
+presets and random products of the config groups' options and values."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.core.global_hydra import GlobalHydra
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from omegaconf import OmegaConf
+
+from fuzzynav.conf import CONF_DIR
+from runners.configuration import schema
+from runners.hydra_sweeper.job_configs import JobConfigs
+
+CONF = Path(CONF_DIR)
+
+
+def _options(group: str) -> list[str]:
+    return sorted(p.stem for p in (CONF / group).glob("*.yaml"))
+
+
+@pytest.fixture(scope="module")
+def hydra_loader():
+    schema.register()
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        master = compose("config", overrides=["sweep=default"], return_hydra_config=True)
+        loader = GlobalHydra.instance().config_loader()
+        cache: dict[tuple[str, ...], object] = {}
+
+        def composed(overrides: list[str]):
+            key = tuple(overrides)
+            if key not in cache:
+                cache[key] = loader.load_sweep_config(master, list(overrides))
+            return cache[key]
+
+        yield master, composed
+
+
+def _yaml(config) -> str:
+    return OmegaConf.to_yaml(config)
+
+
+def _check(master, composed, jobs: list[list[str]]) -> JobConfigs:
+    """Each job's config from a fresh JobConfigs (composing through a counting wrapper) against Hydra's."""
+    calls: list[tuple[str, ...]] = []
+
+    def compose_job(overrides: list[str]):
+        config = composed(overrides)
+        calls.append(tuple(overrides))  # composed without an error
+        return config
+
+    configs = JobConfigs(master, compose_job)
+    for job in jobs:
+        try:
+            expected = _yaml(composed(job))
+        except Exception:  # Hydra refuses the job: so must JobConfigs (it composes it, and Hydra raises)
+            with pytest.raises(Exception):  # noqa: B017
+                configs.config(job)
+            continue
+        got = configs.config(job)
+        assert _yaml(got) == expected, job
+        got.seed = 12345  # a job's config is its own: changing it changes no other job's
+    assert configs.composed == len(set(calls))
+    return configs
+
+
+def test_the_default_sweep_composes_one_config_per_swept_value(hydra_loader):
+    master, composed = hydra_loader
+    scenarios = ["paper_fig5", "head_on", "cyclist_crossing"]
+    planners = ["auto_h1", "auto_h2", "auto_h3", "auto_h4", "wait", "detour", "none"]
+    jobs = [[f"scenario={s}", f"planner={p}"] for s, p in itertools.product(scenarios, planners)]
+    configs = _check(master, composed, jobs)
+    assert configs.composed == 1 + 2 + 6  # the first job, the other scenarios, the other planners
+    assert configs.assembled == len(jobs) - 1  # the varied ones too, once their option's delta is known
+
+
+def test_seeds_and_numbers_are_applied_without_composing(hydra_loader):
+    master, composed = hydra_loader
+    jobs = [[f"seed={s}", f"planner.safety_margin_cm={m}", "episodes=3"] for s in range(0, 100, 10)
+            for m in (5, 15.5)]
+    configs = _check(master, composed, jobs)
+    assert configs.composed == 1 and configs.assembled == len(jobs) - 1
+
+
+def test_every_policy_with_its_own_planner_default(hydra_loader):
+    """Navigator options choose other groups' options (their planner): composed where assembling could differ."""
+    master, composed = hydra_loader
+    jobs = [[f"navigator={n}", f"scenario={s}"] for n in _options("navigator") if n != "custom"
+            for s in ("head_on", "crowd_crossing", "corridor")]
+    _check(master, composed, jobs)
+
+
+GROUPS = {g: _options(g) for g in ("scenario", "planner", "controller", "perception", "robot")}
+VALUES = {"seed": st.integers(0, 10**6), "episodes": st.integers(1, 9),
+          "planner.safety_margin_cm": st.floats(0, 50, allow_nan=False).map(lambda x: round(x, 3)),
+          "planner.h_wait": st.integers(0, 6), "dt": st.sampled_from([0.5, 1.0, 1]),
+          "terminate_on_collision": st.booleans(), "robot.v_max": st.floats(20, 60).map(lambda x: round(x, 1))}
+
+
+@st.composite
+def sweeps(draw):
+    """A product of 1-3 swept keys (groups and values) with 1-3 values each, in a random key order."""
+    keys = draw(st.lists(st.sampled_from([*GROUPS, *VALUES]), min_size=1, max_size=3, unique=True))
+    swept = []
+    for key in keys:
+        pool = st.sampled_from(GROUPS[key]) if key in GROUPS else VALUES[key]
+        swept.append([f"{key}={v}" for v in draw(st.lists(pool, min_size=1, max_size=3, unique=True))])
+    return [list(job) for job in itertools.product(*swept)]
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(jobs=sweeps())
+def test_random_sweeps_are_assembled_as_hydra_composes_them(hydra_loader, jobs):
+    master, composed = hydra_loader
+    _check(master, composed, jobs)
+
+
+def test_overrides_of_another_form_are_composed(hydra_loader):
+    master, composed = hydra_loader
+    jobs = [["scenario=head_on", "+extra=1"], ["scenario=corridor", "+extra=2"], ["scenario=head_on", "~resume"],
+            ["scenario=corridor", "~resume"], ["scenario=head_on", "planner.no_such_key=3"]]
+    configs = _check(master, composed, jobs[:2])
+    assert configs.assembled == 0
+    _check(master, composed, jobs[2:])
