@@ -102,6 +102,9 @@ class EpisodeProgress:
             if self._bar is None:
                 from tqdm import tqdm
 
+                # no monitor thread (it lives on after the bar): a process with another thread cannot fork, and the
+                # sweep's report forks its workers once the bar is closed (analysis.forked)
+                tqdm.monitor_interval = 0
                 self._bar = tqdm(total=self.total, unit="episode", desc=self.desc, file=self.file,
                                  dynamic_ncols=True, initial=self.done - n)
             self._bar.update(n)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import threading
 
 import pytest
 from hypothesis import given
@@ -67,6 +68,15 @@ def test_on_a_terminal_the_bar_appears_with_the_first_episode():
         p.update()
         p.update()
     assert "sweep" in out.getvalue() and "2/4" in out.getvalue()
+
+
+def test_the_bar_leaves_no_thread_behind():
+    """tqdm's monitor thread would outlive the bar, and the sweep's report cannot fork its workers while another
+    thread runs (analysis.forked)."""
+    before = set(threading.enumerate())
+    with EpisodeProgress(3, "sweep", file=io.StringIO(), terminal=True) as p:
+        p.update(3)
+    assert set(threading.enumerate()) <= before
 
 
 @pytest.mark.parametrize("raw", ["0", "-3", "nan", "inf", "ten", "1e999"])
