@@ -80,6 +80,17 @@ def test_the_default_sweep_composes_one_config_per_swept_value(hydra_loader):
     assert configs.assembled == len(jobs) - 1  # the varied ones too, once their option's delta is known
 
 
+def test_configs_the_sweepers_check_composed_are_not_composed_again(hydra_loader):
+    master, composed = hydra_loader
+    jobs = [[f"scenario={s}", f"planner={p}"] for s in ("head_on", "corridor") for p in ("wait", "detour", "none")]
+    calls: list[tuple[str, ...]] = []
+    configs = JobConfigs(master, lambda overrides: calls.append(tuple(overrides)) or composed(overrides))
+    for job in (jobs[0], jobs[1], jobs[2], jobs[3]):  # the sweeper's representatives: one per swept value
+        configs.add_composed(job, composed(job))
+    assert [_yaml(configs.config(job)) for job in jobs] == [_yaml(composed(job)) for job in jobs]
+    assert calls == [] and configs.assembled == 2
+
+
 def test_seeds_and_numbers_are_applied_without_composing(hydra_loader):
     master, composed = hydra_loader
     jobs = [[f"seed={s}", f"planner.safety_margin_cm={m}", "episodes=3"] for s in range(0, 100, 10)

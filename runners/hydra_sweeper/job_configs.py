@@ -54,11 +54,10 @@ class JobConfigs:
     def config(self, overrides: Sequence[str]) -> DictConfig:
         """The job's config, a new object the caller may change (its ``hydra.job.num`` and ``id``)."""
         key = tuple(overrides)
+        if self._reference is None:  # the sweep's first job (composed by the sweeper's check, usually)
+            self._reference = (key, self._parse(key), self._full(key))
         if key in self._composed:
             return copy.deepcopy(self._composed[key])
-        if self._reference is None:
-            self._reference = (key, self._parse(key), self._full(key))
-            return copy.deepcopy(self._reference[2])
         try:
             assembled = self._assemble(key)
         except Exception:  # Hydra composes it and says what is wrong in its own words
