@@ -18,6 +18,11 @@ and last annotation) has a ``presence(step)`` method saying which of its obstacl
 metric; its position is only kept (where it will appear, or where it left) so that its row stays continuous in the
 log. A model without the method has its obstacles present throughout (every model before presence).
 
+Obstacles that name the same model with equal parameters share one instance; a model whose obstacles each carry
+their own data in their parameters (``recorded``: each person's times) has a static ``group_key(config)`` saying
+what one instance shares, and is given its obstacles with the first one's config (each obstacle's own is its
+``model_params``). A model whose obstacles ignore everyone has ``reactive = False``: they may start overlapping.
+
 Models register with :func:`register_obstacle_model`; the built-ins (``scripted``, ``social_force``, ``orca``,
 ``random_walk``) are the modules of :mod:`fuzzynav.pedestrians`, found without a list (:mod:`fuzzynav.registry`),
 and another package's model is an entry point of group ``fuzzynav.pedestrians``. Adding one is a module with a

@@ -76,13 +76,18 @@ class Crowd:
         self.world = world
         self.robot_radius = robot_radius
         groups: dict[tuple, list[int]] = {}
+        configs = []
         for i, o in enumerate(obstacles):
             name = model_name(o)
             config = model_config(name, o.model_params, f"dynamic_obstacles[{i}].model_params")
-            groups.setdefault((name, config), []).append(i)
+            configs.append(config)
+            # a model whose obstacles each carry their own data (recorded people: their times) says what one
+            # instance shares (``group_key``), so that one instance moves them all
+            group_key = getattr(model_factory(name, "model"), "group_key", None)
+            groups.setdefault((name, config if group_key is None else group_key(config)), []).append(i)
         self._models: list[tuple[ObstacleModel, np.ndarray, str]] = []
-        for (name, config), members in groups.items():
-            model = model_factory(name, "model")([obstacles[i] for i in members], config)
+        for (name, _), members in groups.items():
+            model = model_factory(name, "model")([obstacles[i] for i in members], configs[members[0]])
             self._models.append((model, np.array(members, dtype=int), name))
         self.positions = np.zeros((len(obstacles), 2))
         self.velocities = np.zeros((len(obstacles), 2))

@@ -1,0 +1,158 @@
+"""``recorded``: real people replayed exactly as a recording has them (they ignore the robot, as in SocNavBench).
+
+A recorded person is a scenario obstacle whose ``waypoints`` are its annotated positions (cm) and whose
+``model_params.t_s`` are their times (s from the episode's start; the first may be negative: the annotation
+before the window, so that the person is where the recording has it at t = 0). The scenario generator
+``recorded`` (:mod:`fuzzynav.scenarios.generators.recorded`) makes these entries from a recording file; a scenario
+file may also list them by hand.
+
+At step k (t = k·dt) a person is where :func:`fuzzynav.pedestrians.recording.resample` puts it — the linear
+interpolation between its two annotations around t — and is *present* (:mod:`fuzzynav.pedestrians.base`,
+presence) only from its first to its last annotation, within ``until_s`` (the window's length: after it the
+recording is not replayed), and inside ``crop`` (x0, y0, x1, y1 cm) when one is given. An absent person stays
+where it will appear or where it was last present, with zero velocity; a present person's velocity is its
+recorded path's (the slope of the segment between the annotations around t, the segment after t on an
+annotation's time), so that the ground truth and the TPT's table see the recording's own motion.
+
+One model instance replays every recorded person of a scenario that shares ``until_s`` and ``crop``
+(:func:`RecordedModel.group_key`): the positions of all of them at every step are computed once per ``dt``
+(arrays, no per-person Python work per step), so a person far from the robot costs one row of an array
+lookup. Units: cm, s, cm/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from fuzzynav.pedestrians.base import CrowdView, in_range, register_obstacle_model
+from fuzzynav.pedestrians.recording import PedestrianTrack, Recording, resample
+
+if TYPE_CHECKING:
+    from fuzzynav.scenarios.scenario import DynamicObstacle
+
+MAX_TIME_S = 1e6  # a recording's times (s): ETH/UCY recordings last minutes
+
+
+@dataclass(frozen=True)
+class RecordedConfig:
+    """``t_s``: the times (s from the episode's start, strictly increasing) of the obstacle's waypoints, one per
+    waypoint; ``until_s``: the person is absent after this time (s; the window's length); ``crop``: () or
+    (x0, y0, x1, y1) cm, the person is present only inside it (boundary included)."""
+
+    t_s: tuple[float, ...] = ()
+    until_s: float = MAX_TIME_S
+    crop: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.t_s:
+            raise ValueError("t_s: missing (one time per waypoint, s)")
+        for i, t in enumerate(self.t_s):
+            in_range(t, f"t_s[{i}]", -MAX_TIME_S, MAX_TIME_S, "s")
+            if i and not t > self.t_s[i - 1]:
+                raise ValueError(f"t_s[{i}]: {t!r} s is not after t_s[{i - 1}] = {self.t_s[i - 1]!r} s (times must "
+                                 "increase)")
+        in_range(self.until_s, "until_s", 0.0, MAX_TIME_S, "s")
+        if self.crop and (len(self.crop) != 4 or not (self.crop[0] < self.crop[2] and self.crop[1] < self.crop[3])):
+            raise ValueError(f"crop: expected [x0, y0, x1, y1] cm with x0 < x1 and y0 < y1, got {list(self.crop)}")
+
+
+@register_obstacle_model("recorded")
+class RecordedModel:
+    """Replays its people (module docstring); the view is not used (they ignore the robot and each other)."""
+
+    config_class = RecordedConfig
+    #: recorded people pass through everyone, so they may start overlapping (couples walk closer than two radii)
+    reactive = False
+
+    @staticmethod
+    def group_key(config: RecordedConfig) -> tuple:
+        """What the people of one model instance share (their own times differ): the window and the crop."""
+        return (config.until_s, config.crop)
+
+    @staticmethod
+    def check_obstacle(obstacle: DynamicObstacle) -> None:
+        """A recorded person's entry has waypoints and one time per waypoint (``ValueError`` naming the field)."""
+        if obstacle.waypoints is None:
+            raise ValueError("waypoints: missing (a recorded person's annotated positions, cm)")
+        if len(obstacle.model_params.t_s) != len(obstacle.waypoints):
+            raise ValueError(f"model_params.t_s: {len(obstacle.model_params.t_s)} times for "
+                             f"{len(obstacle.waypoints)} waypoints (one time per waypoint)")
+
+    def __init__(self, obstacles: Sequence[DynamicObstacle], config: RecordedConfig) -> None:
+        self.ids = tuple(o.id for o in obstacles)
+        tracks, self._first = [], np.zeros((len(obstacles), 2))
+        for i, o in enumerate(obstacles):
+            own: RecordedConfig = o.model_params
+            self.check_obstacle(o)
+            xy = np.array(o.waypoints, dtype=float)
+            tracks.append(PedestrianTrack(o.id, np.array(own.t_s, dtype=float), xy))
+            self._first[i] = xy[0]
+        self.recording = Recording(f"recorded obstacles {self.ids[:1]}", tuple(tracks), 0.0)
+        self.until_s = config.until_s
+        self.crop = tuple(config.crop) if config.crop else None
+        self._dt: float | None = None
+
+    # -- the whole replay at a run's dt, once ------------------------------------------------------------------
+    def _grid(self, dt: float) -> None:
+        """Positions, velocities and presence of every person at every step k·dt from 0 to ``until_s`` (or to the
+        last annotation, if sooner)."""
+        if self._dt == dt:
+            return
+        last = max(float(t.t_s[-1]) for t in self.recording.tracks)
+        end = max(0.0, min(self.until_s, last))
+        r = resample(self.recording, dt, 0.0, end, self.crop)
+        n, steps = len(self.ids), len(r.times_s)
+        present = np.zeros((n, steps), dtype=bool)
+        xy = np.full((n, steps, 2), np.nan)
+        row = {pid: i for i, pid in enumerate(self.ids)}
+        for j, pid in enumerate(r.ids):
+            present[row[pid]], xy[row[pid]] = r.present[j], r.xy_cm[j]
+        present &= r.times_s[None, :] <= self.until_s + 1e-9
+        # an absent person stays where it was last present, or before its first presence where it will appear
+        index = np.broadcast_to(np.arange(steps), (n, steps))
+        latest = np.maximum.accumulate(np.where(present, index, -1), axis=1)
+        first = np.argmax(present, axis=1)
+        source = np.where(latest >= 0, latest, first[:, None])
+        held = np.take_along_axis(xy, source[..., None], axis=1)
+        never = ~present.any(axis=1)
+        held[never] = self._first[never][:, None, :]
+        # exact copies where present (interpolation NaN elsewhere is replaced by the held position)
+        self._xy = np.where(present[..., None], xy, held)
+        self._velocity = np.zeros((n, steps, 2))
+        for i, track in enumerate(self.recording.tracks):
+            if len(track.t_s) < 2 or not present[i].any():
+                continue
+            times = r.times_s[present[i]]
+            segment = np.clip(np.searchsorted(track.t_s, times + 1e-9, side="right") - 1, 0, len(track.t_s) - 2)
+            slope = (track.xy_cm[segment + 1] - track.xy_cm[segment]) \
+                / (track.t_s[segment + 1] - track.t_s[segment])[:, None]
+            self._velocity[i, present[i]] = slope
+        self._present = present
+        self._dt = dt
+
+    def _at(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        k = min(step, self._xy.shape[1] - 1)
+        velocity = self._velocity[:, k] if step == k else np.zeros((len(self.ids), 2))
+        return self._xy[:, k].copy(), velocity.copy()
+
+    # -- the model seam ----------------------------------------------------------------------------------------
+    def reset(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        self._grid(1.0)  # t = 0 is the same at every dt; step() replaces the grid with the run's
+        return self._at(0)
+
+    def step(self, view: CrowdView, indices: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"recorded: dt must be a positive number of seconds, got {dt!r}")
+        self._grid(dt)
+        return self._at(view.step + 1)
+
+    def presence(self, step: int) -> np.ndarray:
+        """Who is in the world at step ``step`` of the last dt (after the replay's last step: nobody)."""
+        if step >= self._present.shape[1]:
+            return np.zeros(len(self.ids), dtype=bool)
+        return self._present[:, step].copy()
