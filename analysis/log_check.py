@@ -95,11 +95,12 @@ transparent: each is demanded and checked as its schema (:mod:`analysis.log_form
 :data:`RANGES`. The schema's other fields (:data:`UNREAD`) and fields it does not describe are not read, so not
 checked; a field read that the schema does not describe or require is an error at import."""
 
-LENIENT = {"/planner/decision": ("policy", "policy_fields"), "/obstacles/truth": ("obstacles.present",
-                                                                                  "obstacles.next_present")}
+LENIENT = {"/planner/decision": ("policy", "policy_fields"),
+           "/obstacles/truth": ("obstacles.present", "obstacles.next_present", "obstacles.reacting")}
 """Fields the analysis takes as optional: logs written before policies could be chosen have no ``policy`` and
 ``policy_fields`` (:func:`_check_decision` checks them when present); only scenarios whose obstacles come and go
-(recorded people) write ``present`` and ``next_present`` (:func:`_check_truth` checks them when present)."""
+(recorded people) write ``present`` and ``next_present``, and only those whose people may react ``reacting``
+(:func:`_check_truth` checks them when present)."""
 
 RANGES = Ranges(
     numbers=[
@@ -234,7 +235,8 @@ _TRUTH = _derived("/obstacles/truth", READ["/obstacles/truth"])
 
 def _check_truth(v: Any) -> None:
     """A truth message: its fields (:data:`_TRUTH`), and the presence of its obstacles where the log records it —
-    both ``present`` and ``next_present``, booleans, or neither (every obstacle present throughout)."""
+    both ``present`` and ``next_present``, booleans, or neither (every obstacle present throughout) — and
+    ``reacting``, a boolean, where the log records it."""
     _TRUTH(v)
     for i, o in enumerate(v["obstacles"]):
         given = ("present" in o) + ("next_present" in o)
@@ -242,6 +244,8 @@ def _check_truth(v: Any) -> None:
             raise CheckError(f"obstacles[{i}]", "has one of present and next_present without the other")
         if given and not (type(o["present"]) is bool and type(o["next_present"]) is bool):
             raise CheckError(f"obstacles[{i}].present", "present and next_present must be true or false")
+        if "reacting" in o and type(o["reacting"]) is not bool:
+            raise CheckError(f"obstacles[{i}].reacting", "must be true or false")
 
 
 def _truths_acceptable(vs: list[Any]) -> bool:
@@ -252,6 +256,8 @@ def _truths_acceptable(vs: list[Any]) -> bool:
         for o in v["obstacles"]:
             if ("present" in o or "next_present" in o) and not (
                     type(o.get("present")) is bool and type(o.get("next_present")) is bool):
+                return False
+            if "reacting" in o and type(o["reacting"]) is not bool:
                 return False
     return True
 

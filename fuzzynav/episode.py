@@ -99,7 +99,9 @@ class StepRecord:
     (swept); ``new_contacts`` counts contacts that started on this step. ``outcome`` is set on the last
     record only. ``compute_time_us`` is the wall time of the decision (not reproducible).
     ``obstacle_present`` / ``obstacle_next_present`` (N,) bool: which obstacles are in the world at ``time_s``
-    and at ``time_s + dt`` — None when no obstacle model of the scenario has presence (all present, always)."""
+    and at ``time_s + dt`` — None when no obstacle model of the scenario has presence (all present, always).
+    ``obstacle_reacting`` (N,) bool: which obstacles moved over the step by their reaction to the robot, not their
+    replay (recorded people, :mod:`fuzzynav.pedestrians.recorded`) — None when no model of the scenario reacts."""
 
     step: int
     time_s: float
@@ -122,6 +124,7 @@ class StepRecord:
     compute_time_us: float = 0.0
     obstacle_present: np.ndarray | None = None
     obstacle_next_present: np.ndarray | None = None
+    obstacle_reacting: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -253,7 +256,8 @@ class Episode:
                           obstacle_positions=pos, obstacle_velocities=vel, obstacle_next_positions=next_pos,
                           contact_static=static_hit, contact_dynamic=dynamic_hit, new_contacts=new_contacts,
                           distance_to_goal=dist, outcome=self.outcome, compute_time_us=compute_us,
-                          obstacle_present=present, obstacle_next_present=next_present)
+                          obstacle_present=present, obstacle_next_present=next_present,
+                          obstacle_reacting=self.crowd.reacting if self.crowd.has_reactions else None)
 
     def run(self) -> Iterator[StepRecord]:
         """Yield records until the episode ends."""

@@ -184,6 +184,10 @@ def test_the_check_reads_presence_when_given():
         check_message("/obstacles/truth", _truth(present=True))
     with pytest.raises(CheckError, match="true or false"):
         check_message("/obstacles/truth", _truth(present=1, next_present=True))
+    check_message("/obstacles/truth", _truth(present=True, next_present=True, reacting=True))
+    with pytest.raises(CheckError, match=r"obstacles\[0\]\.reacting: must be true or false"):
+        check_message("/obstacles/truth", _truth(reacting="yes"))
+    assert not messages_acceptable("/obstacles/truth", [_truth(reacting=0)])
 
 
 @settings(max_examples=200, deadline=None)

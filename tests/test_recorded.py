@@ -290,3 +290,82 @@ def test_a_recorded_scenario_runs_end_to_end_and_its_log_verifies(recording, tmp
     assert res.returncode != 0 and "Traceback" not in res.stderr
     assert f"params.recording: {tmp_path / 'nope.txt'}: no such file" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1, res.stderr
+
+
+# -- reacting -----------------------------------------------------------------------------------------------
+
+
+def _head_on(react_cm=0.0, model="social_force", y=400):
+    """A person walking at 100 cm/s straight at a robot standing at (400, y)."""
+    params = {"until_s": 30} | ({"react_cm": react_cm, "react_model": model} if react_cm else {})
+    return scene([person("a", [0.4 * k for k in range(26)], [[1100 - 40 * k, 410] for k in range(26)], **params)],
+                 robot={"start": [400, y], "goal": [100, 700]})
+
+
+@pytest.mark.parametrize("model", ["social_force", "orca"])
+def test_a_reacting_person_is_a_replay_until_the_robot_is_near_then_avoids_it(model):
+    robot = RobotState(400, 400, 0, 0)
+
+    def run(s):
+        crowd = Crowd(s.dynamic_obstacles, World(s.bounds), 20.0)
+        crowd.reset(0)
+        out = []
+        for _ in range(12):
+            pos, _ = crowd.step(robot, 1.0)
+            out.append((pos[0].copy(), bool(crowd.reacting[0]), bool(crowd.present[0])))
+        return out, crowd
+
+    replayed, crowd = run(_head_on())
+    assert not crowd.has_reactions and not any(r for _, r, _ in replayed)
+    reacting, crowd = run(_head_on(150.0, model))
+    flags = [r for _, r, _ in reacting]
+    first = flags.index(True)
+    assert crowd.has_reactions and all(flags[first:])  # once it reacts, to the end
+    for k in range(first):
+        np.testing.assert_array_equal(reacting[k][0], replayed[k][0])
+    # the replay walks through the robot's place (10 cm from its centre); the reacting person keeps off it (ORCA's
+    # 1-s steps may graze it by a few mm: the sum of radii is 45 cm)
+    assert min(np.hypot(*(p - [400, 400])) for p, _, _ in replayed) < 11
+    assert min(np.hypot(*(p - [400, 400])) for p, _, _ in reacting) >= 44
+
+
+def test_a_bad_reaction_is_one_line_naming_it():
+    with pytest.raises(ScenarioError, match=r"^dynamic_obstacles\[0\]\.model_params\.react_model: unknown value"):
+        _head_on(100.0, "teleport")
+    with pytest.raises(ScenarioError, match=r"^dynamic_obstacles\[0\]\.model_params\.react_cm: must be in"):
+        _head_on(-5.0)
+
+
+def test_the_log_says_from_which_step_a_person_reacts(tmp_path, table1):
+    from fuzzynav.config import episode_config_from_dict
+    from fuzzynav.controller.fuzzy_fast import FastEvaluator
+    from runners.run import run_episode
+    from tests.handmade import rewrite_log
+
+    cfg = episode_config_from_dict({"navigator": {"policy": "direct"}, "planner": {"strategy": "none"},
+                                    "terminate_on_collision": False})
+    s = scenario_from_dict({"name": "react", "bounds": [0, 0, 1200, 800],
+                            "robot": {"start": [100, 400], "goal": [1100, 400]}, "max_steps": 40,
+                            "dynamic_obstacles": [person("a", [0.4 * k for k in range(60)],
+                                                         [[1150 - 19 * k, 410] for k in range(60)],
+                                                         until_s=30, react_cm=100)]})
+    log = tmp_path / "react.mcap"
+    run_episode(s, FastEvaluator(table1), cfg, 0, log, "")
+    flags = [m["obstacles"][0]["reacting"] for _, _, m in iter_messages(log, ["/obstacles/truth"])]
+    assert True in flags and flags == [False] * flags.index(True) + [True] * (len(flags) - flags.index(True))
+    table, left_out = metrics_table([str(log)])
+    assert left_out.empty, left_out.to_dict("records")
+    bad = tmp_path / "bad.mcap"
+    last = len(flags) - 1
+    rewrite_log(log, bad, lambda topic, m: m["obstacles"][0].update(reacting=False)
+                if topic == "/obstacles/truth" and m["step"] == last else None)
+    table, left_out = metrics_table([str(bad)])
+    assert table.empty and f"/obstacles/truth step {last}" in left_out.iloc[0]["reason"]
+
+
+def test_the_generator_passes_the_reaction_on(recording):
+    s, _ = make({"recording": str(recording), "start_s": 8.0, "duration_s": 20.0, "react_cm": 120,
+                 "react_model": "orca"})
+    assert all(d.model_params.react_cm == 120 and d.model_params.react_model == "orca" for d in s.dynamic_obstacles)
+    with pytest.raises(ScenarioError, match=r"^params\.react_model: unknown model"):
+        make({"recording": str(recording), "duration_s": 20.0, "react_cm": 120, "react_model": "teleport"})

@@ -77,7 +77,10 @@ def obstacles_truth() -> dict:
                       "Written only by scenarios whose obstacles come and go; a log without it has every obstacle "
                       "present throughout"),
         "next_present": _b("In the world one step later (given with present); the robot can touch the obstacle "
-                           "over the step only when both are true")}, optional=("present", "next_present"))
+                           "over the step only when both are true"),
+        "reacting": _b("Moved over this step by its reaction to the robot, not by its recording's replay (a "
+                       "recorded person with react_cm; once true, true to the end). Written only by scenarios "
+                       "whose people may react")}, optional=("present", "next_present", "reacting"))
     return _stamped("fuzzynav.ObstaclesTruth", "True states of the moving obstacles",
                     {"obstacles": _arr(item, "All moving obstacles of the scenario")})
 

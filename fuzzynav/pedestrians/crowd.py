@@ -96,6 +96,10 @@ class Crowd:
         #: whether any model says who is present (``presence``): only then does the log record presence, so that the
         #: logs of every scenario before presence stay byte for byte what they were
         self.has_presence = any(hasattr(model, "presence") for model, _, _ in self._models)
+        #: which obstacles moved over the last step by their reaction instead of their replay ((N,) bool; recorded
+        #: people with ``react_cm``); logged only when a model ``reacts``
+        self.reacting = np.zeros(len(obstacles), dtype=bool)
+        self.has_reactions = any(getattr(model, "reacts", False) for model, _, _ in self._models)
         self.step_index = 0
 
     def __len__(self) -> int:
@@ -110,6 +114,7 @@ class Crowd:
             pos[members], vel[members] = p, v
         self.positions, self.velocities, self.step_index = pos, vel, 0
         self.present = self._presence(0)
+        self.reacting = np.zeros(len(self.ids), dtype=bool)
         return pos, vel
 
     def _presence(self, step: int) -> np.ndarray:
@@ -142,6 +147,12 @@ class Crowd:
         self.step_index += 1
         if self.has_presence:
             self.present = self._presence(self.step_index)
+        if self.has_reactions:
+            reacting = np.zeros(len(self.ids), dtype=bool)
+            for model, members, _ in self._models:
+                if getattr(model, "reacts", False):
+                    reacting[members] = model.reacting
+            self.reacting = reacting
         return pos, vel
 
 

@@ -14,8 +14,17 @@ where it will appear or where it was last present, with zero velocity; a present
 recorded path's (the slope of the segment between the annotations around t, the segment after t on an
 annotation's time), so that the ground truth and the TPT's table see the recording's own motion.
 
-One model instance replays every recorded person of a scenario that shares ``until_s`` and ``crop``
-(:func:`RecordedModel.group_key`): the positions of all of them at every step are computed once per ``dt``
+**Reacting** (``react_cm`` > 0): a person stops being a replay at the first step at which it is present and its
+surface is within ``react_cm`` of the robot's; from there it walks to its recorded destination (its last
+waypoint) at its mean recorded speed (the entry's ``speed``) as a pedestrian of ``react_model`` (``social_force``
+or ``orca``, with that model's default parameters: it avoids the robot and every other present person), and
+leaves the world (absent) once within that model's ``arrive_cm`` of the destination, or at ``until_s``. The
+crowd's ``reacting`` says which people's motion over a step is their reaction's; the log records it from the
+step the person stopped being a replay (``/obstacles/truth`` ``reacting``).
+
+One model instance replays every recorded person of a scenario that shares ``until_s``, ``crop`` and the reaction
+parameters (:func:`RecordedModel.group_key`): the replayed positions of all of them at every step are computed
+once per ``dt``
 (arrays, no per-person Python work per step), so a person far from the robot costs one row of an array
 lookup. Units: cm, s, cm/s.
 """
@@ -24,29 +33,35 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fuzzynav.pedestrians.base import CrowdView, in_range, register_obstacle_model
+from fuzzynav.numerics.portable_math import norm2
+from fuzzynav.pedestrians.base import CrowdView, in_range, model_config, model_factory, one_of, register_obstacle_model
 from fuzzynav.pedestrians.recording import PedestrianTrack, Recording, resample
 
 if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle
 
 MAX_TIME_S = 1e6  # a recording's times (s): ETH/UCY recordings last minutes
+REACT_MODELS = ("social_force", "orca")  # the reactive models a recorded person may become
 
 
 @dataclass(frozen=True)
 class RecordedConfig:
     """``t_s``: the times (s from the episode's start, strictly increasing) of the obstacle's waypoints, one per
     waypoint; ``until_s``: the person is absent after this time (s; the window's length); ``crop``: () or
-    (x0, y0, x1, y1) cm, the person is present only inside it (boundary included)."""
+    (x0, y0, x1, y1) cm, the person is present only inside it (boundary included); ``react_cm``: 0 (a replay
+    throughout) or the surface distance (cm) to the robot at which the person starts reacting, as a pedestrian of
+    ``react_model`` (``social_force`` or ``orca``; module docstring)."""
 
     t_s: tuple[float, ...] = ()
     until_s: float = MAX_TIME_S
     crop: tuple[float, ...] = ()
+    react_cm: float = 0.0
+    react_model: str = "social_force"
 
     def __post_init__(self) -> None:
         if not self.t_s:
@@ -57,6 +72,8 @@ class RecordedConfig:
                 raise ValueError(f"t_s[{i}]: {t!r} s is not after t_s[{i - 1}] = {self.t_s[i - 1]!r} s (times must "
                                  "increase)")
         in_range(self.until_s, "until_s", 0.0, MAX_TIME_S, "s")
+        in_range(self.react_cm, "react_cm", 0.0, 1e5, "cm")
+        one_of(self.react_model, "react_model", REACT_MODELS)
         if self.crop and (len(self.crop) != 4 or not (self.crop[0] < self.crop[2] and self.crop[1] < self.crop[3])):
             raise ValueError(f"crop: expected [x0, y0, x1, y1] cm with x0 < x1 and y0 < y1, got {list(self.crop)}")
 
@@ -72,7 +89,7 @@ class RecordedModel:
     @staticmethod
     def group_key(config: RecordedConfig) -> tuple:
         """What the people of one model instance share (their own times differ): the window and the crop."""
-        return (config.until_s, config.crop)
+        return (config.until_s, config.crop, config.react_cm, config.react_model)
 
     @staticmethod
     def check_obstacle(obstacle: DynamicObstacle) -> None:
@@ -95,7 +112,22 @@ class RecordedModel:
         self.recording = Recording(f"recorded obstacles {self.ids[:1]}", tuple(tracks), 0.0)
         self.until_s = config.until_s
         self.crop = tuple(config.crop) if config.crop else None
+        self.react_cm, self.react_model = config.react_cm, config.react_model
+        self._obstacles = tuple(obstacles)
+        self.radii = np.array([o.radius for o in obstacles], dtype=float)
         self._dt: float | None = None
+        self._reset_reactions()
+
+    @property
+    def reacts(self) -> bool:
+        """Whether its people may stop being a replay (``react_cm`` > 0): the crowd then reports ``reacting``."""
+        return self.react_cm > 0
+
+    def _reset_reactions(self) -> None:
+        #: per person: whether its motion is now its reaction's (not the recording's), and its reactive model
+        self.reacting = np.zeros(len(self.ids), dtype=bool)
+        self._walkers: dict[int, Any] = {}
+        self._arrived = np.zeros(len(self.ids), dtype=bool)
 
     # -- the whole replay at a run's dt, once ------------------------------------------------------------------
     def _grid(self, dt: float) -> None:
@@ -143,16 +175,53 @@ class RecordedModel:
     # -- the model seam ----------------------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         self._grid(1.0)  # t = 0 is the same at every dt; step() replaces the grid with the run's
+        self._reset_reactions()
         return self._at(0)
 
     def step(self, view: CrowdView, indices: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"recorded: dt must be a positive number of seconds, got {dt!r}")
         self._grid(dt)
-        return self._at(view.step + 1)
+        pos, vel = self._at(view.step + 1)
+        if self.react_cm > 0:
+            self._start_reactions(view, indices)
+            for i, walker in self._walkers.items():
+                if self._arrived[i]:  # it has left where the recording has it leave: it stays there, absent
+                    pos[i], vel[i] = walker.x[0], 0.0
+                    continue
+                p, v = walker.step(view, indices[i:i + 1], dt)
+                pos[i], vel[i] = p[0], v[0]
+                destination = np.array(self._obstacles[i].waypoints[-1], dtype=float)
+                self._arrived[i] = bool(norm2(p[0] - destination) <= walker.config.arrive_cm)
+        return pos, vel
+
+    def _start_reactions(self, view: CrowdView, indices: np.ndarray) -> None:
+        """The people present now whose surface is within ``react_cm`` of the robot's start reacting: each becomes
+        one pedestrian of ``react_model`` where it is, moving as it is, heading for its recorded destination."""
+        k = view.step
+        if k >= self._present.shape[1]:
+            return
+        here = view.positions[indices]
+        gap = norm2(here - np.array([view.robot.x, view.robot.y])) - self.radii - view.robot_radius
+        for i in np.nonzero(self._present[:, k] & ~self.reacting & (gap <= self.react_cm))[0].tolist():
+            o = self._obstacles[i]
+            walker_entry = replace(o, waypoints=(tuple(here[i].tolist()), o.waypoints[-1]),
+                                   model=self.react_model, model_params=None)
+            config = model_config(self.react_model, None, f"dynamic_obstacles[{i}].model_params.react_model")
+            walker = model_factory(self.react_model, "react_model")([walker_entry], config)
+            walker.reset(np.random.default_rng(0))  # (draws nothing: social force and ORCA are deterministic)
+            walker.x, walker.v = here[i:i + 1].copy(), view.velocities[indices[i]:indices[i] + 1].copy()
+            self._walkers[i] = walker
+            self.reacting[i] = True
 
     def presence(self, step: int) -> np.ndarray:
-        """Who is in the world at step ``step`` of the last dt (after the replay's last step: nobody)."""
+        """Who is in the world at step ``step`` of the last dt (after the replay's last step: nobody); a reacting
+        person until it arrives at its destination, within the window."""
         if step >= self._present.shape[1]:
-            return np.zeros(len(self.ids), dtype=bool)
-        return self._present[:, step].copy()
+            present = np.zeros(len(self.ids), dtype=bool)
+        else:
+            present = self._present[:, step].copy()
+        if self._walkers:
+            in_window = step * (self._dt or 0.0) <= self.until_s + 1e-9
+            present[self.reacting] = in_window & ~self._arrived[self.reacting]
+        return present

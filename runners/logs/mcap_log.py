@@ -256,6 +256,9 @@ class EpisodeLogWriter:
             for o, now, after in zip(truth, rec.obstacle_present.tolist(), rec.obstacle_next_present.tolist(),
                                      strict=True):
                 o["present"], o["next_present"] = now, after
+        if rec.obstacle_reacting is not None:  # only where recorded people may react to the robot
+            for o, reacting in zip(truth, rec.obstacle_reacting.tolist(), strict=True):
+                o["reacting"] = reacting
         self._write("/obstacles/truth", t, {"timestamp": when, "step": k, "obstacles": truth})
         self._write("/robot/state", t, {
             "timestamp": when, "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),

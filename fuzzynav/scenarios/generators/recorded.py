@@ -12,6 +12,8 @@ Parameters (``scenario.params``; cm, s):
 - the robot: ``robot_start`` and ``robot_goal`` [x, y] cm (both or neither) and ``robot_heading`` (degrees;
   default: towards the goal); when not given they are chosen by the *busiest-crossing rule*, below, with
   ``path_length`` (cm between start and goal; 1000);
+- ``react_cm`` (0: a replay throughout) and ``react_model`` (``social_force`` | ``orca``): people react to the robot
+  within ``react_cm`` (:mod:`fuzzynav.pedestrians.recorded`);
 - ``radius`` (25: a person's disc, cm), ``static_obstacles`` (the scene's static map where one is known, in the
   recording's frame, as a scenario's), ``max_steps`` (default: ``duration_s`` — one step a second, the paper's dt).
 
@@ -48,6 +50,7 @@ from fuzzynav.numerics.portable_math import bearing_deg, dist, norm2, sin_cos_de
 from fuzzynav.numerics.portable_random import uniform
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_key, key_text, show
+from fuzzynav.pedestrians.recorded import REACT_MODELS
 from fuzzynav.pedestrians.recording import Recording, resample
 from fuzzynav.scenarios.generator import CLEAR_CM, ROBOT_RADIUS, register_generator
 from fuzzynav.scenarios.recordings import ANNOTATION_HZ, FORMATS, RecordingError, read_recording
@@ -60,7 +63,8 @@ EDGE_CM = 20.0  # the robot's start and goal stay this far (beyond its radius) i
 TRIES = 64
 
 _KNOWN = {"recording", "format", "max_gap", "annotation_hz", "start_s", "window", "stride_s", "duration_s", "crop",
-          "robot_start", "robot_goal", "robot_heading", "path_length", "radius", "static_obstacles", "max_steps"}
+          "robot_start", "robot_goal", "robot_heading", "path_length", "radius", "static_obstacles", "max_steps",
+          "react_cm", "react_model"}
 
 
 def _number(params: Mapping[str, Any], key: str, default: Any, lo: float, hi: float) -> float:
@@ -170,6 +174,11 @@ def recorded(params: Mapping[str, Any], seed: int, name: str = "recorded") -> di
     statics = params.get("static_obstacles") or []
     if not isinstance(statics, list | tuple):
         raise ScenarioError(f"params.static_obstacles: expected a list of static obstacles, got {show(statics)}")
+    react_cm = _number(params, "react_cm", 0.0, 0.0, 1e5)
+    react_model = params.get("react_model", "social_force")
+    if react_model not in REACT_MODELS:
+        raise ScenarioError(f"params.react_model: unknown model {show(react_model)} (known: {', '.join(REACT_MODELS)})")
+    reaction = {"react_cm": react_cm, "react_model": react_model} if react_cm > 0 else {}
     recording, digest = read_window_recording(params)
     if start_s + duration > recording.duration_s + 1e-9:
         raise ScenarioError(f"params.start_s: the window [{start_s:g}, {start_s + duration:g}] s is not inside the "
@@ -202,7 +211,7 @@ def recorded(params: Mapping[str, Any], seed: int, name: str = "recorded") -> di
                  "speed": round(length / span, 6) if span > 0 and length > 0 else 1e-3,
                  "model": "recorded",
                  "model_params": {"t_s": [round(float(v), 9) for v in t], "until_s": round(duration, 9),
-                                  **({"crop": list(crop)} if crop else {})}}
+                                  **({"crop": list(crop)} if crop else {}), **reaction}}
         dynamics.append(entry)
         kept.append(xy)
     points = np.concatenate(kept)
