@@ -369,3 +369,33 @@ def test_the_generator_passes_the_reaction_on(recording):
     assert all(d.model_params.react_cm == 120 and d.model_params.react_model == "orca" for d in s.dynamic_obstacles)
     with pytest.raises(ScenarioError, match=r"^params\.react_model: unknown model"):
         make({"recording": str(recording), "duration_s": 20.0, "react_cm": 120, "react_model": "teleport"})
+
+
+@settings(max_examples=150, deadline=None)
+@given(params=st.dictionaries(
+    st.sampled_from(["t_s", "until_s", "crop", "react_cm", "react_model", "speed"]),
+    st.one_of(st.none(), st.booleans(), st.integers(-10**20, 10**20), st.floats(), st.text(max_size=5),
+              st.lists(st.one_of(st.floats(), st.integers(-3, 3)), max_size=6)), max_size=5),
+    points=st.integers(1, 5))
+def test_fuzz_recorded_model_params(params, points):
+    """Any model_params of a recorded entry: a scenario whose replay runs, or one ScenarioError line naming
+    ``dynamic_obstacles[0]`` — never another exception."""
+    entry = {"id": "a", "radius": 25, "waypoints": [[500 + 10 * k, 300] for k in range(points)], "speed": 50,
+             "model": "recorded", "model_params": params}
+    try:
+        s = scene([entry])
+    except ScenarioError as err:
+        assert str(err).startswith("dynamic_obstacles[0]") and "\n" not in str(err), str(err)
+        return
+    out, _ = replay(s, 0.5, 4)
+    assert all(np.isfinite(pos).all() and np.isfinite(vel).all() for pos, vel, _ in out)
+
+
+def test_a_replay_too_large_to_hold_is_refused_in_one_line():
+    """Annotations 250 h apart at dt = 0.1 s would be 9 million positions: refused before any array is made (a run
+    ends with outcome error and this reason), while the reset at t = 0 needs only one step."""
+    s = scene([person("a", [0.0, 900_000.0], [[500, 100], [500, 140]])])
+    crowd = Crowd(s.dynamic_obstacles, World(s.bounds), 20.0)
+    crowd.reset(0)
+    with pytest.raises(ValueError, match=r"^recorded: 1 people x 9,000,001 steps of 0.1 s is more than 5,000,000"):
+        crowd.step(FAR, 0.1)

@@ -46,7 +46,9 @@ if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle
 
 MAX_TIME_S = 1e6  # a recording's times (s): ETH/UCY recordings last minutes
-REACT_MODELS = ("social_force", "orca")  # the reactive models a recorded person may become
+REACT_MODELS = ("social_force", "orca")
+#: the most person-steps replayed (about 40 bytes each): 300 people over a 300-s window at dt = 0.02 s
+MAX_GRID = 5_000_000  # the reactive models a recorded person may become
 
 
 @dataclass(frozen=True)
@@ -130,14 +132,19 @@ class RecordedModel:
         self._arrived = np.zeros(len(self.ids), dtype=bool)
 
     # -- the whole replay at a run's dt, once ------------------------------------------------------------------
-    def _grid(self, dt: float) -> None:
+    def _grid(self, dt: float | None) -> None:
         """Positions, velocities and presence of every person at every step k·dt from 0 to ``until_s`` (or to the
-        last annotation, if sooner)."""
-        if self._dt == dt:
+        last annotation, if sooner); ``dt`` None: at t = 0 only (what a reset needs, at every dt)."""
+        if dt is not None and self._dt == dt:
             return
         last = max(float(t.t_s[-1]) for t in self.recording.tracks)
-        end = max(0.0, min(self.until_s, last))
-        r = resample(self.recording, dt, 0.0, end, self.crop)
+        end = 0.0 if dt is None else max(0.0, min(self.until_s, last))
+        dt_grid = 1.0 if dt is None else dt
+        steps = math.floor(end / dt_grid + 1e-9) + 1
+        if steps * len(self.ids) > MAX_GRID:  # the arrays below hold every person at every step
+            raise ValueError(f"recorded: {len(self.ids)} people x {steps:,} steps of {dt_grid:g} s is more than "
+                             f"{MAX_GRID:,} positions to replay (a larger dt, or a shorter window: until_s)")
+        r = resample(self.recording, dt_grid, 0.0, end, self.crop)
         n, steps = len(self.ids), len(r.times_s)
         present = np.zeros((n, steps), dtype=bool)
         xy = np.full((n, steps, 2), np.nan)
@@ -174,7 +181,7 @@ class RecordedModel:
 
     # -- the model seam ----------------------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        self._grid(1.0)  # t = 0 is the same at every dt; step() replaces the grid with the run's
+        self._grid(None)  # t = 0 is the same at every dt; step() replaces it with the run's whole grid
         self._reset_reactions()
         return self._at(0)
 
