@@ -74,7 +74,7 @@ def test_a_person_appears_at_its_first_annotation_and_leaves_at_the_window_end()
     s = scene([person("late", [1.0, 1.4, 1.8, 2.2], [[300, 300], [340, 300], [380, 300], [420, 300]], until_s=2.0)])
     out, _ = replay(s, 0.5, 6)
     assert [bool(p[0]) for _, _, p in out] == [False, False, True, True, True, False, False]
-    assert out[0][0][0].tolist() == [300, 300]  # before it appears: where it will appear
+    assert out[0][0][0].tolist() == [300, 300]  # before it appears: at its first annotation
 
 
 def test_the_crop_limits_presence():
@@ -399,3 +399,18 @@ def test_a_replay_too_large_to_hold_is_refused_in_one_line():
     crowd.reset(0)
     with pytest.raises(ValueError, match=r"^recorded: 1 people x 9,000,001 steps of 0.1 s is more than 5,000,000"):
         crowd.step(FAR, 0.1)
+
+
+@pytest.mark.parametrize("dt", [0.1, 0.7, 1.0, 2.5])
+def test_the_reset_agrees_with_the_runs_grid_at_every_dt(dt):
+    """A reset knows no dt: its positions at t = 0 (absent people included, at their first annotation) are those
+    of the grid the first step builds at the run's dt, so that the log's first step continues into the second."""
+    s = scene([person("late", [1.0, 1.4, 1.8], [[300, 300], [340, 300], [380, 300]]),
+               person("now", [-0.4, 0.4, 1.2], [[600, 100], [600, 180], [600, 260]]),
+               person("cropped", [0.0, 4.0], [[100, 500], [900, 500]], crop=[400, 0, 600, 800])])
+    crowd = Crowd(s.dynamic_obstacles, World(s.bounds), 20.0)
+    at_reset, velocity = (a.copy() for a in crowd.reset(0))
+    crowd.step(FAR, dt)
+    for model, members, _ in crowd._models:  # the cropped person is a group of its own (another crop)
+        np.testing.assert_array_equal(model._xy[:, 0], at_reset[members])
+        np.testing.assert_array_equal(model._velocity[:, 0], velocity[members])

@@ -9,10 +9,10 @@ file may also list them by hand.
 At step k (t = k·dt) a person is where :func:`fuzzynav.pedestrians.recording.resample` puts it — the linear
 interpolation between its two annotations around t — and is *present* (:mod:`fuzzynav.pedestrians.base`,
 presence) only from its first to its last annotation, within ``until_s`` (the window's length: after it the
-recording is not replayed), and inside ``crop`` (x0, y0, x1, y1 cm) when one is given. An absent person stays
-where it will appear or where it was last present, with zero velocity; a present person's velocity is its
-recorded path's (the slope of the segment between the annotations around t, the segment after t on an
-annotation's time), so that the ground truth and the TPT's table see the recording's own motion.
+recording is not replayed), and inside ``crop`` (x0, y0, x1, y1 cm) when one is given. An absent person stands,
+with zero velocity, at its first annotation until it first appears, then where it was last present; a present
+person's velocity is its recorded path's (the slope of the segment between the annotations around t, the segment
+after t on an annotation's time), so that the ground truth and the TPT's table see the recording's own motion.
 
 **Reacting** (``react_cm`` > 0): a person stops being a replay at the first step at which it is present and its
 surface is within ``react_cm`` of the robot's; from there it walks to its recorded destination (its last
@@ -152,14 +152,12 @@ class RecordedModel:
         for j, pid in enumerate(r.ids):
             present[row[pid]], xy[row[pid]] = r.present[j], r.xy_cm[j]
         present &= r.times_s[None, :] <= self.until_s + 1e-9
-        # an absent person stays where it was last present, or before its first presence where it will appear
+        # an absent person stays where it was last present, and before its first presence at its first annotation
+        # (the same at every dt, so that a reset, which knows no dt, agrees with the run's grid)
         index = np.broadcast_to(np.arange(steps), (n, steps))
         latest = np.maximum.accumulate(np.where(present, index, -1), axis=1)
-        first = np.argmax(present, axis=1)
-        source = np.where(latest >= 0, latest, first[:, None])
-        held = np.take_along_axis(xy, source[..., None], axis=1)
-        never = ~present.any(axis=1)
-        held[never] = self._first[never][:, None, :]
+        held = np.take_along_axis(xy, np.maximum(latest, 0)[..., None], axis=1)
+        held = np.where((latest < 0)[..., None], self._first[:, None, :], held)
         # exact copies where present (interpolation NaN elsewhere is replaced by the held position)
         self._xy = np.where(present[..., None], xy, held)
         self._velocity = np.zeros((n, steps, 2))

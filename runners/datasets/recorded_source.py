@@ -46,25 +46,25 @@ def check_source(source: Any, path: Path) -> None:
         raise DatasetError(f"{path}: source: expected a mapping")
     for key in source:
         if key not in SOURCE_FIELDS:
-            raise DatasetError(f"{path}: source.{key!s:.40}: unknown field (allowed: {', '.join(SOURCE_FIELDS)})")
+            raise DatasetError(f"{path}: source.{_shown(key)}: unknown field (allowed: {', '.join(SOURCE_FIELDS)})")
     scenes = source.get("scenes")
     if not (isinstance(scenes, dict) and scenes):
         raise DatasetError(f"{path}: source.scenes: expected a mapping of scene name to its file")
     for scene, entry in scenes.items():
-        where = f"{path}: source.scenes.{scene!s:.40}"
+        where = f"{path}: source.scenes.{_shown(scene)}"
         if not (isinstance(scene, str) and limits.NAME_PATTERN.fullmatch(scene)):
             raise DatasetError(f"{where}: not a scene name (letters, digits, _-.)")
         if not isinstance(entry, dict):
             raise DatasetError(f"{where}: expected a mapping with file")
         for key in entry:
             if key not in SCENE_FIELDS:
-                raise DatasetError(f"{where}.{key!s:.40}: unknown field (allowed: {', '.join(SCENE_FIELDS)})")
+                raise DatasetError(f"{where}.{_shown(key)}: unknown field (allowed: {', '.join(SCENE_FIELDS)})")
         files = entry.get("file")
         files = [files] if isinstance(files, str) else files
         if not (isinstance(files, list) and files and all(_relative(f) for f in files)):
             raise DatasetError(f"{where}.file: expected a relative path (or a list of them) under --source, without "
                                f"'..', got {entry.get('file')!r:.60}")
-        if entry.get("format") is not None and entry["format"] not in FORMATS:
+        if entry.get("format") is not None and not (isinstance(entry["format"], str) and entry["format"] in FORMATS):
             raise DatasetError(f"{where}.format: expected one of {', '.join(FORMATS)}, got {entry['format']!r:.40}")
         gap = entry.get("max_gap", 0)
         if isinstance(gap, bool) or not isinstance(gap, int) or not 0 <= gap <= 1000:
@@ -86,6 +86,11 @@ def check_source(source: Any, path: Path) -> None:
             s in scenes and isinstance(d, str) and re.fullmatch("[0-9a-f]{64}", d) for s, d in digests.items())):
         raise DatasetError(f"{path}: source.sha256: expected a mapping of scenes of source.scenes to 64 lowercase "
                            "hex digits")
+
+
+def _shown(key: Any) -> str:
+    """A manifest's key in a message: as written when it is a name, else its repr (one line, at most 40 chars)."""
+    return key if isinstance(key, str) and limits.NAME_PATTERN.fullmatch(key) else repr(key)[:40]
 
 
 def _relative(text: Any) -> bool:

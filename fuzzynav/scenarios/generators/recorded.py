@@ -112,7 +112,7 @@ def read_window_recording(params: Mapping[str, Any]) -> tuple[Recording, str]:
     if not isinstance(path, str) or not path or "\0" in path:
         raise ScenarioError(f"params.recording: expected the path of a recording file, got {show(path)}")
     fmt = params.get("format")
-    if fmt is not None and fmt not in FORMATS:
+    if fmt is not None and not (isinstance(fmt, str) and fmt in FORMATS):
         raise ScenarioError(f"params.format: unknown format {show(fmt)} (known: {', '.join(FORMATS)})")
     max_gap = _integer(params, "max_gap", 0, 1000)
     hz = _number(params, "annotation_hz", ANNOTATION_HZ, 1e-3, 1000.0)
@@ -176,7 +176,7 @@ def recorded(params: Mapping[str, Any], seed: int, name: str = "recorded") -> di
         raise ScenarioError(f"params.static_obstacles: expected a list of static obstacles, got {show(statics)}")
     react_cm = _number(params, "react_cm", 0.0, 0.0, 1e5)
     react_model = params.get("react_model", "social_force")
-    if react_model not in REACT_MODELS:
+    if not (isinstance(react_model, str) and react_model in REACT_MODELS):
         raise ScenarioError(f"params.react_model: unknown model {show(react_model)} (known: {', '.join(REACT_MODELS)})")
     reaction = {"react_cm": react_cm, "react_model": react_model} if react_cm > 0 else {}
     recording, digest = read_window_recording(params)
