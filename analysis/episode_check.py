@@ -200,7 +200,8 @@ def _check_obstacle_paths(log: EpisodeLog) -> None:
             raise CheckError(f"/obstacles/truth step {k + 1}", f"{len(after)} obstacles, step {k} has {len(now)}")
         for a, b in zip(now, after, strict=True):
             if a["id"] != b["id"] or a["next_x_cm"] != b["x_cm"] or a["next_y_cm"] != b["y_cm"] \
-                    or a["radius_cm"] != b["radius_cm"]:
+                    or a["radius_cm"] != b["radius_cm"] or a.get("next_present") != b.get("present") \
+                    or (a.get("reacting") and not b.get("reacting")) or ("reacting" in a) != ("reacting" in b):
                 raise CheckError(f"/obstacles/truth step {k + 1}", f"obstacle {b['id']!r} does not continue step "
                                                                    f"{k}'s obstacle {a['id']!r}")
 

@@ -95,9 +95,12 @@ transparent: each is demanded and checked as its schema (:mod:`analysis.log_form
 :data:`RANGES`. The schema's other fields (:data:`UNREAD`) and fields it does not describe are not read, so not
 checked; a field read that the schema does not describe or require is an error at import."""
 
-LENIENT = {"/planner/decision": ("policy", "policy_fields")}
-"""Fields the schema requires that the analysis takes as optional: logs written before policies could be chosen
-have neither (:func:`_check_decision` checks them when present)."""
+LENIENT = {"/planner/decision": ("policy", "policy_fields"),
+           "/obstacles/truth": ("obstacles.present", "obstacles.next_present", "obstacles.reacting")}
+"""Fields the analysis takes as optional: logs written before policies could be chosen have no ``policy`` and
+``policy_fields`` (:func:`_check_decision` checks them when present); only scenarios whose obstacles come and go
+(recorded people) write ``present`` and ``next_present``, and only those whose people may react ``reacting``
+(:func:`_check_truth` checks them when present)."""
 
 RANGES = Ranges(
     numbers=[
@@ -227,8 +230,43 @@ def _decisions_acceptable(vs: list[Any]) -> bool:
 with_batch(_check_decision, _decisions_acceptable)
 
 
+_TRUTH = _derived("/obstacles/truth", READ["/obstacles/truth"])
+
+
+def _check_truth(v: Any) -> None:
+    """A truth message: its fields (:data:`_TRUTH`), and the presence of its obstacles where the log records it —
+    both ``present`` and ``next_present``, booleans, or neither (every obstacle present throughout) — and
+    ``reacting``, a boolean, where the log records it."""
+    _TRUTH(v)
+    for i, o in enumerate(v["obstacles"]):
+        given = ("present" in o) + ("next_present" in o)
+        if given == 1:
+            raise CheckError(f"obstacles[{i}]", "has one of present and next_present without the other")
+        if given and not (type(o["present"]) is bool and type(o["next_present"]) is bool):
+            raise CheckError(f"obstacles[{i}].present", "present and next_present must be true or false")
+        if "reacting" in o and type(o["reacting"]) is not bool:
+            raise CheckError(f"obstacles[{i}].reacting", "must be true or false")
+
+
+def _truths_acceptable(vs: list[Any]) -> bool:
+    """:func:`_check_truth`'s acceptance over a whole episode's messages at once (see :func:`accepts_all`)."""
+    if not accepts_all(_TRUTH, vs):
+        return False
+    for v in vs:
+        for o in v["obstacles"]:
+            if ("present" in o or "next_present" in o) and not (
+                    type(o.get("present")) is bool and type(o.get("next_present")) is bool):
+                return False
+            if "reacting" in o and type(o["reacting"]) is not bool:
+                return False
+    return True
+
+
+with_batch(_check_truth, _truths_acceptable)
+
+
 MESSAGE_CHECKS: dict[str, Check] = {topic: _derived(topic, paths) for topic, paths in READ.items()}
-MESSAGE_CHECKS.update({"/planner/decision": _check_decision, "/tpt": check_tpt})
+MESSAGE_CHECKS.update({"/planner/decision": _check_decision, "/tpt": check_tpt, "/obstacles/truth": _check_truth})
 """Per topic, the check of a message: :data:`READ`'s fields as the schema types them, within :data:`RANGES`; the
 TPT's shape and the decision's policy besides."""
 

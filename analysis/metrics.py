@@ -135,8 +135,11 @@ class MovingPairs:
 
 
 def moving_pairs(truth: list[dict[str, Any]], steps: int) -> MovingPairs:
-    """:class:`MovingPairs` of the first ``steps`` messages of ``truth`` (``/obstacles/truth``, checked)."""
-    obstacles = [(k, o) for k in range(min(steps, len(truth))) for o in truth[k]["obstacles"]]
+    """:class:`MovingPairs` of the first ``steps`` messages of ``truth`` (``/obstacles/truth``, checked): the pairs
+    of obstacles in the world over the whole step (``present`` and ``next_present``; a log without them has every
+    obstacle present), as the simulator's contacts count them — an absent person is in no metric."""
+    obstacles = [(k, o) for k in range(min(steps, len(truth))) for o in truth[k]["obstacles"]
+                 if o.get("present", True) and o.get("next_present", True)]
     values = np.array([_TRUTH(o) for _, o in obstacles], dtype=float).reshape(-1, 7)
     return MovingPairs(step=np.array([k for k, _ in obstacles], dtype=np.intp),
                        xy=np.ascontiguousarray(values[:, 0:2]), next_xy=np.ascontiguousarray(values[:, 2:4]),

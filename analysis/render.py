@@ -57,6 +57,8 @@ def _snapshot(ax, log: EpisodeLog, k: int, alpha: float = 1.0) -> None:
                                alpha=0.15 * alpha))
     if k < len(log.truth):
         for o in log.truth[k]["obstacles"]:
+            if not o.get("present", True):
+                continue  # not in the world at this step (a recorded person before it appears or after it leaves)
             ax.add_patch(Circle((o["x_cm"], o["y_cm"]), o["radius_cm"], color="tab:red", alpha=0.5 * alpha))
     t = log.tpts.get(k)
     if t:
@@ -91,7 +93,8 @@ def render_png(log: EpisodeLog, out: Path, steps: Sequence[int] | None = None) -
     paths: dict[str, list] = {}
     for m in log.truth:
         for o in m["obstacles"]:
-            paths.setdefault(o["id"], []).append((o["x_cm"], o["y_cm"]))
+            if o.get("present", True):
+                paths.setdefault(o["id"], []).append((o["x_cm"], o["y_cm"]))
     for pts in paths.values():
         p = np.array(pts)
         ax.plot(p[:, 0], p[:, 1], ":", color="tab:red", alpha=0.7)

@@ -65,6 +65,11 @@ def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, fl
         return *nan, {}
     columns = list(last.values())
     truth = _pairs([list(map(_XY, m["obstacles"])) for m in log.truth], len(ids))
+    absent = [(k, j) for k, m in enumerate(log.truth) for j, o in enumerate(m["obstacles"])
+              if not o.get("present", True)]
+    if absent:  # nowhere: matched to no table column, and the rows predicting it after it left are not scored
+        steps, rows = zip(*absent, strict=True)
+        truth[list(steps), list(rows)] = math.inf
     truth = truth[:, columns]  # (steps, obstacles, 2)
     models = obstacle_models(log.meta)
     model_of = np.array([models.get(oid, DEFAULT_MODEL) for oid in last])
@@ -104,9 +109,11 @@ def _score(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int, m
     at = np.minimum(step[:, None] + ahead[None, :], n_steps - 1)  # (tables, rows - 1), clipped where unscored
     actual = truth[at[:, :, None], match[:, None, :]]  # (tables, rows - 1, k, 2)
     errs = norm2(predicted[:, 1:] - actual)  # (tables, rows - 1, k)
-    counted = (ahead[None, :] <= scored[:, None])[:, :, None] & near[:, None, :]  # (tables, rows - 1, k)
+    # an absent obstacle's truth is inf (tpt_errors): its rows are not scored
+    counted = (ahead[None, :] <= scored[:, None])[:, :, None] & near[:, None, :] & np.isfinite(errs)
     has_final = near & (scored >= 1)[:, None]  # (tables, k)
     final = np.take_along_axis(errs, np.maximum(scored - 1, 0)[:, None, None], axis=1)[:, 0, :]  # (tables, k)
+    has_final &= np.isfinite(final)
     model = model_of[match]  # (tables, k)
     for name in dict.fromkeys(model[has_final].tolist()):
         mine = model == name

@@ -77,7 +77,8 @@ def trace_of(log: EpisodeLog, path: str | Path | None = None) -> Trace:
     paths: dict[str, list[tuple[float, float]]] = {}
     for message in log.truth:
         for o in message["obstacles"]:
-            paths.setdefault(o["id"], []).append((o["x_cm"], o["y_cm"]))
+            if o.get("present", True):  # a recorded person's path only while it is in the world
+                paths.setdefault(o["id"], []).append((o["x_cm"], o["y_cm"]))
     world = World(bounds=log.bounds, polygons=tuple(np.asarray(p.exterior.coords) for p in log.static_polygons),
                   goal=log.goal, goal_tolerance=log.goal_tolerance)
     return Trace(log=str(path), positions=log.positions, contact_points=tuple(k + 1 for k in flagged),

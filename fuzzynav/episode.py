@@ -97,7 +97,11 @@ class StepRecord:
     cm/s; order of ``Episode.obstacle_ids``), ``obstacle_next_positions`` at ``time_s + dt``.
     ``contact_static`` / ``contact_dynamic`` tell whether the robot touched something during the step
     (swept); ``new_contacts`` counts contacts that started on this step. ``outcome`` is set on the last
-    record only. ``compute_time_us`` is the wall time of the decision (not reproducible)."""
+    record only. ``compute_time_us`` is the wall time of the decision (not reproducible).
+    ``obstacle_present`` / ``obstacle_next_present`` (N,) bool: which obstacles are in the world at ``time_s``
+    and at ``time_s + dt`` — None when no obstacle model of the scenario has presence (all present, always).
+    ``obstacle_reacting`` (N,) bool: which obstacles moved over the step by their reaction to the robot, not their
+    replay (recorded people, :mod:`fuzzynav.pedestrians.recorded`) — None when no model of the scenario reacts."""
 
     step: int
     time_s: float
@@ -118,6 +122,9 @@ class StepRecord:
     distance_to_goal: float
     outcome: str | None
     compute_time_us: float = 0.0
+    obstacle_present: np.ndarray | None = None
+    obstacle_next_present: np.ndarray | None = None
+    obstacle_reacting: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -129,6 +136,7 @@ class _Sensed:
     perceived: Perceived
     positions: np.ndarray
     velocities: np.ndarray
+    present: np.ndarray | None
     tracker: TrackerState
 
 
@@ -182,15 +190,19 @@ class Episode:
             cfg, s = self.config, self.state
             t = self.step_index * cfg.dt
             pos, vel = self.crowd.positions, self.crowd.velocities
+            present = self.crowd.present if self.crowd.has_presence else None
             discs = np.column_stack([pos, self.crowd.radii]) if len(pos) else np.zeros((0, 3))
-            sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs,
-                                    portable_math.norm2(vel) if len(vel) else None)
+            speeds = portable_math.norm2(vel) if len(vel) else None
+            if present is not None:  # an absent person reflects no beam and no sonar ping
+                discs = discs[present]
+                speeds = None if speeds is None else speeds[present]
+            sonar = self.sonar.read(s.x, s.y, s.heading, self.world.solid, discs, speeds)
             scan = laser_mod.scan(cfg.laser, s.x, s.y, s.heading, self.world.segments, self.world.circles, discs,
                                   self._noise)
             tracker, seen = perceive(cfg.perception, self._tracker, scan, t, pos, vel, self.crowd.radii,
-                                     self._noise)
+                                     self._noise, present)
             obs = Observation(s, self.scenario.robot.goal, sonar, seen.tracks, seen.static_points)
-            self._sensed = _Sensed(obs, scan, seen, pos, vel, tracker)
+            self._sensed = _Sensed(obs, scan, seen, pos, vel, present, tracker)
         return self._sensed.observation, self._sensed.scan
 
     @property
@@ -215,11 +227,16 @@ class Episode:
         # the obstacles move over the same step, seeing the robot where it was when it sensed (they react to
         # what they see, not to the command it has just chosen)
         next_pos, _ = self.crowd.step(s, dt)
+        present, next_present = sensed.present, self.crowd.present if self.crowd.has_presence else None
         p0, p1 = np.array([s.x, s.y]), np.array([nxt.x, nxt.y])
         r = self.scenario.robot.radius
         static_hit = self.world.static_contact(p0, p1, r)
-        dynamic_hit = tuple(self.obstacle_ids[k] for k in _swept_contacts(p0, p1, pos, next_pos, r,
-                                                                            self.crowd.radii))
+        hits = _swept_contacts(p0, p1, pos, next_pos, r, self.crowd.radii)
+        if present is not None:
+            # a person is touchable over a step only while in the world at both its ends: between two of its
+            # annotations, where its motion is the recording's (it is nowhere before it appears or after it leaves)
+            hits = [k for k in hits if present[k] and next_present[k]]
+        dynamic_hit = tuple(self.obstacle_ids[k] for k in hits)
         touching = set(dynamic_hit) | ({"static"} if static_hit else set())
         new_contacts = len(touching - self._touching)
         self._touching = touching
@@ -238,7 +255,9 @@ class Episode:
                           decision=decision,
                           obstacle_positions=pos, obstacle_velocities=vel, obstacle_next_positions=next_pos,
                           contact_static=static_hit, contact_dynamic=dynamic_hit, new_contacts=new_contacts,
-                          distance_to_goal=dist, outcome=self.outcome, compute_time_us=compute_us)
+                          distance_to_goal=dist, outcome=self.outcome, compute_time_us=compute_us,
+                          obstacle_present=present, obstacle_next_present=next_present,
+                          obstacle_reacting=self.crowd.reacting if self.crowd.has_reactions else None)
 
     def run(self) -> Iterator[StepRecord]:
         """Yield records until the episode ends."""

@@ -19,7 +19,9 @@
 5. Memory: resident set size of one process running many episodes (with logs), early vs late.
 6. Report: the time to write the report of 10,000 episodes (:mod:`runners.benchmarks.report`).
 7. Crowds: ``crowd_crossing`` with 20 pedestrians of each obstacle model (scripted, social force, ORCA, random
-   walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.benchmarks.crowd`).
+   walk): steps/s with laser perception and logging, and the model's time per step (:mod:`runners.benchmarks.crowd`);
+   and replaying a 300-person recording: the replay's and the sensing's µs per step against a ``mixed`` step
+   (:mod:`runners.benchmarks.recorded`).
 8. Side by side with the commit issue #19 was filed against: CPU time per step on ``mixed`` with and without
    logging, each tree in its own child process, alternated (:mod:`runners.benchmarks.baseline`).
 9. The main job (:mod:`runners.benchmarks.main_job`): ``sweep efficiency`` (the default sweep's episodes/s as a
@@ -269,6 +271,10 @@ def main(argv: list[str] | None = None) -> int:
 
     results["crowd"] = bench_crowd(2 if args.quick else 10)
     print_crowd(results["crowd"])
+    from runners.benchmarks.recorded import bench_recorded, print_recorded  # 300 recorded people (#38)
+
+    results["recorded"] = bench_recorded(1, 120) if args.quick else bench_recorded(3)
+    print_recorded(results["recorded"])
     from runners.benchmarks.main_job import bench_kernels, bench_main_job, print_kernels, print_main_job
 
     results["main_job"] = bench_main_job(rounds=1 if args.quick else 3)  # issue #36: the job a user runs

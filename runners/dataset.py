@@ -53,6 +53,7 @@ from fuzzynav.conf import CONF_DIR as CONF
 from fuzzynav.params import limits
 from runners.configuration import plugins as config_plugins
 from runners.configuration.data_files import MANIFEST, DataFileError, check_data_file
+from runners.datasets import recorded_source
 from runners.datasets.manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.datasets.verify_report import detail_lines, episode_line, summary_lines
 from runners.logs.diff import EpisodeDiff, diff_logs, diff_records
@@ -85,6 +86,7 @@ def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
     except yaml.YAMLError as err:
         raise DatasetError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     check_manifest(data, path, name)
+    recorded_source.check_source(data.get("source"), path)
     return data
 
 
@@ -139,12 +141,14 @@ def _check_override(text: Any, where: str) -> None:
         raise DatasetError(f"{where}: {key:.60}: {DATASET_KEYS[top]}")
 
 
-def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = None) -> None:
+def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = None,
+                search: list[str] | None = None) -> None:
     """Check the manifest's sweep before any episode runs (one line naming the field): every override is one
     ``key=value`` of the run config (see :func:`_check_override`), every scenario a name, and each scenario,
     variant, override and ``extra`` override composes and validates (:func:`runners.configuration.precheck.precheck`, as
     ``runners.run`` checks its command line) with the first scenario, variant and seed. Otherwise a bad entry
-    was a traceback from every worker."""
+    was a traceback from every worker. ``search``: overrides every composition needs (the configuration folder of
+    a dataset built from recordings, :mod:`runners.datasets.recorded_source`), not the manifest's."""
     from runners.configuration.precheck import precheck
 
     sweep = manifest["sweep"]
@@ -176,7 +180,7 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
     scenarios, variants = sweep["scenarios"], [_variant_overrides(v) for v in sweep["variants"]]
 
     def fail_if(where: str, overrides: list[str]) -> None:
-        problem = precheck(overrides)
+        problem = precheck([*(search or []), *overrides])
         if problem:
             raise DatasetError(f"{where}: {problem.removeprefix('config: ')}" if where else problem)
 
@@ -190,7 +194,7 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
         fail_if("", [f"scenario={scenarios[0]}", *variants[0], *common, *extra[:i + 1], *first])
     for i, name in enumerate(scenarios[1:], start=1):
         fail_if(f"{path}: sweep.scenarios[{i}]", [f"scenario={name}", *variants[0], *common, *extra, *first])
-    _check_distinct_variants(path, [f"scenario={scenarios[0]}"], variants, [*common, *extra, *first])
+    _check_distinct_variants(path, [*(search or []), f"scenario={scenarios[0]}"], variants, [*common, *extra, *first])
 
 
 def _check_repeats(sweep: dict[str, Any], path: Path) -> None:
@@ -228,7 +232,8 @@ def _check_distinct_variants(path: Path, before: list[str], variants: list[list[
 
 
 def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
-    """One job per episode: its Hydra overrides and its log file name."""
+    """One job per episode: its Hydra overrides and its log file name (``_search``: the overrides every composition
+    of a dataset built from recordings needs, set by :func:`runners.datasets.recorded_source.prepare`)."""
     sweep = manifest["sweep"]
     common = [str(o) for o in sweep.get("overrides") or []]
     out = []
@@ -236,7 +241,7 @@ def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
         for variant in sweep["variants"]:
             extra = _variant_overrides(variant)
             for seed in range(*sweep["seeds"]):
-                overrides = [f"scenario={scenario}", *extra, *common, f"seed={seed}"]
+                overrides = [*manifest.get("_search", []), f"scenario={scenario}", *extra, *common, f"seed={seed}"]
                 tag = "__".join(o.replace("=", "-").replace("/", "-") for o in [*extra])
                 out.append({"overrides": overrides, "file": f"{scenario}__{tag}__s{seed}.mcap", "seed": seed})
     return out
@@ -367,13 +372,20 @@ def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: 
     return sorted(results, key=lambda r: r["file"])
 
 
-def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:
-    """Record the dataset and write the hashes into its manifest; keep the logs of the ``keep_logs`` seeds."""
-    manifest = load_manifest(name, root)
-    check_sweep(manifest, manifest_path(name, root))
-    keep = set(manifest.get("keep_logs") or [])
+def build(name: str, n_jobs: int = -1, root: Path = DATASETS, source: Path | None = None,
+          notes: list[str] | None = None) -> dict[str, Any]:
+    """Record the dataset and write the hashes into its manifest; keep the logs of the ``keep_logs`` seeds.
+    ``source``: the folder of the recordings a dataset with a ``source`` field is built from (their SHA-256 go into
+    the manifest; :mod:`runners.datasets.recorded_source`); what was left out is appended to ``notes``."""
+    original = load_manifest(name, root)
+    keep = set(original.get("keep_logs") or [])
     log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
+        manifest, search, said = recorded_source.prepare(original, manifest_path(name, root), source,
+                                                         Path(tmp) / "conf", building=True)
+        (notes if notes is not None else []).extend(said)
+        check_sweep(manifest, manifest_path(name, root), search=search)
+        manifest["_search"] = search
         results = record_all(manifest, Path(tmp), n_jobs, desc=f"build {name}")
         manifest.pop("metrics_sha256", None)  # the whole-table digest of older manifests: now one per column
         manifest["metrics_columns"] = metrics_column_digests(dataset_metrics(sorted(Path(tmp).glob("*.mcap"))))
@@ -386,6 +398,7 @@ def build(name: str, n_jobs: int = -1, root: Path = DATASETS) -> dict[str, Any]:
                 shutil.copy(Path(tmp) / file, log_dir / file)
     manifest["episodes"] = {r["file"]: {**{k: r[k] for k in EPISODE_FIELDS},
                                         "step_digests": " ".join(r["step_digests"])} for r in results}
+    manifest["sweep"] = original["sweep"]  # the scenes, not the scenarios made of them
     manifest = {k: manifest[k] for k in FIELDS if k in manifest}  # the fields in their documented order
     manifest_path(name, root).write_text(yaml.safe_dump(manifest, sort_keys=False, width=200))
     return manifest
@@ -441,21 +454,25 @@ def _select_seeds(manifest: dict[str, Any], seeds: tuple[int, int], path: Path) 
 
 
 def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seeds: tuple[int, int] | None = None,
-           root: Path = DATASETS) -> Verification:
+           root: Path = DATASETS, source: Path | None = None) -> Verification:
     """Regenerate the dataset (optionally with extra overrides, or only the seeds in ``[first, end)``) and
-    classify every difference (no problems = ok). The metrics-table hash is checked on full verifications only."""
+    classify every difference (no problems = ok). The metrics-table hash is checked on full verifications only.
+    ``source``: the recordings of a dataset with a ``source`` field, checked against its SHA-256 first."""
     manifest = load_manifest(name, root)
     path = manifest_path(name, root)
     if not manifest.get("episodes"):
-        raise DatasetError(f"{path}: episodes: missing (run: python -m runners.dataset build {name})")
-    # a bad entry or override is one line before any episode runs (not a traceback from every worker)
-    check_sweep(manifest, path, overrides)
-    if overrides:
-        manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
-    checked = _select_seeds(manifest, seeds, path) if seeds is not None else None
-    out = Verification(compared=len(manifest["episodes"]), seeds=checked)
+        hint = " --source DIR" if "source" in manifest else ""
+        raise DatasetError(f"{path}: episodes: missing (run: python -m runners.dataset build {name}{hint})")
     log_dir = root / name / "logs"
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
+        manifest, search, _ = recorded_source.prepare(manifest, path, source, Path(tmp) / "conf", building=False)
+        # a bad entry or override is one line before any episode runs (not a traceback from every worker)
+        check_sweep(manifest, path, overrides, search=search)
+        manifest["_search"] = search
+        if overrides:
+            manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
+        checked = _select_seeds(manifest, seeds, path) if seeds is not None else None
+        out = Verification(compared=len(manifest["episodes"]), seeds=checked)
         results = {r["file"]: r for r in record_all(manifest, Path(tmp), n_jobs, desc=f"verify {name}")}
         for file, expected in sorted(manifest["episodes"].items()):
             got = results.get(file)
@@ -506,7 +523,9 @@ def list_datasets(root: Path = DATASETS) -> list[dict[str, Any]]:
             rows.append({"name": name, "error": str(err)})
             continue
         logs = list((path.parent / "logs").glob("*.mcap"))
-        rows.append({"name": name, "episodes": len(jobs(m)), "built": bool(m.get("episodes")),
+        # a dataset of recordings runs each scene once per window
+        per_scene = len(m["source"]["windows"]) if "source" in m else 1
+        rows.append({"name": name, "episodes": len(jobs(m)) * per_scene, "built": bool(m.get("episodes")),
                      "committed_logs": len(logs), "logs_MB": round(sum(p.stat().st_size for p in logs) / 1e6, 2),
                      "description": m.get("description", "")})
     return rows
@@ -540,6 +559,8 @@ def main(argv: list[str] | None = None) -> int:
     for p in (b, v):
         p.add_argument("--jobs", type=cli_jobs, default=-1,
                        help=f"parallel workers: -1 (default: all cores) or 1 to {MAX_JOBS}")
+        p.add_argument("--source", type=Path, help="the folder of your copy of the recordings a dataset is built "
+                                                   "from (eth_ucy_v1: docs/recordings.md)")
     for p in (lister, b, v):
         p.add_argument("--root", type=Path, default=DATASETS,
                        help="directory holding the datasets (default: datasets/ of the repository)")
@@ -565,11 +586,14 @@ def main(argv: list[str] | None = None) -> int:
                       f"committed logs: {row['committed_logs']} ({row['logs_MB']} MB)  {row['description']}")
             return 0
         if args.command == "build":
-            m = build(args.name, args.jobs, args.root)
+            notes: list[str] = []
+            m = build(args.name, args.jobs, args.root, args.source, notes)
+            for note in notes:
+                print(f"{args.name}: {note}")
             print(f"built {args.name}: {len(m['episodes'])} episodes; hashes in {manifest_path(args.name, args.root)}")
             return 0
         seeds = parse_seeds(args.seeds) if args.seeds is not None else None
-        result = verify(args.name, args.overrides, args.jobs, seeds, args.root)
+        result = verify(args.name, args.overrides, args.jobs, seeds, args.root, args.source)
     except (DatasetError, LogError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

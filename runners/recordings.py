@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import hashlib
 import sys
 from pathlib import Path
 
@@ -22,38 +21,12 @@ from analysis.cli_args import OneLineParser
 from fuzzynav.scenarios.recordings import (
     ANNOTATION_HZ,
     FORMATS,
-    MAX_TEXT_BYTES,
     PREDICTORS,
     PredictionErrors,
-    Recording,
     RecordingError,
-    parse,
     prediction_errors,
+    read_recording,
 )
-
-
-def read_recording(path: Path, fmt: str | None = None, annotation_hz: float = ANNOTATION_HZ,
-                   max_gap: int = 0) -> tuple[Recording, str]:
-    """The recording in the file at ``path`` and the file's SHA-256; :class:`RecordingError` (one line naming the
-    file) when it cannot be read."""
-    fmt = fmt or ("obsmat" if path.name.lower().startswith("obsmat") else "xy")
-    try:
-        if not path.is_file():
-            raise RecordingError(f"{path}: not a file" if path.exists() else f"{path}: no such file")
-        size = path.stat().st_size
-        if size > MAX_TEXT_BYTES:
-            raise RecordingError(f"{path}: {size:,} bytes, more than the limit of {MAX_TEXT_BYTES:,} (ETH/UCY "
-                                 "files are under 3 MB)")
-        data = path.read_bytes()
-    except OSError as err:
-        raise RecordingError(f"{path}: cannot be read ({err.strerror or err})") from None
-    except ValueError as err:  # a NUL byte in the name
-        raise RecordingError(f"{str(path)[:80]!r}: not a file name ({err})") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as err:
-        raise RecordingError(f"{path}: not a text file (byte {err.start} is not UTF-8)") from None
-    return parse(text, fmt, str(path), annotation_hz, max_gap), hashlib.sha256(data).hexdigest()
 
 
 def _table(errors: PredictionErrors) -> list[str]:

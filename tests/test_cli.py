@@ -60,6 +60,9 @@ def test_bench_quick_writes_results(tmp_path):
     assert [r["model"] for r in data["crowd"]] == ["scripted", "social_force", "orca", "random_walk"]
     assert all(r["pedestrians"] == 20 and r["steps_per_s_with_logging"] > 0 for r in data["crowd"])
     assert "crowds (crowd_crossing, 20 pedestrians" in res.stdout
+    rec = data["recorded"]  # issue #38: replaying 300 recorded people
+    assert rec["people"] == 300 and rec["replay_us_per_step"] > 0 and rec["mixed_us_per_step"] > 0
+    assert 0 < rec["present_per_step"] < 300 and "Recorded people: 300 people" in res.stdout
     assert set(data["simulation"]["us_per_step_by_stage"]) >= {"sensors", "tracking", "logging", "controller"}
     assert data["sweep"]["episodes"] >= 100 and len(data["sweep"]["shapes"]) == 2
     assert data["sweep"]["rounds"] == 1

@@ -103,7 +103,7 @@ CASES = [  # id, mutation, the message after "error: <manifest path>: "
     ("version_missing", _drop("version"), "version: missing (this fuzzynav reads manifest version 1)"),
     ("d_name_mismatch", _set("name", value="other"), "name: 'other' is not the dataset's directory name 'dsx'"),
     ("name_missing", _drop("name"), "name: missing"),
-    ("d_unknown_top", _set("zzz", value=1), "zzz: unknown field (allowed: name, description, version, sweep, "),
+    ("d_unknown_top", _set("zzz", value=1), "zzz: unknown field (allowed: name, description, version, source, sweep, "),
     ("bool_key", _set(True, value=1), "True: unknown field (allowed: "),  # YAML 1.1's ``on:``
     ("unknown_sweep_key", _set("sweep", "seed", value=[0, 1]), "sweep.seed: unknown field (allowed: scenarios, "),
     ("sweep_not_mapping", _set("sweep", value=[1]), "sweep: expected a mapping, got list"),

@@ -71,8 +71,17 @@ def obstacles_truth() -> dict:
         "id": _s("Obstacle id from the scenario"), "x_cm": _n("Position x at the step, cm"),
         "y_cm": _n("Position y at the step, cm"), "vx_cm_s": _n("Velocity x, cm/s"), "vy_cm_s": _n("Velocity y, cm/s"),
         "radius_cm": _n("Radius, cm"), "next_x_cm": _n("Position x one step later, cm"),
-        "next_y_cm": _n("Position y one step later, cm")})
-    return _stamped("fuzzynav.ObstaclesTruth", "True states of the scripted moving obstacles",
+        "next_y_cm": _n("Position y one step later, cm"),
+        "present": _b("In the world at the step: sensed, touchable and measured (absent: before a recorded person "
+                      "appears or after it leaves; its position is then where it will appear or where it left). "
+                      "Written only by scenarios whose obstacles come and go; a log without it has every obstacle "
+                      "present throughout"),
+        "next_present": _b("In the world one step later (given with present); the robot can touch the obstacle "
+                           "over the step only when both are true"),
+        "reacting": _b("Moved over this step by its reaction to the robot, not by its recording's replay (a "
+                       "recorded person with react_cm; once true, true to the end). Written only by scenarios "
+                       "whose people may react")}, optional=("present", "next_present", "reacting"))
+    return _stamped("fuzzynav.ObstaclesTruth", "True states of the moving obstacles",
                     {"obstacles": _arr(item, "All moving obstacles of the scenario")})
 
 

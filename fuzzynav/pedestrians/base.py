@@ -5,11 +5,23 @@ A model owns some of a scenario's moving obstacles and advances them one time st
     model = factory(obstacles, config)          # the obstacles (DynamicObstacle) that name this model
     positions, velocities = model.reset(rng)    # at t = 0; (n, 2) cm and cm/s
     positions, velocities = model.step(view, indices, dt)  # at t + dt, given the world at t
+    present = model.presence(step)              # optional: (n,) bool, who is in the world at step ``step``
 
 ``view`` (:class:`CrowdView`) holds the static world, the robot (pose, speed, radius) and *every* moving
 obstacle at time t, whatever model moves it, so that pedestrians of one model avoid those of another and the
 robot; ``indices`` are the model's own rows in it. All models step from the same state (simultaneous update:
 the order of the models does not matter).
+
+Presence: a model whose people come and go (``recorded``: a recorded pedestrian exists only between its first
+and last annotation) has a ``presence(step)`` method saying which of its obstacles are in the world at step
+``step`` (t = step * dt). An absent obstacle is not sensed, cannot be touched, is avoided by nobody and is in no
+metric; its position is only kept (where it will appear, or where it left) so that its row stays continuous in the
+log. A model without the method has its obstacles present throughout (every model before presence).
+
+Obstacles that name the same model with equal parameters share one instance; a model whose obstacles each carry
+their own data in their parameters (``recorded``: each person's times) has a static ``group_key(config)`` saying
+what one instance shares, and is given its obstacles with the first one's config (each obstacle's own is its
+``model_params``). A model whose obstacles ignore everyone has ``reactive = False``: they may start overlapping.
 
 Models register with :func:`register_obstacle_model`; the built-ins (``scripted``, ``social_force``, ``orca``,
 ``random_walk``) are the modules of :mod:`fuzzynav.pedestrians`, found without a list (:mod:`fuzzynav.registry`),
@@ -47,7 +59,8 @@ class CrowdView:
     """The world at time ``time_s`` (step ``step``) as every model sees it when stepping.
 
     ``positions``/``velocities`` (N, 2) and ``radii`` (N,) are all moving obstacles (cm, cm/s) in the
-    scenario's order; ``robot`` the robot's pose and last speed (cm, degrees, cm/s), ``robot_radius`` cm."""
+    scenario's order; ``robot`` the robot's pose and last speed (cm, degrees, cm/s), ``robot_radius`` cm;
+    ``present`` (N,) bool which of them are in the world now (None: all of them)."""
 
     world: World
     robot: RobotState
@@ -57,12 +70,13 @@ class CrowdView:
     radii: np.ndarray
     time_s: float
     step: int
+    present: np.ndarray | None = None
 
     def others(self, indices: np.ndarray, sees_robot: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the obstacles at ``indices`` avoid: every other moving obstacle, then the robot when
         ``sees_robot`` (its velocity along its heading at its last speed) — positions (m, 2) cm, velocities
-        (m, 2) cm/s, radii (m,) cm."""
-        mask = np.ones(len(self.positions), dtype=bool)
+        (m, 2) cm/s, radii (m,) cm. Absent obstacles (``present``) are not there to avoid."""
+        mask = np.ones(len(self.positions), dtype=bool) if self.present is None else self.present.copy()
         mask[indices] = False
         pos, vel, radii = self.positions[mask], self.velocities[mask], self.radii[mask]
         if sees_robot:
@@ -89,6 +103,20 @@ class ObstacleModel(Protocol):
     def reset(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]: ...
 
     def step(self, view: CrowdView, indices: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def model_presence(model: Any, step: int, n: int, name: str) -> np.ndarray | None:
+    """Which of a model's ``n`` obstacles are in the world at step ``step`` ((n,) bool), from its optional
+    ``presence`` method; None when the model has none (all present, always). Anything but n booleans is a
+    ``ValueError`` naming the model."""
+    presence = getattr(model, "presence", None)
+    if presence is None:
+        return None
+    value = np.asarray(presence(step))
+    if value.shape != (n,) or value.dtype != bool:
+        raise ValueError(f"pedestrian model {name!r}: presence returned {value.dtype} of shape {value.shape}, "
+                         f"expected ({n},) booleans")
+    return value
 
 
 ObstacleModelFactory = Callable[[Sequence["DynamicObstacle"], Any], ObstacleModel]

@@ -15,7 +15,14 @@ import numpy as np
 from fuzzynav.kinematics import RobotState
 from fuzzynav.params import limits
 from fuzzynav.params.names import DEFAULT_MODEL
-from fuzzynav.pedestrians.base import CrowdView, ObstacleModel, model_config, model_factory, substeps
+from fuzzynav.pedestrians.base import (
+    CrowdView,
+    ObstacleModel,
+    model_config,
+    model_factory,
+    model_presence,
+    substeps,
+)
 
 if TYPE_CHECKING:
     from fuzzynav.scenarios.scenario import DynamicObstacle
@@ -69,16 +76,30 @@ class Crowd:
         self.world = world
         self.robot_radius = robot_radius
         groups: dict[tuple, list[int]] = {}
+        configs = []
         for i, o in enumerate(obstacles):
             name = model_name(o)
             config = model_config(name, o.model_params, f"dynamic_obstacles[{i}].model_params")
-            groups.setdefault((name, config), []).append(i)
+            configs.append(config)
+            # a model whose obstacles each carry their own data (recorded people: their times) says what one
+            # instance shares (``group_key``), so that one instance moves them all
+            group_key = getattr(model_factory(name, "model"), "group_key", None)
+            groups.setdefault((name, config if group_key is None else group_key(config)), []).append(i)
         self._models: list[tuple[ObstacleModel, np.ndarray, str]] = []
-        for (name, config), members in groups.items():
-            model = model_factory(name, "model")([obstacles[i] for i in members], config)
+        for (name, _), members in groups.items():
+            model = model_factory(name, "model")([obstacles[i] for i in members], configs[members[0]])
             self._models.append((model, np.array(members, dtype=int), name))
         self.positions = np.zeros((len(obstacles), 2))
         self.velocities = np.zeros((len(obstacles), 2))
+        #: which obstacles are in the world now ((N,) bool; :mod:`fuzzynav.pedestrians.base`, presence)
+        self.present = np.ones(len(obstacles), dtype=bool)
+        #: whether any model says who is present (``presence``): only then does the log record presence, so that the
+        #: logs of every scenario before presence stay byte for byte what they were
+        self.has_presence = any(hasattr(model, "presence") for model, _, _ in self._models)
+        #: which obstacles moved over the last step by their reaction instead of their replay ((N,) bool; recorded
+        #: people with ``react_cm``); logged only when a model ``reacts``
+        self.reacting = np.zeros(len(obstacles), dtype=bool)
+        self.has_reactions = any(getattr(model, "reacts", False) for model, _, _ in self._models)
         self.step_index = 0
 
     def __len__(self) -> int:
@@ -92,7 +113,18 @@ class Crowd:
             p, v = _model_arrays(model.reset(obstacle_rng(seed, group)), name, "reset", len(members))
             pos[members], vel[members] = p, v
         self.positions, self.velocities, self.step_index = pos, vel, 0
+        self.present = self._presence(0)
+        self.reacting = np.zeros(len(self.ids), dtype=bool)
         return pos, vel
+
+    def _presence(self, step: int) -> np.ndarray:
+        """Which obstacles are in the world at step ``step`` (all of a model without ``presence``)."""
+        present = np.ones(len(self.ids), dtype=bool)
+        for model, members, name in self._models:
+            mine = model_presence(model, step, len(members), name)
+            if mine is not None:
+                present[members] = mine
+        return present
 
     def step(self, robot: RobotState, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Advance every obstacle from the current time (step ``step_index``) by ``dt`` seconds, seeing the robot
@@ -101,7 +133,7 @@ class Crowd:
             self.step_index += 1
             return self.positions, self.velocities
         view = CrowdView(self.world, robot, self.robot_radius, self.positions, self.velocities, self.radii,
-                         self.step_index * dt, self.step_index)
+                         self.step_index * dt, self.step_index, self.present if self.has_presence else None)
         pos = np.zeros_like(self.positions)
         vel = np.zeros_like(self.velocities)
         for model, members, name in self._models:
@@ -113,6 +145,14 @@ class Crowd:
                                      f"velocity at step {self.step_index + 1}")
         self.positions, self.velocities = pos, vel
         self.step_index += 1
+        if self.has_presence:
+            self.present = self._presence(self.step_index)
+        if self.has_reactions:
+            reacting = np.zeros(len(self.ids), dtype=bool)
+            for model, members, _ in self._models:
+                if getattr(model, "reacts", False):
+                    reacting[members] = model.reacting
+            self.reacting = reacting
         return pos, vel
 
 

@@ -24,10 +24,23 @@ extrapolation). Units: cm and s from here on.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+
+from fuzzynav.pedestrians.recording import (  # the data and their resampling live with the model that replays them
+    PedestrianTrack,
+    Recording,
+    RecordingError,
+    Resampled,
+    resample,
+)
+
+__all__ = ["ANNOTATION_HZ", "FORMATS", "PREDICTORS", "PedestrianTrack", "PredictionErrors", "Recording",
+           "RecordingError", "Resampled", "parse", "prediction_errors", "read_recording", "resample"]
 
 FORMATS = {"obsmat": 8, "xy": 4}
 #: the largest recording read (bytes of text): ETH/UCY files are under 3 MB
@@ -35,36 +48,6 @@ MAX_TEXT_BYTES = 64 * 1024 * 1024
 #: at most this many annotations per file (students03, the largest, has about 22,000)
 MAX_ROWS = 1_000_000
 ANNOTATION_HZ = 2.5
-
-
-class RecordingError(ValueError):
-    """A recording that cannot be read as its format says: the message names the file and line."""
-
-
-@dataclass(frozen=True)
-class PedestrianTrack:
-    """One recorded pedestrian: annotation times ``t_s`` (K,) in s from the recording's first frame, strictly
-    increasing, and positions ``xy_cm`` (K, 2) in cm."""
-
-    id: str
-    t_s: np.ndarray
-    xy_cm: np.ndarray
-
-
-@dataclass(frozen=True)
-class Recording:
-    """The pedestrians of one recording file (``source`` names it in errors), each with its track."""
-
-    source: str
-    tracks: tuple[PedestrianTrack, ...]
-    annotation_dt_s: float
-
-    @property
-    def duration_s(self) -> float:
-        """From the first to the last annotation of any pedestrian (s)."""
-        if not self.tracks:
-            return 0.0
-        return max(float(t.t_s[-1]) for t in self.tracks) - min(float(t.t_s[0]) for t in self.tracks)
 
 
 def parse(text: str, fmt: str, source: str, annotation_hz: float = ANNOTATION_HZ, max_gap: int = 0) -> Recording:
@@ -148,58 +131,35 @@ def parse(text: str, fmt: str, source: str, annotation_hz: float = ANNOTATION_HZ
     return Recording(source, tuple(tracks), 1.0 / annotation_hz)
 
 
-@dataclass(frozen=True)
-class Resampled:
-    """A recording at a run's steps: ``times_s`` (T,) from the window's start, positions ``xy_cm`` (N, T, 2) and
-    ``present`` (N, T) per pedestrian ``ids`` (N,); absent positions are NaN."""
-
-    ids: tuple[str, ...]
-    times_s: np.ndarray
-    xy_cm: np.ndarray
-    present: np.ndarray
-
-
-def resample(recording: Recording, dt_s: float, start_s: float = 0.0, duration_s: float | None = None,
-             crop_cm: tuple[float, float, float, float] | None = None) -> Resampled:
-    """Positions at ``start_s + k * dt_s`` for k = 0 .. (``duration_s`` / dt_s; default: to the recording's end)
-    by linear interpolation within each pedestrian's track (module docstring). With ``crop_cm`` (x0, y0, x1, y1),
-    a pedestrian is present only while inside the rectangle (boundary included). Pedestrians never present in
-    the window are left out."""
-    if not (math.isfinite(dt_s) and dt_s > 0):
-        raise RecordingError(f"{recording.source}: dt must be a positive number of seconds, got {dt_s}")
-    end = recording.duration_s if duration_s is None else start_s + duration_s
-    if not (math.isfinite(start_s) and math.isfinite(end) and 0 <= start_s <= end):
-        raise RecordingError(f"{recording.source}: time window [{start_s}, {end}] s is not a window of the "
-                             "recording")
-    count = math.floor((end - start_s) / dt_s + 1e-9) + 1
-    if count > 1_000_000:
-        raise RecordingError(f"{recording.source}: {count:,} steps in the window, more than 1,000,000")
-    times = start_s + dt_s * np.arange(count)
-    ids, positions, masks = [], [], []
-    for track in recording.tracks:
-        # a step on an annotation's time is inside whatever the last bit of k * dt says (0.4 * 3 > 1.2)
-        inside = (times >= track.t_s[0] - 1e-9) & (times <= track.t_s[-1] + 1e-9)
-        if len(track.t_s) == 1:
-            xy = np.repeat(track.xy_cm[:1], count, axis=0)
-        else:
-            xy = np.stack([np.interp(times, track.t_s, track.xy_cm[:, 0]),
-                           np.interp(times, track.t_s, track.xy_cm[:, 1])], axis=1)
-        if crop_cm is not None:
-            x0, y0, x1, y1 = crop_cm
-            inside &= (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
-        if not inside.any():
-            continue
-        xy[~inside] = np.nan
-        ids.append(track.id)
-        positions.append(xy)
-        masks.append(inside)
-    if not ids:
-        return Resampled((), times - start_s, np.zeros((0, count, 2)), np.zeros((0, count), dtype=bool))
-    return Resampled(tuple(ids), times - start_s, np.stack(positions), np.stack(masks))
-
-
 #: the predictions compared by :func:`prediction_errors`
 PREDICTORS = ("tpt", "cv", "standing")
+
+
+def read_recording(path: Path, fmt: str | None = None, annotation_hz: float = ANNOTATION_HZ,
+                   max_gap: int = 0) -> tuple[Recording, str]:
+    """The recording in the file at ``path`` and the file's SHA-256; :class:`RecordingError` (one line naming the
+    file) when it cannot be read. The one place a recording file is read (the ``recorded`` scenario generator and
+    the commands of :mod:`runners.recordings` and :mod:`runners.dataset`)."""
+    fmt = fmt or ("obsmat" if path.name.lower().startswith("obsmat") else "xy")
+    try:
+        if not path.is_file():
+            raise RecordingError(f"{path}: not a file" if path.exists() else f"{path}: no such file")
+        size = path.stat().st_size
+        if size > MAX_TEXT_BYTES:
+            raise RecordingError(f"{path}: {size:,} bytes, more than the limit of {MAX_TEXT_BYTES:,} (ETH/UCY "
+                                 "files are under 3 MB)")
+        data = path.read_bytes()
+    except RecordingError:
+        raise
+    except OSError as err:
+        raise RecordingError(f"{path}: cannot be read ({err.strerror or err})") from None
+    except ValueError as err:  # a NUL byte in the name
+        raise RecordingError(f"{str(path)[:80]!r}: not a file name ({err})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise RecordingError(f"{path}: not a text file (byte {err.start} is not UTF-8)") from None
+    return parse(text, fmt, str(path), annotation_hz, max_gap), hashlib.sha256(data).hexdigest()
 
 
 @dataclass(frozen=True)

@@ -368,11 +368,20 @@ def validate_geometry(s: Scenario) -> None:
         raise ScenarioError(f"robot.start: the robot (radius {r} cm) does not fit inside the bounds there")
     if goal.distance(area.exterior) < r:  # the robot would have to cross the wall to stand at its goal
         raise ScenarioError(f"robot.goal: the robot (radius {r} cm) does not fit inside the bounds there")
+    from fuzzynav.pedestrians.base import model_factory  # the models import this module
+
     reactive: list[tuple[int, DynamicObstacle]] = []
     for i, dyn in enumerate(s.dynamic_obstacles):
         if dyn.model is not None or dyn.model_params is not None:
             _check_model(dyn, f"dynamic_obstacles[{i}]")
-            if dyn.model != "scripted":
+            check = getattr(model_factory(dyn.model, "model"), "check_obstacle", None)
+            if check is not None:  # what the model needs of the entry beyond its parameters (recorded: a time each)
+                try:
+                    check(dyn)
+                except ValueError as err:
+                    raise ScenarioError(f"dynamic_obstacles[{i}].{err}") from None
+            # scripted and recorded obstacles pass through everything (``reactive = False``), so may overlap
+            if dyn.model != "scripted" and getattr(model_factory(dyn.model, "model"), "reactive", True):
                 reactive.append((i, dyn))
     _check_reactive_starts(reactive)
     if s.tolerance <= 0:

@@ -55,8 +55,9 @@ class Perceived:
 
 def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, time_s: float,
              truth_positions: np.ndarray, truth_velocities: np.ndarray, truth_radii: np.ndarray,
-             noise: NormalStream) -> tuple[TrackerState, Perceived]:
-    """Perceive the moving obstacles in this frame (see the module docstring)."""
+             noise: NormalStream, truth_present: np.ndarray | None = None) -> tuple[TrackerState, Perceived]:
+    """Perceive the moving obstacles in this frame (see the module docstring). ``truth_present`` (N,) bool: which
+    obstacles are in the world (None: all); an absent one is not perceived and its frame count starts again."""
     if config.mode == "laser":
         state, tracks, moving = tracking.update(state, scan, time_s, config.tracker)
         return state, Perceived(tuple(tracks), moving, static_points(scan, moving))
@@ -65,6 +66,8 @@ def perceive(config: PerceptionConfig, state: TrackerState, scan: LaserScan, tim
     frames = {t.id: t.hits for t in state.tracks}  # consecutive frames each obstacle has been in range
     in_range = []
     for k in range(len(truth_radii)):
+        if truth_present is not None and not truth_present[k]:
+            continue
         p = np.array(truth_positions[k], dtype=float)
         if hypot(float(p[0]) - ox, float(p[1]) - oy) - truth_radii[k] > scan.range_cm:
             continue

@@ -19,8 +19,10 @@ from fuzzynav.params import limits
 
 VERSION = 1  # of the manifest's layout, which build writes and verify reads
 #: the top-level fields of a manifest (README "Datasets"); ``build`` writes ``metrics_columns`` (one digest per
-#: metrics column) and ``episodes``; ``metrics_sha256`` (the whole table) is read from manifests built before
-FIELDS = ("name", "description", "version", "sweep", "keep_logs", "metrics_sha256", "metrics_columns", "episodes")
+#: metrics column) and ``episodes``; ``metrics_sha256`` (the whole table) is read from manifests built before;
+#: ``source``: the recordings a dataset is built from (:mod:`runners.datasets.recorded_source`)
+FIELDS = ("name", "description", "version", "source", "sweep", "keep_logs", "metrics_sha256", "metrics_columns",
+          "episodes")
 #: the fields of ``sweep``: scenarios x variants x seeds, plus Hydra overrides for every episode
 SWEEP_FIELDS = ("scenarios", "variants", "seeds", "overrides")
 

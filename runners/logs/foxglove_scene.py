@@ -196,6 +196,7 @@ _SCENE = template(lambda entities: scene(entities), 1)
 _TPT = template(lambda sec, nsec, hits, lines: entity({"sec": sec, "nsec": nsec}, "tpt", cylinders=hits,
                                                       lines=lines), 4)
 _PLAN = template(lambda sec, nsec, lines: entity({"sec": sec, "nsec": nsec}, "plan", lines=lines), 3)
+_ABSENT = template(lambda sec, nsec, eid: entity({"sec": sec, "nsec": nsec}, eid), 3)  # a person not in the world
 _TPT_ROBOT_LINE = template(lambda points: line_m(points, CYAN), 1)
 _TPT_OBSTACLE_LINE = template(lambda points: line_m(points, ORANGE), 1)
 _TPT_Z, _ROBOT_Z, _OBSTACLE_Z, _HEADING_Z, _HIT_HEIGHT = 0.02, 0.2, 0.3, 0.3, 0.05
@@ -257,12 +258,15 @@ class StepScenes:
         return np.stack([np.where(level, 0.0, qz), np.where(level, 1.0, qw)], axis=1).ravel().tolist()
 
     def message(self, when: dict[str, int], x_cm: float, y_cm: float, heading_deg: float, positions_cm: np.ndarray,
-                velocities_cm_s: np.ndarray, tpt, plan, new_plan: bool) -> bytes:
+                velocities_cm_s: np.ndarray, tpt, plan, new_plan: bool, present: np.ndarray | None = None) -> bytes:
         """The ``/scene`` message of a step at ``when`` (``foxglove.Time``): robot at (x, y) cm heading
         ``heading_deg``; moving obstacles at ``positions_cm`` (N, 2) with ``velocities_cm_s`` (N, 2); ``tpt`` the
         step's :class:`fuzzynav.planning.tpt.TPT` or None; ``plan`` the running plan (None: no plan), ``new_plan``
         whether
-        it was made this step (its line starts at the robot's position)."""
+        it was made this step (its line starts at the robot's position); ``present`` (N,) bool which obstacles are in
+        the world (None: all): an absent one's entity is sent empty (it replaces the disc drawn before)."""
+        if present is not None:  # an absent person has no heading arrow (its slot would shift the others')
+            velocities_cm_s = np.where(np.asarray(present, bool)[:, None], velocities_cm_s, 0.0)
         positions = [metres(v) for xy in positions_cm.tolist() for v in xy]
         headings = self._arrow_quaternions(velocities_cm_s)
         hits_at = []  # the TPT's robot positions (m) where it predicts a collision (after the first row)
@@ -276,9 +280,14 @@ class StepScenes:
         at = 6
         entities = [self._robot % (sec, nsec, rx, ry, rqz, rqw, rx, ry)]
         heads = iter(range(6 + len(positions), len(numbers), 2))
-        for (body, arrow_text, eid, shows), (vx, vy) in zip(self._obstacles, velocities_cm_s.tolist(), strict=True):
+        absent = [False] * len(self._obstacles) if present is None else (~np.asarray(present, bool)).tolist()
+        for (body, arrow_text, eid, shows), (vx, vy), gone in zip(self._obstacles, velocities_cm_s.tolist(), absent,
+                                                                  strict=True):
             x, y = numbers[at], numbers[at + 1]
             at += 2
+            if gone:  # its velocity was zeroed above: no arrow slot was used
+                entities.append(_ABSENT % (sec, nsec, eid))
+                continue
             arrows = b"[]"
             if shows and (vx != 0.0 or vy != 0.0):
                 h = next(heads)

@@ -246,12 +246,20 @@ class EpisodeLogWriter:
             {"id": tr.id, "x_cm": _r(tr.x), "y_cm": _r(tr.y), "vx_cm_s": _r(tr.vx), "vy_cm_s": _r(tr.vy),
              "speed_cm_s": _r(tr.speed), "heading_deg": _r(tr.moving_angle_deg), "radius_cm": _r(tr.radius)}
             for tr in rec.tracks]})
-        self._write("/obstacles/truth", t, {"timestamp": when, "step": k, "obstacles": [
-            {"id": oid, "x_cm": x, "y_cm": y, "vx_cm_s": vx, "vy_cm_s": vy, "radius_cm": r, "next_x_cm": qx,
-             "next_y_cm": qy}
-            for oid, (x, y), (vx, vy), r, (qx, qy) in zip(
-                self.episode.obstacle_ids, rec.obstacle_positions.tolist(), rec.obstacle_velocities.tolist(),
-                self._radii, rec.obstacle_next_positions.tolist(), strict=True)]})
+        truth = [{"id": oid, "x_cm": x, "y_cm": y, "vx_cm_s": vx, "vy_cm_s": vy, "radius_cm": r, "next_x_cm": qx,
+                  "next_y_cm": qy}
+                 for oid, (x, y), (vx, vy), r, (qx, qy) in zip(
+                     self.episode.obstacle_ids, rec.obstacle_positions.tolist(), rec.obstacle_velocities.tolist(),
+                     self._radii, rec.obstacle_next_positions.tolist(), strict=True)]
+        if rec.obstacle_present is not None:
+            # only where a model says who is present (recorded people): every other log stays what it was
+            for o, now, after in zip(truth, rec.obstacle_present.tolist(), rec.obstacle_next_present.tolist(),
+                                     strict=True):
+                o["present"], o["next_present"] = now, after
+        if rec.obstacle_reacting is not None:  # only where recorded people may react to the robot
+            for o, reacting in zip(truth, rec.obstacle_reacting.tolist(), strict=True):
+                o["reacting"] = reacting
+        self._write("/obstacles/truth", t, {"timestamp": when, "step": k, "obstacles": truth})
         self._write("/robot/state", t, {
             "timestamp": when, "step": k, "x_cm": _r(s.x), "y_cm": _r(s.y), "heading_deg": _r(s.heading),
             "v_cm_s": _r(s.v), "next_x_cm": _r(n.x), "next_y_cm": _r(n.y), "next_heading_deg": _r(n.heading),
@@ -308,8 +316,8 @@ class EpisodeLogWriter:
     def _write_scene(self, t: float, when: dict[str, int], rec: StepRecord) -> None:
         s, d = rec.state, rec.decision
         self._writes["/scene"](self._scenes.message(
-            when, s.x, s.y, s.heading, rec.obstacle_positions, rec.obstacle_velocities, d.tpt, d.plan, d.new_plan),
-            round(t * 1e9), None)
+            when, s.x, s.y, s.heading, rec.obstacle_positions, rec.obstacle_velocities, d.tpt, d.plan, d.new_plan,
+            rec.obstacle_present), round(t * 1e9), None)
 
     def _write_events(self, t: float, rec: StepRecord) -> None:
         d = rec.decision
