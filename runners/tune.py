@@ -3,11 +3,14 @@
     python -m runners.tune h_wait_margin           # conf/tune/h_wait_margin.yaml, into studies/h_wait_margin/
     python -m runners.tune my_study.yaml --out studies/x --trials 40 --workers 2
     python -m runners.tune h_wait_margin --storage journal --workers 8   # Optuna's journal file for many workers
+    python -m runners.tune h_wait_margin --no-heldout          # trials only (held-out evaluation later)
 
 The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
 the scenarios and the training and held-out seeds (:mod:`runners.tuning.study_file`). The study lives in Optuna's
 storage in the study folder; re-running the command resumes it (the trials a stopped command left in flight run
-again). Exit status: 0 done, 1 no trial completed or a run failed, 2 bad input,
+again). After the trials the best trial (each evaluated Pareto trial for two objectives) and the default are run
+on the held-out seeds, and ``<study>/report/`` gets the study report with its figures
+(:mod:`runners.tuning.report`). Exit status: 0 done, 1 no trial completed or a run failed, 2 bad input,
 130/143 stopped.
 """
 
@@ -31,6 +34,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--trials", type=int, help="trials in all (default: the study file's)")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes sharing the study")
     parser.add_argument("--storage", choices=KINDS, help="sqlite (default) or journal (many workers)")
+    parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
     args = parser.parse_args(argv)
     if args.trials is not None and not 1 <= args.trials <= 100_000:
         parser.error(f"--trials: {args.trials} is outside [1, 100000]")
@@ -145,6 +149,18 @@ def main(argv: list[str] | None = None) -> int:
         first = failed[0].user_attrs.get("fail_reason", "") if failed else "no trial ran"
         print(f"error: no trial completed; first failure: {first}"[:600], file=sys.stderr)
         return 1
+    if args.no_heldout:
+        return 0
+    from runners.tuning.heldout import evaluate
+    from runners.tuning.report import write_report
+
+    try:
+        with_heldout = evaluate(study, spec, study_dir)
+        report = write_report(study, spec, study_dir, with_heldout)
+    except KeyboardInterrupt:
+        print("interrupted: held-out evaluation stopped; re-run the command to do it again", file=sys.stderr)
+        return 130
+    print(f"report: {report}")
     return 0
 
 
