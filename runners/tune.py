@@ -74,7 +74,7 @@ def worker(study_file: str, study_dir: str, kind: str, budget: int, index: int) 
     the trial in flight as interrupted)."""
     from analysis.interrupts import Interrupted
     from runners.sweeping import process_tree, stop
-    from runners.tuning.storage import open_storage
+    from runners.tuning.storage import FILES, open_storage, storage_problem
     from runners.tuning.study import create_or_load, run_trials
     from runners.tuning.study_file import load_study_file
 
@@ -86,6 +86,12 @@ def worker(study_file: str, study_dir: str, kind: str, budget: int, index: int) 
         run_trials(study, spec, Path(study_dir), budget, print_trial(spec))
     except (KeyboardInterrupt, Interrupted):
         sys.exit(130)
+    except Exception as err:
+        if not storage_problem(err):
+            raise
+        print(f"error: worker {index}: {Path(study_dir) / FILES[kind]}: the study storage failed: "
+              f"{' '.join(str(err).split())[:300]}", file=sys.stderr)
+        sys.exit(1)
 
 
 def print_trial(spec):
@@ -107,14 +113,21 @@ def print_trial(spec):
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     from runners.sweeping import lock
+    from runners.sweeping.paths import lock_file
     from runners.tuning.storage import StorageError, existing_kind, open_storage
-    from runners.tuning.study import counted, create_or_load, fail_interrupted
+    from runners.tuning.study import create_or_load
     from runners.tuning.study_file import StudyFileError, find_study_file, load_study_file
 
     try:
         spec = load_study_file(find_study_file(args.study))
         study_dir = args.out if args.out is not None else Path("studies") / spec.name
-        lock.acquire(study_dir)
+        try:
+            lock.acquire(study_dir)
+        except lock.SweepLockError:
+            holder = lock_file(study_dir).read_text(errors="replace").strip()[:200] or "another process"
+            raise StorageError(f"{study_dir}: the study folder is in use by {holder} (lock {lock_file(study_dir)}): "
+                               "wait for it to finish (or add workers to it with --workers) or choose another --out") \
+                from None
         kind = existing_kind(study_dir)
         if kind is not None and args.storage not in (None, kind):
             raise StorageError(f"{study_dir}: the study is stored in {kind}; --storage {args.storage} would start "
@@ -122,12 +135,23 @@ def main(argv: list[str] | None = None) -> int:
         kind = kind or args.storage or "sqlite"
         check_space(spec)
         study = create_or_load(spec, open_storage(study_dir, kind))
-    except (StudyFileError, StorageError, lock.SweepLockError, ValueError) as err:
+    except (StudyFileError, StorageError, ValueError) as err:
         print(f"error: {' '.join(str(err).split())}"[:600], file=sys.stderr)
         return EXIT_INPUT
     except OSError as err:
         print(f"error: {err.filename or study_dir}: {err.strerror or err}", file=sys.stderr)
         return EXIT_INPUT
+    try:
+        return study_command(args, spec, study, study_dir, kind)
+    finally:
+        lock.release(study_dir)  # the kernel releases it at exit too; a caller in the same process may go on
+
+
+def study_command(args: argparse.Namespace, spec, study, study_dir: Path, kind: str) -> int:
+    """The trials, the held-out evaluation and the report of a study whose folder this process has locked."""
+    from runners.tuning.storage import FILES, storage_problem
+    from runners.tuning.study import counted, fail_interrupted
+
     stale = fail_interrupted(study)
     if stale:
         print(f"trials {', '.join(map(str, stale))} were left in flight by a stopped command: marked interrupted, "
@@ -138,7 +162,14 @@ def main(argv: list[str] | None = None) -> int:
           f"{budget} trials done; {len(spec.scenarios)} scenarios x {spec.train.count} training seeds per trial",
           flush=True)
     tic = time.perf_counter()
-    code = run_workers(args, spec, study, study_dir, kind, budget)
+    try:
+        code = run_workers(args, spec, study, study_dir, kind, budget)
+    except Exception as err:
+        if not storage_problem(err):
+            raise
+        print(f"error: {study_dir / FILES[kind]}: the study storage failed: {' '.join(str(err).split())[:300]}; "
+              "the trials told so far are kept: re-run the command to resume", file=sys.stderr)
+        return 1
     if code:
         return code
     trials = study.get_trials(deepcopy=False)

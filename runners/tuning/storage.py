@@ -12,6 +12,7 @@ naming it; the file is left as it was.
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from pathlib import Path
 from typing import Any
@@ -58,24 +59,55 @@ def _check_sqlite(path: Path) -> None:
         raise StorageError(f"{path}: damaged database ({str(problem)[:120]})")
 
 
-def open_storage(study_dir: Path, kind: str) -> Any:
-    """Optuna's storage of the study folder (created if new)."""
-    import optuna
+def _check_journal(path: Path) -> None:
+    """Every complete line of a journal file must be one of Optuna's operations (a JSON object with ``op_code``).
+    Optuna skips a line that does not parse when it is the last one (a write in flight), and then appends after
+    it: a corrupt file would be written to, and fail later with a bare JSON message."""
+    if not path.exists():
+        return
+    if not path.is_file():
+        raise StorageError(f"{path}: not a regular file")
+    with path.open("rb") as f:
+        for number, line in enumerate(f, 1):
+            if not line.endswith(b"\n"):
+                break  # the last line of a write that a killed worker left unfinished: Optuna ignores it
+            try:
+                ok = isinstance(op := json.loads(line), dict) and "op_code" in op
+            except ValueError:
+                ok = False
+            if not ok:
+                raise StorageError(f"{path}:{number}: not an Optuna journal operation (corrupt file, or another "
+                                   "program's): move it away to start a new study")
 
-    path = storage_path(study_dir, kind)
-    if kind == "sqlite":
-        _check_sqlite(path)
-        try:
-            return optuna.storages.RDBStorage(f"sqlite:///{path}",
-                                              engine_kwargs={"connect_args": {"timeout": SQLITE_TIMEOUT_S}})
-        except Exception as err:  # sqlalchemy's errors: first line
-            raise StorageError(f"{path}: cannot open the study storage: {str(err).splitlines()[0][:200]}") from None
+
+def open_storage(study_dir: Path, kind: str) -> Any:
+    """Optuna's storage of the study folder (created if new), read once through: a corrupt file is a
+    :class:`StorageError` here, not a traceback later."""
+    import optuna
     from optuna.storages.journal import JournalFileBackend, JournalStorage
 
-    if path.exists() and not path.is_file():
-        raise StorageError(f"{path}: not a regular file")
+    path = storage_path(study_dir, kind)
     try:
-        return JournalStorage(JournalFileBackend(str(path)))
-    except Exception as err:  # a journal line that is not JSON, an operation Optuna does not know
-        raise StorageError(f"{path}: not a readable Optuna journal (corrupt or truncated?): "
+        if kind == "sqlite":
+            _check_sqlite(path)
+            storage = optuna.storages.RDBStorage(f"sqlite:///{path}",
+                                                 engine_kwargs={"connect_args": {"timeout": SQLITE_TIMEOUT_S}})
+        else:
+            _check_journal(path)
+            storage = JournalStorage(JournalFileBackend(str(path)))
+        storage.get_all_studies()
+    except StorageError:
+        raise
+    except Exception as err:  # sqlalchemy's, a journal line that is not JSON, an operation Optuna does not know
+        what = "an Optuna study database" if kind == "sqlite" else "an Optuna journal"
+        raise StorageError(f"{path}: not readable as {what} (corrupt, truncated or locked?): "
                            f"{' '.join(str(err).split())[:200]}") from None
+    return storage
+
+
+def storage_problem(err: BaseException) -> bool:
+    """Whether an exception raised while trials run comes from the storage (the file, its lock, the database)."""
+    import optuna
+
+    module = type(err).__module__ or ""
+    return isinstance(err, OSError | optuna.exceptions.StorageInternalError) or module.startswith("sqlalchemy")

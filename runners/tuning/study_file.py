@@ -114,6 +114,15 @@ def _strings(data: Any, where: str, what: str) -> tuple[str, ...]:
 
 def study_from_data(data: Any, path: Path) -> StudySpec:
     """Check a study file's parsed content (``path`` names it in the messages)."""
+    try:
+        return _study_from_data(data, path)
+    except StudyFileError as err:
+        if str(err).startswith(f"{path}: "):
+            raise
+        raise StudyFileError(f"{path}: {err}") from None
+
+
+def _study_from_data(data: Any, path: Path) -> StudySpec:
     if not isinstance(data, Mapping):
         raise StudyFileError(f"{path}: expected a mapping of {', '.join(FIELDS[:6])} ...")
     unknown = [str(k) for k in data if k not in FIELDS]
