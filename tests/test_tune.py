@@ -14,6 +14,7 @@ from pathlib import Path
 
 import optuna
 import pandas as pd
+import pytest
 import yaml
 
 from analysis.log_inputs import find_logs
@@ -156,3 +157,21 @@ def test_cmaes_sampler_runs(tmp_path):
                "--out", out, "--no-heldout")
     assert res.returncode == 0, res.stderr
     assert sum(map(counted, trials_of(out))) == 3
+
+
+def test_a_trials_config_is_the_config_hydra_composes():
+    from omegaconf import OmegaConf
+
+    from runners.tuning.episodes import ConfigurationError, compose, hydra_conf, run_config
+    from runners.tuning.study_file import Seeds
+
+    overrides = ["planner=wait", "navigator=fuzzy_tpt", "planner.h_wait=3", "planner.safety_margin_cm=12.5",
+                 "controller.inputs.front.terms.near.params=[0,0,25.5,61]"]
+    with hydra_conf():
+        for _ in range(2):  # composed, then from the cache
+            fast = run_config(overrides, "crossing_right", Seeds(7, 3))
+            full = compose([*overrides, "scenario=crossing_right", "seed=7", "episodes=3"])
+            assert OmegaConf.to_yaml(fast, resolve=True) == OmegaConf.to_yaml(full, resolve=True)
+        for bad in ("planner.h_wiat=3", "planner.h_wait=2.5", "planner.h_wait=abc"):
+            with pytest.raises(ConfigurationError, match=r"planner\.h_w"):
+                run_config([bad], "head_on", Seeds(0, 1))

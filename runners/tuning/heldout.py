@@ -20,9 +20,8 @@ from omegaconf import OmegaConf
 
 from analysis.objectives import objective_value
 from analysis.stats import bootstrap_mean, wilson
-from fuzzynav.conf import CONF_DIR
 from runners.logs import yaml_text
-from runners.tuning.episodes import EpisodeResults, hydra_conf, run_config, run_configuration
+from runners.tuning.episodes import EpisodeResults, hydra_conf, is_group, run_config, run_configuration
 from runners.tuning.study import OVERRIDES
 from runners.tuning.study_file import StudySpec
 
@@ -62,7 +61,7 @@ def config_yaml(overrides: list[str], note: str) -> str:
     values: dict[str, Any] = {}
     for override in OverridesParser.create().parse_overrides(overrides):
         key, value = override.get_key_element(), override.value()
-        if (CONF_DIR / key).is_dir():
+        if is_group(key):
             groups.append({f"override {key}": value})
             continue
         node = values
