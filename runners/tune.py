@@ -59,6 +59,16 @@ def check_space(spec) -> None:
                 check_configuration(spec.base, scenario, spec.train)
             except ConfigurationError as err:
                 raise StudyFileError(f"{spec.path}: scenarios[{i}] ({scenario}) with base: {err}") from None
+        if spec.controller_space:  # the base controller's variables, as partitions, and Table 1 back from them
+            from runners.tuning import controller_space
+            from runners.tuning.study import partition_groups
+
+            try:
+                groups = partition_groups(spec)
+                check_configuration([*spec.base, *controller_space.overrides(
+                    groups, controller_space.start_values(groups))], spec.scenarios[0], spec.train)
+            except (controller_space.ControllerSpaceError, ConfigurationError) as err:
+                raise StudyFileError(f"{spec.path}: {err}") from None
         for i, p in enumerate(spec.space):
             d = p.distribution
             points = d.choices if isinstance(d, CategoricalDistribution) else (d.low, d.high)
@@ -97,10 +107,13 @@ def worker(study_file: str, study_dir: str, kind: str, budget: int, index: int) 
 def print_trial(spec):
     from optuna.trial import TrialState
 
+    from runners.tuning.controller_space import PREFIX
     from runners.tuning.study import FAIL_REASON, OVERRIDES
 
     def show(t) -> None:
-        params = " ".join(t.user_attrs.get(OVERRIDES, [])[len(spec.base):])
+        shown = t.user_attrs.get(OVERRIDES, [])[len(spec.base):len(spec.base) + len(spec.space)]
+        partition = sum(k.startswith(PREFIX) for k in t.params)
+        params = " ".join([*shown, *([f"+ {partition} controller partition coordinates"] if partition else [])])
         seconds = (t.datetime_complete - t.datetime_start).total_seconds() if t.datetime_complete else 0.0
         if t.state == TrialState.COMPLETE:
             values = " ".join(f"{o.name}={v:.4g}" for o, v in zip(spec.objectives, t.values, strict=True))

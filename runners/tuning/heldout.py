@@ -80,21 +80,31 @@ def evaluate(study: optuna.Study, spec: StudySpec, study_dir: Path) -> list[Eval
     runs: list[tuple[str, list[str], int | None]] = [("default", list(spec.base), None)]
     for t in chosen:
         label = "tuned" if len(chosen) == 1 else f"trial_{t.number}"
-        runs.append((label, list(t.user_attrs[OVERRIDES]), t.number))
+        overrides = list(t.user_attrs[OVERRIDES])
+        if spec.controller_space:  # a tuned controller is another controller: its own name in logs and reports
+            with hydra_conf():
+                base_name = run_config(spec.base, spec.scenarios[0], spec.heldout).controller.name
+            overrides.append(f"controller.name={base_name}_{label}")
+        runs.append((label, overrides, t.number))
     evaluated: list[Evaluated] = []
     with hydra_conf():
-        default_config = OmegaConf.to_yaml(run_config(spec.base, spec.scenarios[0], spec.heldout))
+        # compared as data: Table 1's 30 and a partition's 30.0 are the same breakpoint
+        default_config = OmegaConf.to_container(run_config(spec.base, spec.scenarios[0], spec.heldout), resolve=True)
         for label, overrides, number in runs:
             if number is not None:
                 note = (f"study {spec.name}, trial {number} ({spec.path.name}); run it with\n"
                         f"  python -m runners.run --config-dir {study_dir.absolute()} --config-name {label} "
                         f"scenario={spec.scenarios[0]}")
                 (study_dir / f"{label}.yaml").write_text(config_yaml(overrides, note))
+                if spec.controller_space:
+                    write_controller(study_dir, spec, label, number, overrides)
             out = study_dir / HELDOUT_DIR / label
             for old in out.glob("*.mcap"):  # a re-run evaluates again from nothing
                 old.unlink()
-            if number is not None and OmegaConf.to_yaml(run_config(overrides, spec.scenarios[0], spec.heldout)) \
-                    == default_config:  # the default won: the same episodes, not run (nor counted) twice
+            unnamed = [o for o in overrides if not o.startswith("controller.name=")]  # the name alone changes nothing
+            # the default won: the same episodes, not run (nor counted) twice
+            if number is not None and OmegaConf.to_container(
+                    run_config(unnamed, spec.scenarios[0], spec.heldout), resolve=True) == default_config:
                 print(f"held-out: {label} (trial {number}) is the default configuration", flush=True)
                 evaluated.append(Evaluated(label, overrides, number, evaluated[0].results, evaluated[0].objectives,
                                            same_as_default=True))
@@ -104,6 +114,20 @@ def evaluate(study: optuna.Study, spec: StudySpec, study_dir: Path) -> list[Eval
             values = {o.name: objective_value(results.episodes, o) for o in spec.objectives}
             evaluated.append(Evaluated(label, overrides, number, results, values))
     return evaluated
+
+
+def write_controller(study_dir: Path, spec: StudySpec, label: str, number: int, overrides: list[str]) -> Path:
+    """The tuned controller as a controller file, ``<study>/controller/<name>.yaml``: run it with
+    ``python -m runners.run hydra.searchpath=[file://<study>] controller=<name>``."""
+    with hydra_conf():
+        section = OmegaConf.to_container(run_config(overrides, spec.scenarios[0], spec.heldout).controller,
+                                         resolve=True)
+    section["description"] = f"tuned by study {spec.name}, trial {number} (membership functions searched)"
+    path = study_dir / "controller" / f"{section['name']}.yaml"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(f"# run with: python -m runners.run hydra.searchpath=[file://{study_dir.absolute()}] "
+                    f"controller={section['name']}\n" + yaml_text.dump(section))
+    return path
 
 
 def _interval(metric: str, values: list[float]) -> tuple[float, float, float, int]:

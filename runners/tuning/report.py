@@ -63,12 +63,50 @@ def figures(study: optuna.Study, spec: StudySpec, out: Path) -> dict[str, Path |
     return drawn
 
 
+def membership_figure(spec: StudySpec, evaluated: list[Evaluated], out: Path) -> Path | None:
+    """The searched variables' membership functions: the base controller's (dashed) beside the best trial's."""
+    import numpy as np
+
+    from fuzzynav.controller.fuzzy_spec import Term, sample_membership
+    from runners.tuning.episodes import hydra_conf, run_config
+
+    tuned = next((ev for ev in evaluated if ev.trial is not None), None)
+    if not spec.controller_space or tuned is None:
+        return None
+    with hydra_conf():
+        before = run_config(evaluated[0].overrides, spec.scenarios[0], spec.heldout).controller
+        after = run_config(tuned.overrides, spec.scenarios[0], spec.heldout).controller
+    fig, axes = plt.subplots(len(spec.controller_space), 1, figsize=(7, 2.4 * len(spec.controller_space)),
+                             squeeze=False)
+    for ax, names in zip(axes[:, 0], spec.controller_space, strict=True):
+        section = "inputs" if names[0] in before.inputs else "outputs"
+        var_before, var_after = before[section][names[0]], after[section][names[0]]
+        u0, u1 = float(var_before.universe[0]), float(var_before.universe[1])
+        grid = np.linspace(u0, u1, 400)
+        for k, name in enumerate(var_before.terms):
+            colour = f"C{k}"
+            for var, style, who in ((var_before, "--", before.name), (var_after, "-", after.name)):
+                term = Term(name, var.terms[name].mf, tuple(float(p) for p in var.terms[name].params))
+                ax.plot(grid, sample_membership(term, grid, u1), style, color=colour,
+                        label=f"{name} ({who})" if style == "-" or k == 0 else None)
+        ax.set_title(f"{', '.join(names)}: {before.name} (dashed) and {after.name}", fontsize=9)
+        ax.set_ylim(-0.02, 1.05)
+        ax.legend(fontsize=6, ncol=3)
+    fig.tight_layout()
+    path = out / "membership.png"
+    fig.savefig(path, dpi=110)
+    plt.close("all")
+    return path
+
+
 def trials_table(study: optuna.Study, spec: StudySpec) -> pd.DataFrame:
     rows = []
     for t in study.get_trials(deepcopy=False):
         row = {"number": t.number, "state": t.state.name, "counted": counted(t),
                "interrupted": bool(t.user_attrs.get(INTERRUPTED, False)), "default": bool(t.user_attrs.get("default"))}
         row.update({p.key: t.params.get(p.key) for p in spec.space})
+        if spec.controller_space:
+            row["controller_partition_coordinates"] = sum(k.startswith("controller~") for k in t.params)
         for i, o in enumerate(spec.objectives):
             row[o.name] = t.values[i] if t.values else math.nan
         row["seconds"] = (t.datetime_complete - t.datetime_start).total_seconds() \
@@ -89,6 +127,9 @@ def write_report(study: optuna.Study, spec: StudySpec, study_dir: Path, evaluate
     trials = trials_table(study, spec)
     trials.to_csv(out / "trials.csv", index=False)
     drawn = figures(study, spec, out)
+    membership = membership_figure(spec, evaluated, out)
+    if membership is not None:
+        drawn["membership"] = membership
     held = interval_table(evaluated, spec)
     held.to_csv(out / "heldout.csv", index=False)
     lines = [f"# Study {spec.name}", "", spec.description, "",

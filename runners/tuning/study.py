@@ -13,6 +13,7 @@ each stop when it is reached, so it may be exceeded by at most the number of wor
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -22,8 +23,9 @@ import optuna
 from optuna.trial import FrozenTrial, TrialState
 
 from analysis.objectives import objective_value, undefined
+from runners.tuning import controller_space
 from runners.tuning.episodes import ConfigurationError, hydra_conf, run_configuration
-from runners.tuning.space import overrides_of, suggest
+from runners.tuning.space import Parameter, overrides_of, suggest
 from runners.tuning.study_file import StudySpec
 
 FAIL_REASON = "fail_reason"
@@ -62,6 +64,31 @@ def counted(trial: FrozenTrial) -> bool:
         and FAIL_REASON in trial.user_attrs
 
 
+@functools.lru_cache(maxsize=8)
+def partition_groups(spec: StudySpec) -> tuple[controller_space.PartitionGroup, ...]:
+    """The controller variables searched as partitions, from the base configuration's controller (composed)."""
+    if not spec.controller_space:
+        return ()
+    from omegaconf import OmegaConf
+
+    from runners.tuning.episodes import run_config
+
+    with hydra_conf():
+        cfg = run_config(spec.base, spec.scenarios[0], spec.train)
+    return tuple(controller_space.resolve(spec.controller_space, OmegaConf.to_container(cfg.controller, resolve=True)))
+
+
+def all_parameters(spec: StudySpec) -> list[Parameter]:
+    """The searched parameters: the space's, then the controller partitions' coordinates."""
+    return [*spec.space, *controller_space.parameters(partition_groups(spec))]
+
+
+def trial_overrides(spec: StudySpec, values: dict[str, Any]) -> list[str]:
+    """A trial's overrides: the base, the space's keys at their values, the partitions' terms."""
+    return [*spec.base, *overrides_of(spec.space, values),
+            *controller_space.overrides(partition_groups(spec), values)]
+
+
 def default_values(spec: StudySpec) -> dict[str, Any] | None:
     """The values the base configuration gives the searched keys (the untuned method), if every one is a point of
     the space: enqueued as the study's first trial, so that the study starts from the default. None when a key
@@ -78,7 +105,7 @@ def default_values(spec: StudySpec) -> dict[str, Any] | None:
         if "." not in p.key or not p.contains(value):
             return None
         values[p.key] = value
-    return values
+    return {**values, **controller_space.start_values(partition_groups(spec))}
 
 
 def create_or_load(spec: StudySpec, storage: Any, worker: int = 0) -> optuna.Study:
@@ -90,7 +117,7 @@ def create_or_load(spec: StudySpec, storage: Any, worker: int = 0) -> optuna.Stu
         study = optuna.create_study(study_name=spec.name, storage=storage, sampler=make_sampler(spec, worker),
                                     directions=spec.directions, load_if_exists=True)
         if not study.user_attrs:
-            study.set_user_attr("space", [p.text for p in spec.space])
+            study.set_user_attr("space", [p.text for p in all_parameters(spec)])
             study.set_user_attr("objectives", [o.name for o in spec.objectives])
             study.set_user_attr("base", list(spec.base))
             defaults = default_values(spec)
@@ -103,7 +130,7 @@ def create_or_load(spec: StudySpec, storage: Any, worker: int = 0) -> optuna.Stu
         raise ValueError(f"{spec.path}: objectives: the stored study {spec.name!r} has directions {directions}, the "
                          f"file {spec.directions}: name a new study (name:) or a new folder")
     stored = study.user_attrs.get("space")
-    if stored is not None and stored != [p.text for p in spec.space]:
+    if stored is not None and stored != [p.text for p in all_parameters(spec)]:
         raise ValueError(f"{spec.path}: space: differs from the stored study {spec.name!r} ({'; '.join(stored)[:120]}):"
                          " name a new study (name:) or a new folder")
     return study
@@ -117,8 +144,8 @@ def fail(study: optuna.Study, trial: optuna.Trial, reason: str) -> None:
 def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path) -> FrozenTrial:
     """Ask, run the trial's episodes, tell; returns the trial as stored."""
     trial = study.ask()
-    values = suggest(trial, spec.space)
-    overrides = [*spec.base, *overrides_of(spec.space, values)]
+    values = suggest(trial, all_parameters(spec))
+    overrides = trial_overrides(spec, values)
     trial.set_user_attr(OVERRIDES, overrides)
     try:
         result = run_configuration(overrides, spec.scenarios, spec.train, trial_dir(study_dir, trial.number))

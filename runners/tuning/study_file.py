@@ -15,6 +15,7 @@
     sampler: tpe                         # tpe | cmaes | random | nsga2 (two or more objectives: tpe, random, nsga2)
     sampler_seed: 0
     trials: 20
+    controller_space: [[left, front, right], [dtheta], [v]]   # optional: membership functions (controller_space.py)
 
 :func:`load_study_file` reads and checks it; each problem is one :class:`StudyFileError` naming the file and field.
 """
@@ -32,13 +33,14 @@ from analysis.objectives import Objective, ObjectiveError, objectives_from_data
 from fuzzynav.conf import CONF_DIR
 from fuzzynav.params import limits
 from runners.configuration.data_files import CONFIG_FILE, DataFileError, check_data_file
+from runners.tuning.controller_space import ControllerSpaceError, check_entries
 from runners.tuning.space import Parameter, SpaceError, parse_space
 
 STUDY_DIR = CONF_DIR / "tune"
 SAMPLERS = ("tpe", "cmaes", "random", "nsga2")
 SINGLE_OBJECTIVE_SAMPLERS = ("cmaes",)
-FIELDS = ("name", "base", "space", "objectives", "scenarios", "train_seeds", "heldout_seeds", "sampler",
-          "sampler_seed", "trials", "description")
+FIELDS = ("name", "base", "space", "controller_space", "objectives", "scenarios", "train_seeds", "heldout_seeds",
+          "sampler", "sampler_seed", "trials", "description")
 MAX_TRIALS = 100_000
 MAX_EPISODES_PER_TRIAL = 10_000
 
@@ -70,6 +72,7 @@ class StudySpec:
     name: str
     base: tuple[str, ...]
     space: tuple[Parameter, ...]
+    controller_space: tuple[tuple[str, ...], ...]
     objectives: tuple[Objective, ...]
     scenarios: tuple[str, ...]
     train: Seeds
@@ -128,16 +131,19 @@ def _study_from_data(data: Any, path: Path) -> StudySpec:
     unknown = [str(k) for k in data if k not in FIELDS]
     if unknown:
         raise StudyFileError(f"{path}: {unknown[0][:60]}: unknown field (known: {', '.join(FIELDS)})")
-    for key in ("space", "objectives", "scenarios", "train_seeds", "heldout_seeds"):
+    for key in ("objectives", "scenarios", "train_seeds", "heldout_seeds"):
         if key not in data:
             raise StudyFileError(f"{path}: {key}: missing")
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name.replace("-", "_").isidentifier():
         raise StudyFileError(f"{path}: name: expected a name (letters, digits, _ and -), got {str(name)[:40]!r}")
+    if "space" not in data and "controller_space" not in data:
+        raise StudyFileError(f"{path}: space: missing (or controller_space: the controller's membership functions)")
     try:
-        space = tuple(parse_space(data["space"]))
+        controller_space = check_entries(data.get("controller_space"))
+        space = tuple(parse_space(data["space"])) if "space" in data or not controller_space else ()
         objectives = tuple(objectives_from_data(data["objectives"]))
-    except (SpaceError, ObjectiveError) as err:
+    except (SpaceError, ObjectiveError, ControllerSpaceError) as err:
         raise StudyFileError(f"{path}: {err}") from None
     base = _strings(data.get("base", []), "base", "overrides")
     for i, text in enumerate(base):
@@ -181,8 +187,8 @@ def _study_from_data(data: Any, path: Path) -> StudySpec:
     description = data.get("description", "")
     if not isinstance(description, str):
         raise StudyFileError(f"{path}: description: expected text")
-    return StudySpec(path, name, base, space, objectives, scenarios, train, heldout, sampler, seed, trials,
-                     description)
+    return StudySpec(path, name, base, space, controller_space, objectives, scenarios, train, heldout, sampler, seed,
+                     trials, description)
 
 
 def load_study_file(path: Path) -> StudySpec:
