@@ -162,8 +162,12 @@ def write_report(study: optuna.Study, spec: StudySpec, study_dir: Path, evaluate
         where = f"trial {ev.trial}, `{ev.label}.yaml`" if ev.trial is not None else "untuned"
         if ev.same_as_default:
             where += "; the default configuration itself: no tuned value beat it on the training seeds"
-        params = " ".join(ev.overrides[len(spec.base):]) or "(defaults)"
-        lines.append(f"- **{ev.label}** ({where}): held-out objectives {values}; `{params}`")
+        shown = [o for o in ev.overrides[len(spec.base):] if ".terms." not in o or not spec.controller_space]
+        terms = len(ev.overrides) - len(spec.base) - len(shown)
+        params = f"`{' '.join(shown)}`" if shown else "(defaults)"
+        if terms:  # the searched membership functions: in the controller file and the membership figure
+            params += f" and {terms} term overrides (see `controller/` and `membership.png`)"
+        lines.append(f"- **{ev.label}** ({where}): held-out objectives {values}; {params}")
     lines += ["", "| scenario | metric | configuration | n | mean [95 % CI] | vs default [95 % CI] |",
               "|---|---|---|---|---|---|"]
     for _, r in held.iterrows():
