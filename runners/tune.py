@@ -28,14 +28,19 @@ EXIT_INPUT = 2
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m runners.tune", description=__doc__.split("\n\n")[0])
+    from analysis.cli_args import OneLineParser
+
+    parser = OneLineParser(prog="python -m runners.tune", description=__doc__.split("\n\n")[0])
     parser.add_argument("study", help="a study name (conf/tune/<name>.yaml) or a study file")
-    parser.add_argument("--out", type=Path, help="the study folder (default: studies/<name>)")
+    parser.add_argument("--out", help="the study folder (default: studies/<name>)")
     parser.add_argument("--trials", type=int, help="trials in all (default: the study file's)")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes sharing the study")
     parser.add_argument("--storage", choices=KINDS, help="sqlite (default) or journal (many workers)")
     parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
     args = parser.parse_args(argv)
+    if args.out is not None and not args.out.strip():  # "" would be the current folder
+        parser.error("--out: an empty path; name the study folder")
+    args.out = Path(args.out) if args.out is not None else None
     if args.trials is not None and not 1 <= args.trials <= 100_000:
         parser.error(f"--trials: {args.trials} is outside [1, 100000]")
     if not 1 <= args.workers <= 256:
