@@ -20,6 +20,8 @@ class OneLineParser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors are one line on stderr (``error: ...``), exit status 2."""
 
     def error(self, message: str) -> NoReturn:
+        # an argument holding a line break (quoted on a shell command line) stays on the one line, escaped
+        message = "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
         sys.stderr.write(f"error: {message} (see --help)\n")
         raise SystemExit(2)
 

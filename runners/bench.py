@@ -28,7 +28,9 @@
    whole command / (cores x the same episodes in one plain process)), the time to the first step of
    ``runners.run``, the report's episodes/s against the metrics alone; in the full run also each compiled kernel's
    end-to-end gain on the documented workloads (each kernel off in turn, ``FUZZYNAV_KERNELS_OFF``).
-10. Issue #19's and issue #36's targets, each with its value, threshold and verdict
+10. Tuning (:mod:`runners.benchmarks.tuning`, issue #39): trials per minute of ``runners.tune``'s trial loop and
+    the study machinery's overhead over the same episodes run plainly.
+11. Issue #19's and issue #36's targets, each with its value, threshold and verdict
     (:mod:`runners.benchmarks.targets`).
 
 Times are medians of repetitions after a warm-up where it applies; ratios are from the same run.
@@ -282,6 +284,10 @@ def main(argv: list[str] | None = None) -> int:
     if not args.quick:  # each kernel off in turn on every documented workload: about 20 minutes
         results["kernels"] = bench_kernels(rounds=2)
         print_kernels(results["kernels"])
+    from runners.benchmarks.tuning import bench_tuning, tuning_line  # issue #39: the study machinery's cost
+
+    results["tuning"] = bench_tuning(5, 4) if args.quick else bench_tuning(20, 10)
+    print(tuning_line(results["tuning"]))
     from runners.benchmarks.baseline import bench_baseline, print_baseline  # target 3, side by side
     from runners.benchmarks.targets import main_job_targets, print_targets, targets
 

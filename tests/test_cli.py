@@ -54,7 +54,7 @@ def test_bench_quick_writes_results(tmp_path):
         from fuzzynav.numerics.compiled import KERNELS
 
         assert data["machine"]["compiled_kernels"] == dict.fromkeys(KERNELS, True)
-    for section in ("simulation", "sweep", "analysis", "memory"):
+    for section in ("simulation", "sweep", "analysis", "memory", "tuning"):
         assert section in data, section
     assert data["simulation"]["steps_per_s_with_logging"] > 0
     assert [r["model"] for r in data["crowd"]] == ["scripted", "social_force", "orca", "random_walk"]

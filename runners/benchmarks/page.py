@@ -197,6 +197,12 @@ def _baseline(result: dict[str, Any]) -> str:
     return _text_block(_printed(print_baseline, result))
 
 
+def _tuning(result: dict[str, Any]) -> str:
+    from runners.benchmarks.tuning import tuning_line
+
+    return _text_block(tuning_line(result))
+
+
 def render(results: dict[str, Any]) -> str:
     """The page for one run's results (the content of ``bench.json``)."""
     parts = [INTRO, _machine(results),
@@ -208,6 +214,7 @@ def render(results: dict[str, Any]) -> str:
              _section("Memory", results, "memory", _memory),
              _section("Report", results, "report", _report),
              _section("Crowds", results, "crowd", _crowd),
+             _section("Tuning studies", results, "tuning", _tuning),
              _section("Side by side with the targets' starting point", results, "baseline", _baseline),
              MEASURES]
     return "\n".join(parts)

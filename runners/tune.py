@@ -1,0 +1,256 @@
+"""Tune a method by optimisation: ``python -m runners.tune STUDY`` (issue #39; docs/tuning.md).
+
+    python -m runners.tune h_wait_margin           # conf/tune/h_wait_margin.yaml, into studies/h_wait_margin/
+    python -m runners.tune my_study.yaml --out studies/x --trials 40 --workers 2
+    python -m runners.tune h_wait_margin --storage journal --workers 8   # Optuna's journal file for many workers
+    python -m runners.tune h_wait_margin --no-heldout          # trials only (held-out evaluation later)
+
+The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
+the scenarios and the training and held-out seeds (:mod:`runners.tuning.study_file`). The study lives in Optuna's
+storage in the study folder; re-running the command resumes it (the trials a stopped command left in flight run
+again). After the trials the best trial (each evaluated Pareto trial for two objectives) and the default are run
+on the held-out seeds, and ``<study>/report/`` gets the study report with its figures
+(:mod:`runners.tuning.report`). Exit status: 0 done, 1 no trial completed or a run failed, 2 bad input,
+130/143 stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import sys
+import time
+from pathlib import Path
+
+from runners.tuning.storage import KINDS
+
+EXIT_INPUT = 2
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    from analysis.cli_args import OneLineParser
+
+    parser = OneLineParser(prog="python -m runners.tune", description=__doc__.split("\n\n")[0])
+    parser.add_argument("study", help="a study name (conf/tune/<name>.yaml) or a study file")
+    parser.add_argument("--out", help="the study folder (default: studies/<name>)")
+    parser.add_argument("--trials", type=int, help="trials in all (default: the study file's)")
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes sharing the study")
+    parser.add_argument("--storage", choices=KINDS, help="sqlite (default) or journal (many workers)")
+    parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
+    args = parser.parse_args(argv)
+    if args.out is not None and not args.out.strip():  # "" would be the current folder
+        parser.error("--out: an empty path; name the study folder")
+    args.out = Path(args.out) if args.out is not None else None
+    if args.trials is not None and not 1 <= args.trials <= 100_000:
+        parser.error(f"--trials: {args.trials} is outside [1, 100000]")
+    if not 1 <= args.workers <= 256:
+        parser.error(f"--workers: {args.workers} is outside [1, 256]")
+    return args
+
+
+def check_space(spec) -> None:
+    """Compose and validate the base configuration on each scenario, and each parameter at its bounds (each
+    choice), before any trial: an unknown key, an option that does not exist or a bound outside a field's range
+    is one line naming the study file and the entry."""
+    from optuna.distributions import CategoricalDistribution
+
+    from runners.tuning.episodes import ConfigurationError, check_configuration, hydra_conf
+    from runners.tuning.space import format_value
+    from runners.tuning.study_file import StudyFileError
+
+    with hydra_conf():
+        for i, scenario in enumerate(spec.scenarios):
+            try:
+                check_configuration(spec.base, scenario, spec.train)
+            except ConfigurationError as err:
+                raise StudyFileError(f"{spec.path}: scenarios[{i}] ({scenario}) with base: {err}") from None
+        if spec.controller_space:  # the base controller's variables, as partitions, and Table 1 back from them
+            from runners.tuning import controller_space
+            from runners.tuning.study import partition_groups
+
+            try:
+                groups = partition_groups(spec)
+                check_configuration([*spec.base, *controller_space.overrides(
+                    groups, controller_space.start_values(groups))], spec.scenarios[0], spec.train)
+            except (controller_space.ControllerSpaceError, ConfigurationError) as err:
+                raise StudyFileError(f"{spec.path}: {err}") from None
+        for i, p in enumerate(spec.space):
+            d = p.distribution
+            points = d.choices if isinstance(d, CategoricalDistribution) else (d.low, d.high)
+            for value in points:
+                try:
+                    check_configuration([*spec.base, f"{p.key}={format_value(value)}"], spec.scenarios[0], spec.train)
+                except ConfigurationError as err:
+                    raise StudyFileError(f"{spec.path}: space[{i}] ({p.key}={format_value(value)}): {err}") from None
+
+
+def worker(study_file: str, study_dir: str, kind: str, budget: int, index: int) -> None:
+    """One worker process: open the study and run trials until the budget is reached (a Ctrl-C or SIGTERM ends
+    the trial in flight as interrupted)."""
+    from analysis.interrupts import Interrupted
+    from runners.sweeping import process_tree, stop
+    from runners.tuning.storage import FILES, open_storage, storage_problem
+    from runners.tuning.study import create_or_load, run_trials
+    from runners.tuning.study_file import load_study_file
+
+    process_tree.exit_with_parent()
+    stop.install(None)
+    spec = load_study_file(Path(study_file))
+    study = create_or_load(spec, open_storage(Path(study_dir), kind), index)
+    try:
+        run_trials(study, spec, Path(study_dir), budget, print_trial(spec))
+    except (KeyboardInterrupt, Interrupted):
+        sys.exit(130)
+    except Exception as err:
+        if not storage_problem(err):
+            raise
+        print(f"error: worker {index}: {Path(study_dir) / FILES[kind]}: the study storage failed: "
+              f"{' '.join(str(err).split())[:300]}", file=sys.stderr)
+        sys.exit(1)
+
+
+def print_trial(spec):
+    from optuna.trial import TrialState
+
+    from runners.tuning.controller_space import PREFIX
+    from runners.tuning.study import FAIL_REASON, OVERRIDES
+
+    def show(t) -> None:
+        shown = t.user_attrs.get(OVERRIDES, [])[len(spec.base):len(spec.base) + len(spec.space)]
+        partition = sum(k.startswith(PREFIX) for k in t.params)
+        params = " ".join([*shown, *([f"+ {partition} controller partition coordinates"] if partition else [])])
+        seconds = (t.datetime_complete - t.datetime_start).total_seconds() if t.datetime_complete else 0.0
+        if t.state == TrialState.COMPLETE:
+            values = " ".join(f"{o.name}={v:.4g}" for o, v in zip(spec.objectives, t.values, strict=True))
+            print(f"trial {t.number}: {values}  ({params}) [{seconds:.1f} s]", flush=True)
+        else:
+            print(f"trial {t.number} failed: {t.user_attrs.get(FAIL_REASON, 'interrupted')}  ({params})", flush=True)
+    return show
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    from runners.sweeping import lock
+    from runners.sweeping.paths import lock_file
+    from runners.tuning.storage import StorageError, existing_kind, open_storage
+    from runners.tuning.study import create_or_load
+    from runners.tuning.study_file import StudyFileError, find_study_file, load_study_file
+
+    try:
+        spec = load_study_file(find_study_file(args.study))
+        study_dir = args.out if args.out is not None else Path("studies") / spec.name
+        try:
+            lock.acquire(study_dir)
+        except lock.SweepLockError:
+            holder = lock_file(study_dir).read_text(errors="replace").strip()[:200] or "another process"
+            raise StorageError(f"{study_dir}: the study folder is in use by {holder} (lock {lock_file(study_dir)}): "
+                               "wait for it to finish (or add workers to it with --workers) or choose another --out") \
+                from None
+        kind = existing_kind(study_dir)
+        if kind is not None and args.storage not in (None, kind):
+            raise StorageError(f"{study_dir}: the study is stored in {kind}; --storage {args.storage} would start "
+                               "another one")
+        kind = kind or args.storage or "sqlite"
+        check_space(spec)
+        study = create_or_load(spec, open_storage(study_dir, kind))
+    except (StudyFileError, StorageError, ValueError) as err:
+        print(f"error: {' '.join(str(err).split())}"[:600], file=sys.stderr)
+        return EXIT_INPUT
+    except OSError as err:
+        print(f"error: {err.filename or study_dir}: {err.strerror or err}", file=sys.stderr)
+        return EXIT_INPUT
+    try:
+        return study_command(args, spec, study, study_dir, kind)
+    finally:
+        lock.release(study_dir)  # the kernel releases it at exit too; a caller in the same process may go on
+
+
+def study_command(args: argparse.Namespace, spec, study, study_dir: Path, kind: str) -> int:
+    """The trials, the held-out evaluation and the report of a study whose folder this process has locked."""
+    from runners.tuning.storage import FILES, storage_problem
+    from runners.tuning.study import counted, fail_interrupted
+
+    stale = fail_interrupted(study)
+    if stale:
+        print(f"trials {', '.join(map(str, stale))} were left in flight by a stopped command: marked interrupted, "
+              "run again", file=sys.stderr)
+    budget = args.trials or spec.trials
+    done = sum(counted(t) for t in study.get_trials(deepcopy=False))
+    print(f"study {spec.name}: {study_dir / ('study.db' if kind == 'sqlite' else 'study.journal')}; {done} of "
+          f"{budget} trials done; {len(spec.scenarios)} scenarios x {spec.train.count} training seeds per trial",
+          flush=True)
+    tic = time.perf_counter()
+    try:
+        code = run_workers(args, spec, study, study_dir, kind, budget)
+    except Exception as err:
+        if not storage_problem(err):
+            raise
+        print(f"error: {study_dir / FILES[kind]}: the study storage failed: {' '.join(str(err).split())[:300]}; "
+              "the trials told so far are kept: re-run the command to resume", file=sys.stderr)
+        return 1
+    if code:
+        return code
+    trials = study.get_trials(deepcopy=False)
+    complete = [t for t in trials if t.state.name == "COMPLETE"]
+    failed = [t for t in trials if counted(t) and t.state.name == "FAIL"]
+    print(f"{len(complete)} trials completed, {len(failed)} failed ({time.perf_counter() - tic:.0f} s)", flush=True)
+    if not complete:
+        first = failed[0].user_attrs.get("fail_reason", "") if failed else "no trial ran"
+        print(f"error: no trial completed; first failure: {first}"[:600], file=sys.stderr)
+        return 1
+    if args.no_heldout:
+        return 0
+    from runners.tuning.heldout import evaluate
+    from runners.tuning.report import write_report
+
+    try:
+        with_heldout = evaluate(study, spec, study_dir)
+        report = write_report(study, spec, study_dir, with_heldout)
+    except KeyboardInterrupt:
+        print("interrupted: held-out evaluation stopped; re-run the command to do it again", file=sys.stderr)
+        return 130
+    print(f"report: {report}")
+    return 0
+
+
+def run_workers(args: argparse.Namespace, spec, study, study_dir: Path, kind: str, budget: int) -> int:
+    """Run the trials in this process (one worker) or in ``--workers`` processes sharing the study."""
+    from analysis.interrupts import Interrupted
+    from runners.sweeping import stop
+    from runners.tuning.study import run_trials
+
+    if args.workers == 1:
+        restore = stop.install(None)
+        try:
+            run_trials(study, spec, study_dir, budget, print_trial(spec))
+        except (KeyboardInterrupt, Interrupted):
+            print("interrupted: the trial in flight is marked interrupted; re-run the command to resume",
+                  file=sys.stderr)
+            return 130
+        finally:
+            restore()
+        return 0
+    context = multiprocessing.get_context("spawn")  # fresh processes: no SQLite connection crosses a fork
+    procs = [context.Process(target=worker, args=(str(spec.path), str(study_dir), kind, budget, i))
+             for i in range(args.workers)]
+    for p in procs:
+        p.start()
+    try:
+        for p in procs:
+            p.join()
+    except KeyboardInterrupt:  # the terminal's Ctrl-C reached the workers too: wait for their trials to end
+        for p in procs:
+            p.join()
+        print("interrupted: the trials in flight are marked interrupted; re-run the command to resume",
+              file=sys.stderr)
+        return 130
+    bad = [p.exitcode for p in procs if p.exitcode]
+    if bad:
+        print(f"error: {len(bad)} of {len(procs)} workers failed (exit {bad[0]}); re-run the command to resume",
+              file=sys.stderr)
+        return 130 if bad[0] in (130, -2) else 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

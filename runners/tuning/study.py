@@ -1,0 +1,200 @@
+"""A study's trials: Optuna's ask-and-tell loop around :func:`runners.tuning.episodes.run_configuration`.
+
+Each trial asks the sampler for a value of every parameter, runs the study's scenarios on its training seeds
+with those values (logs in ``<study>/trials/<number>/``), computes the objectives from the logs
+(:mod:`analysis.objectives`) and tells Optuna. A trial whose configuration does not validate, whose episodes
+fail (outcome ``error``, a log left out) or whose objective is NaN is told FAIL with its one-line reason in the
+trial's ``fail_reason`` attribute; the study goes on. A stopped trial (Ctrl-C, SIGTERM, a killed worker) is
+FAIL with ``interrupted`` and is not counted: re-running the command runs it again.
+
+The trial budget counts the trials that ended (completed or failed, not interrupted); workers sharing one study
+each stop when it is reached, so it may be exceeded by at most the number of workers minus one.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import optuna
+from optuna.trial import FrozenTrial, TrialState
+
+from analysis.objectives import objective_value, undefined
+from runners.tuning import controller_space
+from runners.tuning.episodes import ConfigurationError, hydra_conf, run_configuration
+from runners.tuning.space import Parameter, overrides_of, suggest
+from runners.tuning.study_file import StudySpec
+
+FAIL_REASON = "fail_reason"
+INTERRUPTED = "interrupted"
+OVERRIDES = "overrides"
+METRICS = "metrics"
+TRIALS_DIR = "trials"
+
+optuna.logging.set_verbosity(optuna.logging.WARNING)  # the command prints one line per trial of its own
+
+
+def trial_dir(study_dir: Path, number: int) -> Path:
+    return study_dir / TRIALS_DIR / f"{number:05d}"
+
+
+def make_sampler(spec: StudySpec, worker: int = 0, trials_before: int = 0) -> optuna.samplers.BaseSampler:
+    """The study file's sampler, seeded from ``sampler_seed``, the worker's index and the number of trials the
+    study had when this process opened it: workers must not propose the same points, nor a resumed command the
+    points its first run already tried (a sampler restarts its random sequence from its seed). One worker run
+    without interruption is reproducible."""
+    seed = (spec.sampler_seed + 100_003 * worker + 1_009 * trials_before) % 2**32
+    if spec.sampler == "tpe":
+        return optuna.samplers.TPESampler(seed=seed, multivariate=True)
+    if spec.sampler == "cmaes":
+        return optuna.samplers.CmaEsSampler(seed=seed, warn_independent_sampling=False)
+    if spec.sampler == "nsga2":
+        return optuna.samplers.NSGAIISampler(seed=seed)
+    return optuna.samplers.RandomSampler(seed=seed)
+
+
+def counted(trial: FrozenTrial) -> bool:
+    """Whether a trial uses the budget: completed, or failed for a reason of its own (not interrupted)."""
+    if trial.state == TrialState.COMPLETE:
+        return True
+    return trial.state == TrialState.FAIL and not trial.user_attrs.get(INTERRUPTED, False) \
+        and FAIL_REASON in trial.user_attrs
+
+
+@functools.lru_cache(maxsize=8)
+def partition_groups(spec: StudySpec) -> tuple[controller_space.PartitionGroup, ...]:
+    """The controller variables searched as partitions, from the base configuration's controller (composed)."""
+    if not spec.controller_space:
+        return ()
+    from omegaconf import OmegaConf
+
+    from runners.tuning.episodes import run_config
+
+    with hydra_conf():
+        cfg = run_config(spec.base, spec.scenarios[0], spec.train)
+    return tuple(controller_space.resolve(spec.controller_space, OmegaConf.to_container(cfg.controller, resolve=True)))
+
+
+def all_parameters(spec: StudySpec) -> list[Parameter]:
+    """The searched parameters: the space's, then the controller partitions' coordinates."""
+    return [*spec.space, *controller_space.parameters(partition_groups(spec))]
+
+
+def trial_overrides(spec: StudySpec, values: dict[str, Any]) -> list[str]:
+    """A trial's overrides: the base, the space's keys at their values, the partitions' terms."""
+    return [*spec.base, *overrides_of(spec.space, values),
+            *controller_space.overrides(partition_groups(spec), values)]
+
+
+def default_values(spec: StudySpec) -> dict[str, Any] | None:
+    """The values the base configuration gives the searched keys (the untuned method), if every one is a point of
+    the space: enqueued as the study's first trial, so that the study starts from the default. None when a key
+    is a config group (its option is not a value of the composed config) or a default lies outside the space."""
+    from omegaconf import OmegaConf
+
+    from runners.tuning.episodes import run_config
+
+    with hydra_conf():
+        cfg = run_config(spec.base, spec.scenarios[0], spec.train)
+    values: dict[str, Any] = {}
+    for p in spec.space:
+        value = OmegaConf.select(cfg, p.key, default=None)
+        if "." not in p.key or not p.contains(value):
+            return None
+        values[p.key] = value
+    return {**values, **controller_space.start_values(partition_groups(spec))}
+
+
+def create_or_load(spec: StudySpec, storage: Any, worker: int = 0) -> optuna.Study:
+    """The study named in the file, created with its directions (and the default enqueued) or loaded as it is;
+    a study of the same name with other directions or another space is refused."""
+    try:
+        study = optuna.load_study(study_name=spec.name, storage=storage)
+    except KeyError:
+        study = optuna.create_study(study_name=spec.name, storage=storage, sampler=make_sampler(spec, worker),
+                                    directions=spec.directions, load_if_exists=True)
+        if not study.user_attrs:
+            study.set_user_attr("space", [p.text for p in all_parameters(spec)])
+            study.set_user_attr("objectives", [o.name for o in spec.objectives])
+            study.set_user_attr("base", list(spec.base))
+            defaults = default_values(spec)
+            if defaults is not None:
+                study.enqueue_trial(defaults, user_attrs={"default": True})
+        return study
+    study.sampler = make_sampler(spec, worker, len(study.get_trials(deepcopy=False)))
+    directions = [d.name.lower() for d in study.directions]
+    if directions != spec.directions:
+        raise ValueError(f"{spec.path}: objectives: the stored study {spec.name!r} has directions {directions}, the "
+                         f"file {spec.directions}: name a new study (name:) or a new folder")
+    stored = study.user_attrs.get("space")
+    if stored is not None and stored != [p.text for p in all_parameters(spec)]:
+        raise ValueError(f"{spec.path}: space: differs from the stored study {spec.name!r} ({'; '.join(stored)[:120]}):"
+                         " name a new study (name:) or a new folder")
+    return study
+
+
+def fail(study: optuna.Study, trial: optuna.Trial, reason: str) -> None:
+    trial.set_user_attr(FAIL_REASON, " ".join(reason.split())[:500])
+    study.tell(trial, state=TrialState.FAIL)
+
+
+def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path) -> FrozenTrial:
+    """Ask, run the trial's episodes, tell; returns the trial as stored."""
+    trial = study.ask()
+    values = suggest(trial, all_parameters(spec))
+    overrides = trial_overrides(spec, values)
+    trial.set_user_attr(OVERRIDES, overrides)
+    try:
+        result = run_configuration(overrides, spec.scenarios, spec.train, trial_dir(study_dir, trial.number))
+    except KeyboardInterrupt:
+        trial.set_user_attr(INTERRUPTED, True)
+        study.tell(trial, state=TrialState.FAIL)
+        raise
+    except ConfigurationError as err:
+        fail(study, trial, f"configuration: {err}")
+        return study.trials[trial.number]
+    except Exception as err:  # a crashed trial: the study goes on, the reason is kept
+        fail(study, trial, f"crashed: {type(err).__name__}: {err}")
+        return study.trials[trial.number]
+    if not result.excluded.empty:
+        first = result.excluded.iloc[0]
+        fail(study, trial, f"{len(result.excluded)} of {len(result.logs)} episodes unusable; {first['log']}: "
+                           f"{first['kind']}: {first['reason']}")
+        return study.trials[trial.number]
+    objective_values = [objective_value(result.episodes, o) for o in spec.objectives]
+    trial.set_user_attr(METRICS, {o.name: v for o, v in zip(spec.objectives, objective_values, strict=True)})
+    for o, v in zip(spec.objectives, objective_values, strict=True):
+        if not math.isfinite(v):
+            fail(study, trial, f"objective {o.name} is {v}: {undefined(result.episodes, o) or 'not finite'}")
+            return study.trials[trial.number]
+    study.tell(trial, objective_values)
+    return study.trials[trial.number]
+
+
+def run_trials(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int,
+               on_trial: Callable[[FrozenTrial], None] | None = None) -> None:
+    """Run trials until ``budget`` trials of the study are counted (:func:`counted`), by anyone."""
+    with hydra_conf():
+        while sum(counted(t) for t in study.get_trials(deepcopy=False)) + running(study) < budget:
+            frozen = run_trial(study, spec, study_dir)
+            if on_trial is not None:
+                on_trial(frozen)
+
+
+def running(study: optuna.Study) -> int:
+    return len(study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)))
+
+
+def fail_interrupted(study: optuna.Study) -> list[int]:
+    """Mark the trials left RUNNING by a stopped command as interrupted (FAIL, not counted): called by the
+    command that holds the study folder's lock, so no one else is running them. Returns their numbers."""
+    numbers = []
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        # Optuna's public API sets attributes only through the Trial of the process that asked for it
+        study._storage.set_trial_user_attr(t._trial_id, INTERRUPTED, True)
+        study.tell(t.number, state=TrialState.FAIL)
+        numbers.append(t.number)
+    return numbers
