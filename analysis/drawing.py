@@ -11,30 +11,19 @@ same.
 
 from __future__ import annotations
 
-import contextlib
 import gc
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from analysis import forked
+from analysis.logs import collector_paused
 
 COLLECT_EVERY = 8
 """Figures a process draws between two runs of the garbage collector, which is off while they are drawn (a
 matplotlib figure is thousands of objects in reference cycles: the collector ran again and again while they were
 built, a tenth of the drawing time; collected every few figures, they do not pile up)."""
-
-
-@contextlib.contextmanager
-def _collector_off() -> Iterator[None]:
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()
 
 
 @dataclass
@@ -77,7 +66,7 @@ class Figures:
                 gc.collect()  # the closed figures' cycles: the collector is off while drawing
             return path
 
-        with _collector_off():
+        with collector_paused():
             if workers > 1:
                 results = forked.run(draw, len(order), workers, meanwhile)
             else:
