@@ -113,14 +113,13 @@ class JobConfigs:
                 config.hydra.runtime.choices[delta["group"]] = delta["choice"]
         for o in values:  # as Hydra applies a value override once the config is composed (struct flags kept)
             OmegaConf.update(config, o.key_or_group, o.value(), merge=True)
-        task = self._full_task_fields(key)
         with read_write(config), open_dict(config):
             config.hydra.overrides.task = list(key)
-            config.hydra.job.override_dirname = task
+            config.hydra.job.override_dirname = self._override_dirname(key)
         OmegaConf.copy_cache(from_config=self._master, to_config=config)
         return config
 
-    def _full_task_fields(self, key: tuple[str, ...]) -> str:
+    def _override_dirname(self, key: tuple[str, ...]) -> str:
         """``hydra.job.override_dirname`` as Hydra's documentation defines it: the job's overrides but the excluded
         keys, sorted, joined by ``item_sep``, each ``=`` written as ``kv_sep``."""
         assert self._reference is not None
