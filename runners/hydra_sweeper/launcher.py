@@ -1,11 +1,16 @@
 """fuzzynav's local launcher: the sweep's jobs on every core, in joblib's pool of long-lived worker processes.
 
 Selected by ``hydra/launcher=all_cores`` (the sweep presets' default). It runs jobs as Hydra's joblib launcher does
-(one ``hydra.core.utils.run_job`` per job in a loky worker process that is reused for the next jobs, through
-joblib's public ``Parallel``), with one difference: each job's config is made in the launching process by
-:class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs` (Hydra composes one config per swept value; the
-other jobs are assembled from those, the same config), instead of Hydra composing it again in the worker (about
-0.1 s of a worker's time per job, more than the default sweep's five episodes take).
+(each job in a loky worker process that is reused for the next jobs, through joblib's public ``Parallel``), with
+three differences, each there because a job of a few episodes cost more than its episodes:
+
+1. What all jobs share (Hydra's context and global state, the configs composed when each swept value was checked)
+   goes to each worker once, through a file in the sweep's control directory (:mod:`.launch_state`); a job carries
+   its overrides and number only. Hydra's launcher pickles ~175 kB per job in the launching process.
+2. Each job's config is made in its worker by :class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs`
+   (assembled from the configs composed once per swept value; the same config), not composed again (~0.1 s).
+3. The job runs through :func:`.job_run.run_job`: Hydra's ``run_job`` without its second copy of the config, and
+   the result comes back without the configs.
 """
 
 from __future__ import annotations
@@ -15,13 +20,15 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
-from hydra.core.utils import JobReturn, configure_log, filter_overrides, run_job, setup_globals
+from hydra.core.utils import JobReturn, configure_log, filter_overrides, setup_globals
 from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
+from runners.sweeping.paths import control_dir
+
+from . import job_run, launch_state
 from .job_configs import JobConfigs
 
 log = logging.getLogger(__name__)
@@ -55,39 +62,39 @@ class FuzzynavLauncher(Launcher):
 
         setup_globals()
         assert self.config is not None and self.hydra_context is not None and self.task_function is not None
-        assert self.job_configs is not None
         configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
         sweep_dir.mkdir(parents=True, exist_ok=True)
         log.info(f"Launching jobs on {self.n_jobs} worker(s), sweep output dir : {sweep_dir}")
-        singleton_state = Singleton.get_state()
+        overrides_list = [list(o) for o in job_overrides]  # StoppableJobs: iterating it ends early after a stop
+        if self.assemble and self.job_configs is not None and overrides_list:
+            self.job_configs.config(overrides_list[0])  # the reference: the same in every worker
+        state = launch_state.LaunchState(self.config, self.hydra_context, self.task_function, Singleton.get_state(),
+                                         self.job_configs if self.assemble else None)
+        ref = launch_state.write(state, control_dir(sweep_dir))
 
-        def jobs() -> Iterable[Any]:  # lazily: a stop request ends the overrides' iteration (StoppableJobs)
-            for idx, overrides in enumerate(job_overrides, start=initial_job_idx):
+        def jobs() -> Iterable[Any]:
+            for idx, overrides in enumerate(overrides_list, start=initial_job_idx):
                 log.info(f"\t#{idx} : {' '.join(filter_overrides(overrides))}")
-                config = self._job_config(overrides)
-                with open_dict(config):
-                    config.hydra.job.id = f"{config.hydra.job.name}_{idx}"
-                    config.hydra.job.num = idx
-                yield delayed(execute_job)(config, self.hydra_context, self.task_function, singleton_state)
+                yield delayed(execute_job)(ref, overrides, idx)
 
-        runs = Parallel(**parallel_settings(self.n_jobs))(jobs())
+        try:
+            runs = Parallel(**parallel_settings(self.n_jobs))(jobs())
+        finally:
+            launch_state.remove(ref)
         assert isinstance(runs, list) and all(isinstance(r, JobReturn) for r in runs)
-        log.debug(f"job configs: {self.job_configs.composed} composed, {self.job_configs.assembled} assembled")
         return runs
 
-    def _job_config(self, overrides: Sequence[str]) -> DictConfig:
-        assert self.job_configs is not None and self.hydra_context is not None and self.config is not None
-        if not self.assemble:
-            return self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
-        return self.job_configs.config(overrides)
 
-
-def execute_job(config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction,
-                singleton_state: dict[Any, Any]) -> JobReturn:
-    """One job in a worker process (as Hydra's joblib launcher runs it, from a config made by the launcher)."""
-    setup_globals()
-    Singleton.set_state(singleton_state)
-    HydraConfig.instance().set_config(config)
-    return run_job(hydra_context=hydra_context, config=config, task_function=task_function,
-                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
+def execute_job(ref: launch_state.LaunchStateFile, overrides: list[str], idx: int) -> JobReturn:
+    """One job in a worker process: its config made here (from the launch's shared state), run as Hydra runs a
+    job (:func:`~hydra_plugins.fuzzynav_sweeper.job_run.run_job`)."""
+    state = launch_state.worker_state(ref)
+    if state.job_configs is not None:
+        config = state.job_configs.config(overrides)
+    else:
+        config = state.hydra_context.config_loader.load_sweep_config(state.master, overrides)
+    with open_dict(config):
+        config.hydra.job.id = f"{config.hydra.job.name}_{idx}"
+        config.hydra.job.num = idx
+    return job_run.slim(job_run.run_job(config, state.hydra_context, state.task_function))

@@ -1,0 +1,118 @@
+"""The launcher's job runner (hydra_plugins.fuzzynav_sweeper.job_run) against Hydra's own run_job, on the same
+configs: the same .hydra/ snapshot, output directory, working directory, environment, callbacks and result."""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.singleton import Singleton
+from hydra.core.utils import JobRuntime, JobStatus, run_job
+from hydra.types import HydraContext
+from hydra_plugins.fuzzynav_sweeper import job_run, launch_state
+from omegaconf import OmegaConf, open_dict
+
+from fuzzynav.conf import CONF_DIR
+from runners.configuration import schema
+
+
+class Recorder:
+    """Callbacks that note what they were called with."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[str, Any]] = []
+
+    def on_job_start(self, config: Any, task_function: Any) -> None:
+        self.calls.append(("start", OmegaConf.to_container(config.hydra.overrides.task)))
+
+    def on_job_end(self, config: Any, job_return: Any) -> None:
+        self.calls.append(("end", job_return.status))
+
+
+def sweep_config(sweep_dir: Path, overrides: list[str], *, chdir: bool, env: dict[str, str]) -> Any:
+    schema.register()
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose("config", overrides=overrides, return_hydra_config=True)
+    with open_dict(cfg):
+        cfg.hydra.sweep.dir = str(sweep_dir)
+        cfg.hydra.job.num = 3
+        cfg.hydra.job.id = "run_3"
+        cfg.hydra.job.chdir = chdir
+        cfg.hydra.job.env_set = env
+        cfg.hydra.overrides.task = overrides
+    return cfg
+
+
+def task_noting(seen: dict[str, Any], fail: bool):
+    def task(cfg: Any) -> Any:
+        seen.update(cwd=os.getcwd(), env=os.environ.get("FUZZYNAV_TEST_ENV"), hydra_in_cfg="hydra" in cfg,
+                    output_dir=HydraConfig.get().runtime.output_dir, seed=cfg.seed)
+        if fail:
+            raise RuntimeError("task failed")
+        return {"seed": cfg.seed}
+    return task
+
+
+@pytest.mark.parametrize("chdir", [False, True])
+@pytest.mark.parametrize("fail", [False, True])
+def test_job_run_matches_hydras_run_job(tmp_path: Path, chdir: bool, fail: bool) -> None:
+    JobRuntime.instance().set("name", "run")
+    overrides = ["scenario=head_on", "planner=wait", "seed=7"]
+    outputs = {}
+    for name, runner in (("hydra", "hydra"), ("ours", "ours")):
+        sweep_dir = tmp_path / name
+        cfg = sweep_config(sweep_dir, overrides, chdir=chdir, env={"FUZZYNAV_TEST_ENV": "set"})
+        seen: dict[str, Any] = {}
+        callbacks = Recorder()
+        context = HydraContext(config_loader=None, callbacks=callbacks)  # type: ignore[arg-type]
+        before_cwd, before_hydra = os.getcwd(), HydraConfig.instance().cfg
+        if runner == "hydra":
+            ret = run_job(task_function=task_noting(seen, fail), config=copy.deepcopy(cfg),
+                          job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir", hydra_context=context)
+        else:
+            ret = job_run.run_job(copy.deepcopy(cfg), context, task_noting(seen, fail))
+        assert os.getcwd() == before_cwd and HydraConfig.instance().cfg is before_hydra
+        assert "FUZZYNAV_TEST_ENV" not in os.environ
+        job_dir = sweep_dir / "3"
+        snapshot = {p.name: p.read_text().replace(str(sweep_dir), "<sweep>")
+                    for p in sorted((job_dir / ".hydra").iterdir())}
+        seen = {k: (v.replace(str(sweep_dir), "<sweep>") if isinstance(v, str) else v) for k, v in seen.items()}
+        outputs[name] = dict(
+            snapshot=snapshot, seen=seen, calls=callbacks.calls, status=ret.status, overrides=ret.overrides,
+            task_name=ret.task_name, working_dir=str(ret.working_dir).replace(str(sweep_dir), "<sweep>"),
+            value=repr(ret._return_value), cfg=OmegaConf.to_container(ret.cfg),
+            hydra_cfg=OmegaConf.to_yaml(ret.hydra_cfg).replace(str(sweep_dir), "<sweep>"))
+    assert outputs["ours"] == outputs["hydra"]
+    assert outputs["ours"]["status"] == (JobStatus.FAILED if fail else JobStatus.COMPLETED)
+    assert outputs["ours"]["seen"]["cwd"].endswith("/3") == chdir
+    assert set(outputs["ours"]["snapshot"]) == {"config.yaml", "hydra.yaml", "overrides.yaml"}
+
+
+def test_slim_result_keeps_what_the_sweepers_read(tmp_path: Path) -> None:
+    JobRuntime.instance().set("name", "run")
+    cfg = sweep_config(tmp_path, ["seed=2"], chdir=False, env={})
+    context = HydraContext(config_loader=None, callbacks=Recorder())  # type: ignore[arg-type]
+    ret = job_run.slim(job_run.run_job(cfg, context, task_noting({}, fail=True)))
+    assert ret.status == JobStatus.FAILED and isinstance(ret._return_value, RuntimeError)
+    assert ret.hydra_cfg.hydra.job.num == 3 and ret.cfg is None and ret.overrides == ["seed=2"]
+
+
+def test_launch_state_is_read_once_per_worker_and_removed(tmp_path: Path) -> None:
+    cfg = OmegaConf.create({"a": 1})
+    state = launch_state.LaunchState(cfg, HydraContext(config_loader=None, callbacks=None),  # type: ignore[arg-type]
+                                     len, Singleton.get_state(), None)
+    ref = launch_state.write(state, tmp_path / ".fuzzynav")
+    first = launch_state.worker_state(ref)
+    assert first.master == cfg and first.task_function is len
+    Path(ref.path).unlink()  # a worker keeps the launch's state: later jobs do not read the file again
+    assert launch_state.worker_state(ref) is first
+    launch_state.remove(ref)  # already gone: no error
+    other = launch_state.write(state, tmp_path / ".fuzzynav")
+    assert launch_state.worker_state(other) is not first  # a new launch, a new state
+    launch_state.remove(other)
+    assert not list((tmp_path / ".fuzzynav").iterdir())
