@@ -56,6 +56,7 @@ from runners.configuration.data_files import MANIFEST, DataFileError, check_data
 from runners.datasets import recorded_source
 from runners.datasets.manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.datasets.verify_report import detail_lines, episode_line, summary_lines
+from runners.logs import yaml_text
 from runners.logs.diff import EpisodeDiff, diff_logs, diff_records
 from runners.logs.fields import TIMING_FIELDS, BehaviourRecord
 
@@ -342,8 +343,9 @@ def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
             cfg = compose("config", overrides=job["overrides"])
     plain = OmegaConf.to_container(cfg, resolve=True)
     path = Path(out_dir) / job["file"]
+    text = yaml_text.config_text(cfg, resolve=True)
     summary = run_episode(load_scenario(plain, job["seed"]), load_evaluator(plain), episode_config(plain),
-                          job["seed"], path, OmegaConf.to_yaml(cfg, resolve=True), generator=scenario_generator(plain))
+                          job["seed"], path, text, generator=scenario_generator(plain))
     return {"file": job["file"], "outcome": summary["outcome"], "steps": summary["steps"], **content_digests(path)}
 
 

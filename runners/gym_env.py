@@ -53,6 +53,7 @@ from fuzzynav.policies.base import Action, Observation, Policy, PolicyContext, m
 from fuzzynav.scenarios.scenario import Scenario, ScenarioError, scenario_from_dict
 from fuzzynav.sensing.laser import LaserScan
 from runners.configuration import plugins as config_plugins
+from runners.logs import yaml_text
 
 ENV_ID = "fuzzynav/Navigation-v0"
 
@@ -356,14 +357,14 @@ class ComposedRun:
     def config_yaml(self, seed: int, navigator: Mapping[str, Any] | None = None) -> str:
         """The resolved config as ``runners.run`` logs it for an episode of ``seed`` (``seed: <seed>``);
         ``navigator``: another ``navigator`` section in its place (an agent's log names the agent)."""
-        from omegaconf import OmegaConf, open_dict
+        from omegaconf import open_dict
 
         cfg = copy.deepcopy(self.config)
         with open_dict(cfg):
             cfg.seed = seed
             if navigator is not None:
                 cfg.navigator = dict(navigator)
-        return OmegaConf.to_yaml(cfg, resolve=True)
+        return yaml_text.config_text(cfg, resolve=True)
 
 
 def compose_run(scenario: str | Path | Scenario | None, overrides: Sequence[str] | None) -> ComposedRun:

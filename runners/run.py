@@ -229,7 +229,7 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
         inputs = load_run(cfg, runtime)  # everything validated (every seed's scenario) before any log is written
         plain, evaluator, ep_cfg, seeds = inputs.plain, inputs.evaluator, inputs.episode_config, inputs.seeds
         out_dir = Path(runtime.output_dir)
-        config_yaml = OmegaConf.to_yaml(cfg, resolve=True)
+        config_yaml = yaml_text.config_text(cfg, resolve=True)
         version = provenance()["fuzzynav_version"]
         generator = scenario_generator(plain)
         for seed in seeds:

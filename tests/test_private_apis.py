@@ -1,5 +1,5 @@
-"""The private parts of Hydra and joblib the code uses are exactly those docs/sweeps.md lists, each with its reason
-(issue #36: public APIs only, or a documented reason per exception)."""
+"""The private parts of Hydra, OmegaConf and joblib the code uses are exactly those docs/sweeps.md lists, each with
+its reason (issue #36: public APIs only, or a documented reason per exception)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PRIVATE = re.compile(r"^(hydra\._internal|hydra_plugins\.hydra_\w+\._|joblib\.externals)")
+PRIVATE = re.compile(r"^(hydra\._internal|hydra_plugins\.hydra_\w+\._|joblib\.externals|omegaconf\._)")
 
 
 def _used(folders: tuple[Path, ...] = tuple(ROOT / f for f in ("fuzzynav", "runners", "analysis"))) -> set[str]:

@@ -39,6 +39,7 @@ def plain_process_seconds() -> tuple[int, float]:
 
     from fuzzynav.conf import CONF_DIR
     from runners.configuration import schema
+    from runners.logs import yaml_text
     from runners.run import config_hash, episode_config, load_evaluator, load_scenario, log_path, run_episode
 
     schema.register()
@@ -48,7 +49,7 @@ def plain_process_seconds() -> tuple[int, float]:
             for planner in DEFAULT_PLANNERS:
                 cfg = compose("config", overrides=[f"scenario={scenario}", f"planner={planner}"])
                 plain = OmegaConf.to_container(cfg, resolve=True)
-                text = OmegaConf.to_yaml(cfg, resolve=True)
+                text = yaml_text.config_text(cfg, resolve=True)
                 evaluator, ep_cfg = load_evaluator(plain), episode_config(plain)
                 tic = time.perf_counter()
                 for seed in range(DEFAULT_EPISODES):

@@ -28,10 +28,9 @@ STUDY = {
 
 def bench_tuning(trials: int = 20, seeds: int = 10) -> dict[str, Any]:
     """Trials per minute and the overhead of the study over plain episodes (see the module docstring)."""
-    from omegaconf import OmegaConf
-
     import runners.tuning.study as study_module
     from runners.configuration.run_inputs import load_run
+    from runners.logs import yaml_text
     from runners.run import config_hash, log_path, run_episode
     from runners.tuning import episodes as trial_episodes
     from runners.tuning.storage import open_storage
@@ -76,7 +75,7 @@ def bench_tuning(trials: int = 20, seeds: int = 10) -> dict[str, Any]:
         for t in complete:  # the same episodes, plainly
             cfg = trial_episodes.run_config(t.user_attrs[study_module.OVERRIDES], spec.scenarios[0], spec.train)
             run = load_run(cfg)
-            text = OmegaConf.to_yaml(cfg, resolve=True)
+            text = yaml_text.config_text(cfg, resolve=True)
             out = Path(tmp) / "plain" / str(t.number)
             out.mkdir(parents=True)
             tic = time.perf_counter()

@@ -31,6 +31,8 @@ from hydra.core.utils import JobReturn, JobRuntime, JobStatus, configure_log
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
+from runners.logs import yaml_text
+
 
 def run_job(config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
     """Run the sweep job whose config is ``config`` (this job's own object: it becomes the task's config, without its
@@ -109,7 +111,7 @@ def _save(cfg: object, filename: str, output_dir: Path) -> None:
     """One file of the ``.hydra/`` snapshot, as Hydra writes it."""
     output_dir.mkdir(parents=True, exist_ok=True)
     with open(output_dir / filename, "w", encoding="utf-8") as f:
-        f.write(OmegaConf.to_yaml(cfg))
+        f.write(yaml_text.config_text(cfg))
 
 
 @contextlib.contextmanager

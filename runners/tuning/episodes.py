@@ -19,6 +19,7 @@ from analysis.metrics import metrics_table
 from fuzzynav.conf import CONF_DIR
 from runners.configuration import schema
 from runners.configuration.run_inputs import load_run
+from runners.logs import yaml_text
 from runners.run import config_hash, log_path, run_episode, scenario_generator
 from runners.tuning.study_file import Seeds
 
@@ -126,7 +127,7 @@ def run_configuration(overrides: Sequence[str], scenarios: Sequence[str], seeds:
     out_dir.mkdir(parents=True, exist_ok=True)
     logs: list[Path] = []
     for cfg, run in inputs:
-        text = OmegaConf.to_yaml(cfg, resolve=True)
+        text = yaml_text.config_text(cfg, resolve=True)
         generator = scenario_generator(run.plain)
         for seed in run.seeds:
             world = run.scenarios[seed]
