@@ -27,7 +27,8 @@
 9. The main job (:mod:`runners.benchmarks.main_job`): ``sweep efficiency`` (the default sweep's episodes/s as a
    whole command / (cores x the same episodes in one plain process)), the time to the first step of
    ``runners.run``, the report's episodes/s against the metrics alone; in the full run also each compiled kernel's
-   end-to-end gain on the documented workloads (each kernel off in turn, ``FUZZYNAV_KERNELS_OFF``).
+   end-to-end gain on the documented workloads (each kernel off in turn, ``FUZZYNAV_KERNELS_OFF``), and a 1,000-episode
+   sweep's efficiency, on these cores and on 16 by simulation of the launcher's schedule from the measured jobs.
 10. Tuning (:mod:`runners.benchmarks.tuning`, issue #39): trials per minute of ``runners.tune``'s trial loop and
     the study machinery's overhead over the same episodes run plainly.
 11. Issue #19's and issue #36's targets, each with its value, threshold and verdict
@@ -277,10 +278,20 @@ def main(argv: list[str] | None = None) -> int:
 
     results["recorded"] = bench_recorded(1, 120) if args.quick else bench_recorded(3)
     print_recorded(results["recorded"])
-    from runners.benchmarks.main_job import bench_kernels, bench_main_job, print_kernels, print_main_job
+    from runners.benchmarks.main_job import (
+        bench_kernels,
+        bench_large_sweep,
+        bench_main_job,
+        print_kernels,
+        print_large_sweep,
+        print_main_job,
+    )
 
     results["main_job"] = bench_main_job(rounds=1 if args.quick else 3)  # issue #36: the job a user runs
     print_main_job(results["main_job"])
+    if not args.quick:  # the 1,000-episode sweep and its plain twin: about 2 minutes
+        results["large_sweep"] = bench_large_sweep()
+        print_large_sweep(results["large_sweep"])
     if not args.quick:  # each kernel off in turn on every documented workload: about 20 minutes
         results["kernels"] = bench_kernels(rounds=2)
         print_kernels(results["kernels"])

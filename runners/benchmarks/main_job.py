@@ -31,9 +31,10 @@ DEFAULT_PLANNERS = ("auto_h1", "auto_h2", "auto_h3", "auto_h4", "wait", "detour"
 DEFAULT_EPISODES = 5
 
 
-def plain_process_seconds() -> tuple[int, float]:
-    """(episodes, seconds) of the default sweep's episodes run one after the other in this process, with their logs;
-    each group's config is composed before its episodes (outside the timing: composing is the sweep's overhead)."""
+def plain_process_seconds(seeds: range = range(DEFAULT_EPISODES)) -> tuple[int, float]:
+    """(episodes, seconds) of the default sweep's configurations with ``seeds``, run one after the other in this
+    process, with their logs; each group's config is composed before its episodes (outside the timing: composing is
+    the sweep's overhead)."""
     from hydra import compose, initialize_config_dir
     from omegaconf import OmegaConf
 
@@ -52,7 +53,7 @@ def plain_process_seconds() -> tuple[int, float]:
                 text = yaml_text.config_text(cfg, resolve=True)
                 evaluator, ep_cfg = load_evaluator(plain), episode_config(plain)
                 tic = time.perf_counter()
-                for seed in range(DEFAULT_EPISODES):
+                for seed in seeds:
                     world = load_scenario(plain, seed)
                     run_episode(world, evaluator, ep_cfg, seed, log_path(Path(tmp), world.name, plain, seed), text,
                                 config_hash(text, seed))
@@ -61,19 +62,56 @@ def plain_process_seconds() -> tuple[int, float]:
     return n, seconds
 
 
-def sweep_command(out: Path) -> dict[str, float]:
-    """The default sweep into ``out``: its wall time, and when its first and last logs were written (s from the
-    start)."""
+def sweep_command(out: Path, *overrides: str) -> dict[str, Any]:
+    """The default sweep (with ``overrides``) into ``out``: its wall time, when its first and last logs were written
+    (s from the start), and each job's span (:func:`job_spans`)."""
     start_wall = time.time()
     tic = time.perf_counter()
-    res = subprocess.run([sys.executable, "-m", "runners.sweep", f"hydra.sweep.dir={out}"], capture_output=True,
-                         text=True, timeout=1800, stdin=subprocess.DEVNULL)
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", *overrides, f"hydra.sweep.dir={out}"],
+                         capture_output=True, text=True, timeout=3600, stdin=subprocess.DEVNULL)
     wall = time.perf_counter() - tic
     if res.returncode != 0:
         raise RuntimeError(f"the default sweep failed: {res.stderr[-500:]}")
     times = sorted(p.stat().st_mtime for p in out.glob("*/*.mcap"))
     return {"wall_s": wall, "episodes": len(times), "first_log_s": times[0] - start_wall,
-            "last_log_s": times[-1] - start_wall}
+            "last_log_s": times[-1] - start_wall, **schedule(out, start_wall, wall)}
+
+
+def schedule(sweep_dir: Path, start_wall: float, wall: float) -> dict[str, Any]:
+    """The sweep's jobs as the simulation (:func:`simulated_wall_s`) takes them: each job's span in job order, from
+    its ``.hydra/`` snapshot (written as the job starts) to its last log, plus an equal share of the time the workers
+    spent between jobs (making the next config, the hand-off, waiting: cores x the jobs' phase - the spans' sum);
+    the time before the first job starts and after the last log."""
+    starts, ends = [], []
+    for job in sorted((p.parent.parent for p in sweep_dir.glob("*/.hydra/config.yaml")), key=lambda p: int(p.name)):
+        logs = [p.stat().st_mtime for p in job.glob("*.mcap")]
+        if logs:
+            starts.append((job / ".hydra" / "config.yaml").stat().st_mtime)
+            ends.append(max(logs))
+    if not starts:
+        return {"job_spans_s": [], "before_jobs_s": wall, "after_jobs_s": 0.0}
+    spans = [e - b for b, e in zip(starts, ends, strict=True)]
+    phase = max(ends) - min(starts)
+    gap = max(0.0, ((os.cpu_count() or 1) * phase - sum(spans)) / len(spans))
+    return {"job_spans_s": [span + gap for span in spans], "before_jobs_s": min(starts) - start_wall,
+            "after_jobs_s": start_wall + wall - max(ends)}
+
+
+def simulated_wall_s(spans: list[float], workers: int, before_s: float, after_s: float) -> tuple[float, float]:
+    """(whole command, episodes phase) on ``workers`` cores, by simulation of the launcher's schedule: each job,
+    in order, goes to the first worker free (as joblib hands them out), taking its measured span; the time before the
+    first job and after the last log are the measured ones (both run in the launching process and do not shrink with
+    more cores). Assumes a core of that machine as fast as this one's, and the same per-job cost; the launching
+    process's share of a job (~0.1 ms: its overrides pickled) is not a bottleneck at that count."""
+    import heapq
+
+    free = [0.0] * workers
+    end = 0.0
+    for span in spans:
+        start = heapq.heappop(free)
+        heapq.heappush(free, start + span)
+        end = max(end, start + span)
+    return before_s + end + after_s, end
 
 
 def first_step_seconds(out: Path) -> float:
@@ -113,7 +151,8 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
     """Each figure's median over ``rounds``, the sweep and the plain process alternated."""
     cores = os.cpu_count() or 1
     rows: dict[str, list[float]] = {k: [] for k in ("sweep_wall_s", "sweep_first_log_s", "sweep_last_log_s",
-                                                    "plain_s", "first_step_s", "report_s", "metrics_s")}
+                                                    "plain_s", "first_step_s", "report_s", "metrics_s",
+                                                    "sim_wall_s", "sim_phase_s")}
     episodes = 0
     for _ in range(rounds):
         with tempfile.TemporaryDirectory() as tmp:
@@ -122,6 +161,10 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
             rows["sweep_wall_s"].append(sweep["wall_s"])
             rows["sweep_first_log_s"].append(sweep["first_log_s"])
             rows["sweep_last_log_s"].append(sweep["last_log_s"])
+            sim = simulated_wall_s(sweep["job_spans_s"], SIMULATED_CORES, sweep["before_jobs_s"],
+                                   sweep["after_jobs_s"])
+            rows["sim_wall_s"].append(sim[0])
+            rows["sim_phase_s"].append(sim[1])
             n, plain = plain_process_seconds()
             if n != episodes:
                 raise RuntimeError(f"the plain process ran {n} episodes, the sweep {episodes}")
@@ -138,10 +181,63 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
            "sweep_efficiency_to_last_log": episodes / med["sweep_last_log_s"] / (cores * plain_rate),
            "episodes_phase_efficiency": episodes / max(med["sweep_last_log_s"] - med["sweep_first_log_s"], 1e-9)
            / (cores * plain_rate),
+           "simulated_cores": SIMULATED_CORES,
+           "simulated_sweep_efficiency": episodes / med["sim_wall_s"] / (SIMULATED_CORES * plain_rate),
+           "simulated_episodes_phase_efficiency": episodes / med["sim_phase_s"] / (SIMULATED_CORES * plain_rate),
            "report_episodes_per_s": episodes / med["report_s"],
            "metrics_episodes_per_s": episodes / med["metrics_s"]}
     out["report_over_metrics"] = out["report_episodes_per_s"] / out["metrics_episodes_per_s"]
     return out
+
+
+#: the 1,000-episode sweep: the default sweep's 21 configurations x 48 seeds, in jobs of 8 episodes (126 jobs; the
+#: way docs/sweeps.md writes a long sweep: seed blocks)
+LARGE_SWEEP = ("episodes=8", "seed=range(0,48,8)")
+LARGE_SEEDS = range(48)
+SIMULATED_CORES = 16
+
+
+def bench_large_sweep(rounds: int = 2) -> dict[str, Any]:
+    """The 1,000-episode sweep against the same episodes in one plain process (alternated, medians of ``rounds``), on
+    this machine's cores and on :data:`SIMULATED_CORES` by :func:`simulated_wall_s` from this machine's job spans."""
+    cores = os.cpu_count() or 1
+    rows: dict[str, list[float]] = {k: [] for k in ("wall_s", "first_log_s", "last_log_s", "plain_s", "sim_wall_s",
+                                                    "sim_phase_s")}
+    episodes = 0
+    for _ in range(rounds):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "sweep"
+            sweep = sweep_command(out, *LARGE_SWEEP)
+            episodes = int(sweep["episodes"])
+            n, plain = plain_process_seconds(LARGE_SEEDS)
+            if n != episodes:
+                raise RuntimeError(f"the plain process ran {n} episodes, the sweep {episodes}")
+            sim_wall, sim_phase = simulated_wall_s(sweep["job_spans_s"], SIMULATED_CORES, sweep["before_jobs_s"],
+                                                   sweep["after_jobs_s"])
+            for key, value in (("wall_s", sweep["wall_s"]), ("first_log_s", sweep["first_log_s"]),
+                               ("last_log_s", sweep["last_log_s"]), ("plain_s", plain), ("sim_wall_s", sim_wall),
+                               ("sim_phase_s", sim_phase)):
+                rows[key].append(value)
+    med = {k: statistics.median(v) for k, v in rows.items()}
+    rate = episodes / med["plain_s"]
+    return {"cores": cores, "episodes": episodes, "rounds": rounds, "overrides": list(LARGE_SWEEP), **med,
+            "plain_episodes_per_s": rate,
+            "sweep_efficiency": episodes / med["wall_s"] / (cores * rate),
+            "episodes_phase_efficiency": episodes / max(med["last_log_s"] - med["first_log_s"], 1e-9) / (cores * rate),
+            "simulated_cores": SIMULATED_CORES,
+            "simulated_sweep_efficiency": episodes / med["sim_wall_s"] / (SIMULATED_CORES * rate),
+            "simulated_episodes_phase_efficiency": episodes / med["sim_phase_s"] / (SIMULATED_CORES * rate)}
+
+
+def print_large_sweep(r: dict[str, Any]) -> None:
+    print(f"\n== A 1,000-episode sweep ({r['episodes']} episodes: the default sweep with {' '.join(r['overrides'])}), "
+          f"medians of {r['rounds']} rounds ==")
+    print(f"sweep efficiency (1,000 episodes): {r['sweep_efficiency']:.2f} on {r['cores']} cores (the whole command, "
+          f"{r['wall_s']:.1f} s against {r['cores']} x {r['plain_episodes_per_s']:.1f} episodes/s in one plain "
+          f"process); its episodes phase alone: {r['episodes_phase_efficiency']:.2f}")
+    print(f"  on {r['simulated_cores']} cores, by simulation of the schedule from these job spans: "
+          f"{r['simulated_sweep_efficiency']:.2f} (whole command, {r['sim_wall_s']:.1f} s), episodes phase "
+          f"{r['simulated_episodes_phase_efficiency']:.2f}")
 
 
 def print_main_job(r: dict[str, Any]) -> None:
@@ -153,6 +249,9 @@ def print_main_job(r: dict[str, Any]) -> None:
     print(f"  to its last log: {r['sweep_efficiency_to_last_log']:.2f} (first log after {r['sweep_first_log_s']:.1f} s,"
           f" last after {r['sweep_last_log_s']:.1f} s); its episodes phase alone: "
           f"{r['episodes_phase_efficiency']:.2f}")
+    print(f"  on {r['simulated_cores']} cores, by simulation of the schedule from these job spans: "
+          f"{r['simulated_sweep_efficiency']:.2f} (whole command), episodes phase "
+          f"{r['simulated_episodes_phase_efficiency']:.2f}")
     print(f"time to first step of runners.run: {r['first_step_s']:.2f} s")
     print(f"report: {r['report_episodes_per_s']:.1f} episodes/s ({r['report_s']:.1f} s), the metrics alone "
           f"{r['metrics_episodes_per_s']:.1f} episodes/s: report / metrics = {r['report_over_metrics']:.2f}")

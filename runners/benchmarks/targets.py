@@ -104,9 +104,20 @@ def main_job_targets(results: dict[str, Any]) -> list[Target]:
     if job:
         out.append(Target("sweep efficiency, the default sweep as a whole command", job["sweep_efficiency"],
                           SWEEP_EFFICIENCY, True, "", f"{job['cores']} cores"))
+        out.append(Target("sweep efficiency, the default sweep's episodes phase", job["episodes_phase_efficiency"],
+                          SWEEP_EFFICIENCY, True, "", f"{job['cores']} cores"))
+        out.append(Target("sweep efficiency, the default sweep as a whole command", job["simulated_sweep_efficiency"],
+                          SWEEP_EFFICIENCY, True, "", f"{job['simulated_cores']} cores, simulated schedule"))
         out.append(Target("time to the first step of runners.run", job["first_step_s"], FIRST_STEP_S, False, "s"))
         out.append(Target("analysis.report / the metrics alone (episodes/s)", job["report_over_metrics"],
                           REPORT_OVER_METRICS, True, ""))
+    large = results.get("large_sweep")
+    if large:
+        out.append(Target("sweep efficiency, a 1,000-episode sweep as a whole command", large["sweep_efficiency"],
+                          SWEEP_EFFICIENCY, True, "", f"{large['cores']} cores"))
+        out.append(Target("sweep efficiency, a 1,000-episode sweep as a whole command",
+                          large["simulated_sweep_efficiency"], SWEEP_EFFICIENCY, True, "",
+                          f"{large['simulated_cores']} cores, simulated schedule"))
     kernels = results.get("kernels")
     if kernels:
         for kernel in next(iter(kernels["gain"].values())):
