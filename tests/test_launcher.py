@@ -112,7 +112,9 @@ def test_launch_state_is_read_once_per_worker_and_removed(tmp_path: Path) -> Non
     Path(ref.path).unlink()  # a worker keeps the launch's state: later jobs do not read the file again
     assert launch_state.worker_state(ref) is first
     launch_state.remove(ref)  # already gone: no error
+    (tmp_path / ".fuzzynav" / "launch-0123.pkl").write_bytes(b"left by a killed launch")
     other = launch_state.write(state, tmp_path / ".fuzzynav")
+    assert [p.name for p in (tmp_path / ".fuzzynav").iterdir()] == [Path(other.path).name]
     assert launch_state.worker_state(other) is not first  # a new launch, a new state
     launch_state.remove(other)
     assert not list((tmp_path / ".fuzzynav").iterdir())

@@ -48,11 +48,14 @@ class LaunchStateFile:
 
 def write(state: LaunchState, control_dir: Path) -> LaunchStateFile:
     """Pickle ``state`` (with cloudpickle: the task function and Hydra's context may hold closures) into
-    ``control_dir``; the caller removes the file once the launch has returned (:func:`remove`)."""
+    ``control_dir``; the caller removes the file once the launch has returned (:func:`remove`), and the next launch
+    removes one that a killed launch left."""
     import cloudpickle
 
     token = secrets.token_hex(8)
     control_dir.mkdir(parents=True, exist_ok=True)
+    for stale in control_dir.glob("launch-*"):  # an earlier launch of this (locked) sweep folder that was killed
+        stale.unlink(missing_ok=True)
     path = control_dir.resolve() / f"launch-{token}.pkl"  # absolute: a job may change the working directory
     tmp = path.with_suffix(".tmp")
     with open(tmp, "wb") as f:
