@@ -22,6 +22,7 @@ over the sweep presets and random products of every config group's options.
 from __future__ import annotations
 
 import copy
+import pickle
 from collections.abc import Sequence
 from typing import Any
 
@@ -42,6 +43,7 @@ class JobConfigs:
         self._compose = compose
         self._parser = OverridesParser.create()
         self._composed: dict[tuple[str, ...], DictConfig] = {}
+        self._pickled: dict[tuple[str, ...], bytes] = {}  # composed configs' bytes, for new copies (_fresh)
         self._reference: tuple[tuple[str, ...], list[Override], DictConfig] | None = None
         self._deltas: dict[tuple[str, str], dict[str, Any] | None] = {}  # (group, option) -> delta or not separable
         self.composed = 0  # how many configs Hydra composed (for the log and the tests)
@@ -57,7 +59,7 @@ class JobConfigs:
         if self._reference is None:  # the sweep's first job (composed by the sweeper's check, usually)
             self._reference = (key, self._parse(key), self._full(key))
         if key in self._composed:
-            return copy.deepcopy(self._composed[key])
+            return self._fresh(key)
         try:
             assembled = self._assemble(key)
         except Exception:  # Hydra composes it and says what is wrong in its own words
@@ -65,7 +67,21 @@ class JobConfigs:
         if assembled is not None:
             self.assembled += 1
             return assembled
-        return copy.deepcopy(self._full(key))
+        self._full(key)
+        return self._fresh(key)
+
+    def _fresh(self, key: tuple[str, ...]) -> DictConfig:
+        """A new copy of the composed config of ``key``: unpickled from its bytes, pickled once (a quarter of a
+        deep copy's time: ~2 ms instead of ~8 for a run's config; cloudpickle, as the schema's dataclasses are made
+        at run time)."""
+        data = self._pickled.get(key)
+        if data is None:
+            import cloudpickle
+
+            data = self._pickled[key] = cloudpickle.dumps(self._composed[key], protocol=pickle.HIGHEST_PROTOCOL)
+        fresh = pickle.loads(data)  # this object's own bytes
+        assert isinstance(fresh, DictConfig)
+        return fresh
 
     def _full(self, key: tuple[str, ...]) -> DictConfig:
         config = self._composed.get(key)
@@ -105,7 +121,7 @@ class JobConfigs:
                 return None
             touched |= set(delta["nodes"])
             deltas.append(delta)
-        config = copy.deepcopy(reference)
+        config = self._fresh(ref_key)
         with read_write(config), open_dict(config):
             for delta in deltas:
                 for name, node in delta["nodes"].items():
