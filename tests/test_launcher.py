@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import copy
 import os
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -106,15 +109,29 @@ def test_launch_state_is_read_once_per_worker_and_removed(tmp_path: Path) -> Non
     cfg = OmegaConf.create({"a": 1})
     state = launch_state.LaunchState(cfg, HydraContext(config_loader=None, callbacks=None),  # type: ignore[arg-type]
                                      len, Singleton.get_state(), None)
-    ref = launch_state.write(state, tmp_path / ".fuzzynav")
+    ref = launch_state.write(state, tmp_path)
     first = launch_state.worker_state(ref)
     assert first.master == cfg and first.task_function is len
     Path(ref.path).unlink()  # a worker keeps the launch's state: later jobs do not read the file again
     assert launch_state.worker_state(ref) is first
     launch_state.remove(ref)  # already gone: no error
-    (tmp_path / ".fuzzynav" / "launch-0123.pkl").write_bytes(b"left by a killed launch")
-    other = launch_state.write(state, tmp_path / ".fuzzynav")
-    assert [p.name for p in (tmp_path / ".fuzzynav").iterdir()] == [Path(other.path).name]
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    stale = tmp_path / f"{launch_state.PREFIX}{int(dead.stdout)}-0123-x.pkl"  # left by a killed launch
+    stale.write_bytes(b"state")
+    mine = tmp_path / f"{launch_state.PREFIX}{os.getpid()}-4567-y.pkl"  # this process's other launch, in progress
+    mine.write_bytes(b"state")
+    other = launch_state.write(state, tmp_path)
     assert launch_state.worker_state(other) is not first  # a new launch, a new state
+    assert not stale.exists() and mine.exists()
     launch_state.remove(other)
-    assert not list((tmp_path / ".fuzzynav").iterdir())
+    assert [p.name for p in tmp_path.iterdir()] == [mine.name]
+
+
+def test_a_sweep_leaves_no_launch_file(tmp_path: Path) -> None:
+    before = set(Path(tempfile.gettempdir()).glob(f"{launch_state.PREFIX}*"))
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "sweep=quick", "episodes=1", "hydra.launcher.n_jobs=2",
+                          f"hydra.sweep.dir={tmp_path / 's'}"], capture_output=True, text=True, timeout=600,
+                         cwd=Path(__file__).resolve().parents[1])
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert set(Path(tempfile.gettempdir()).glob(f"{launch_state.PREFIX}*")) <= before
+    assert sorted(p.name for p in (tmp_path / "s" / ".fuzzynav").iterdir()) == ["lock"]

@@ -95,8 +95,11 @@ class FuzzynavSweeper(FaultTolerantSweeper):
         tic = time.perf_counter()
         jobs = representative_jobs(batch)
         configs = getattr(self.launcher, "job_configs", None)  # fuzzynav's launcher makes jobs' configs from these
-        for overrides in jobs:
-            config = self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
+        compose_in_workers = getattr(self.launcher, "compose_in_workers", None)
+        composed = compose_in_workers(jobs) if compose_in_workers is not None else None
+        for i, overrides in enumerate(jobs):
+            config = (composed[i] if composed is not None
+                      else self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides)))
             if configs is not None:
                 configs.add_composed(overrides, config)
         log.debug(f"Validated {len(jobs)} of {len(batch)} job configs in {time.perf_counter() - tic:.2f} s")

@@ -3,9 +3,11 @@
 Hydra's joblib launcher sends each job its config, Hydra's context and Hydra's global state, pickled anew: about
 175 kB and 25 ms of the launching process's time per job (the context ~50 kB, the global state ~55 kB, the config
 ~70 kB), which on many cores makes the launching process the sweep's bottleneck and on two cores takes a share of
-the episodes' CPU. :class:`LaunchState` is written once per launch into the sweep's control directory
-(:func:`runners.sweeping.paths.control_dir`); a job carries only its overrides and number, and each worker reads
-the file at its first job of the launch and keeps it (:func:`worker_state`). The job configs are then made in the
+the episodes' CPU. :class:`LaunchState` is written once per launch into a file in the system's temporary folder (the
+workers are processes of this machine; ~0.7 MB that must not take the output disk's last bytes from the logs); a
+job carries only its overrides and number, and each worker reads the file at its first job of the launch and keeps
+it (:func:`worker_state`). The launch removes the file when it returns; one left by a launching process that was
+killed is removed by the next launch. The job configs are then made in the
 workers (:class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs`, from the configs the launching process
 composed when it checked each swept value), in parallel.
 """
@@ -15,6 +17,7 @@ composed when it checked each swept value), in parallel.
 import os
 import pickle
 import secrets
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,22 +49,44 @@ class LaunchStateFile:
     token: str  # a new one per launch: a reused worker never takes an earlier launch's state for this one
 
 
-def write(state: LaunchState, control_dir: Path) -> LaunchStateFile:
-    """Pickle ``state`` (with cloudpickle: the task function and Hydra's context may hold closures) into
-    ``control_dir``; the caller removes the file once the launch has returned (:func:`remove`), and the next launch
-    removes one that a killed launch left."""
+PREFIX = "fuzzynav-launch-"
+
+
+def write(state: LaunchState, folder: Path | None = None) -> LaunchStateFile:
+    """Pickle ``state`` (with cloudpickle: the task function and Hydra's context may hold closures) into a new file in
+    ``folder`` (the system's temporary folder by default); the caller removes it once the launch has returned
+    (:func:`remove`)."""
     import cloudpickle
 
+    folder = Path(tempfile.gettempdir() if folder is None else folder).resolve()  # absolute: jobs may chdir
+    remove_stale(folder)
     token = secrets.token_hex(8)
-    control_dir.mkdir(parents=True, exist_ok=True)
-    for stale in control_dir.glob("launch-*"):  # an earlier launch of this (locked) sweep folder that was killed
-        stale.unlink(missing_ok=True)
-    path = control_dir.resolve() / f"launch-{token}.pkl"  # absolute: a job may change the working directory
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "wb") as f:
-        cloudpickle.dump(state, f, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(tmp, path)
-    return LaunchStateFile(str(path), token)
+    fd, name = tempfile.mkstemp(prefix=f"{PREFIX}{os.getpid()}-{token}-", suffix=".pkl", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            cloudpickle.dump(state, f, protocol=pickle.HIGHEST_PROTOCOL)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise
+    return LaunchStateFile(name, token)
+
+
+def remove_stale(folder: Path) -> None:
+    """Remove the launch files in ``folder`` whose launching process is gone (killed before its launch returned)."""
+    for path in folder.glob(f"{PREFIX}*.pkl"):
+        pid = path.name[len(PREFIX):].split("-", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            path.unlink(missing_ok=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def remove(ref: LaunchStateFile) -> None:

@@ -5,7 +5,7 @@ Selected by ``hydra/launcher=all_cores`` (the sweep presets' default). It runs j
 three differences, each there because a job of a few episodes cost more than its episodes:
 
 1. What all jobs share (Hydra's context and global state, the configs composed when each swept value was checked)
-   goes to each worker once, through a file in the sweep's control directory (:mod:`.launch_state`); a job carries
+   goes to each worker once, through a temporary file (:mod:`.launch_state`); a job carries
    its overrides and number only. Hydra's launcher pickles ~175 kB per job in the launching process.
 2. Each job's config is made in its worker by :class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs`
    (assembled from the configs composed once per swept value; the same config), not composed again (~0.1 s).
@@ -25,8 +25,6 @@ from hydra.core.utils import JobReturn, configure_log, filter_overrides, setup_g
 from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
-
-from runners.sweeping.paths import control_dir
 
 from . import job_run, launch_state
 from .job_configs import JobConfigs
@@ -71,7 +69,7 @@ class FuzzynavLauncher(Launcher):
             self.job_configs.config(overrides_list[0])  # the reference: the same in every worker
         state = launch_state.LaunchState(self.config, self.hydra_context, self.task_function, Singleton.get_state(),
                                          self.job_configs if self.assemble else None)
-        ref = launch_state.write(state, control_dir(sweep_dir))
+        ref = launch_state.write(state)
 
         def jobs() -> Iterable[Any]:
             for idx, overrides in enumerate(overrides_list, start=initial_job_idx):
@@ -84,6 +82,36 @@ class FuzzynavLauncher(Launcher):
             launch_state.remove(ref)
         assert isinstance(runs, list) and all(isinstance(r, JobReturn) for r in runs)
         return runs
+
+
+    def compose_in_workers(self, jobs: Sequence[Sequence[str]]) -> list[DictConfig] | None:
+        """Hydra's configs of ``jobs`` (the sweeper's check of each swept value), composed in the worker pool, in
+        parallel (each ~0.1 s; the workers are idle then). None where that did not work out (a bad value among
+        them, a worker lost): the caller composes them itself and Hydra says what is wrong in its own words."""
+        from joblib import Parallel, delayed
+
+        assert self.config is not None and self.hydra_context is not None and self.task_function is not None
+        if len(jobs) < 2 or self.n_jobs == 1:
+            return None
+        state = launch_state.LaunchState(self.config, self.hydra_context, self.task_function, Singleton.get_state(),
+                                         None)
+        try:
+            ref = launch_state.write(state)
+        except OSError:
+            return None
+        try:
+            configs = Parallel(**parallel_settings(self.n_jobs))(delayed(compose_job)(ref, list(o)) for o in jobs)
+        except Exception:
+            return None
+        finally:
+            launch_state.remove(ref)
+        return configs if isinstance(configs, list) and len(configs) == len(jobs) else None
+
+
+def compose_job(ref: launch_state.LaunchStateFile, overrides: list[str]) -> DictConfig:
+    """Hydra's config of one job, composed in a worker process (``load_sweep_config``, as the sweeper would)."""
+    state = launch_state.worker_state(ref)
+    return state.hydra_context.config_loader.load_sweep_config(state.master, overrides)
 
 
 def execute_job(ref: launch_state.LaunchStateFile, overrides: list[str], idx: int) -> JobReturn:
