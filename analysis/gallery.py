@@ -69,7 +69,7 @@ def thumbnail(trace: Trace, color: str, title: str, path: Path) -> Path:
     plots.draw_world(ax, world)
     plots.draw_traces(ax, [trace], color, lw=1.4)
     ax.set_axis_off()  # the walls are the frame
-    ax.set_title(title, fontsize=7, pad=2)
+    plots.set_title(ax, title, fontsize=7, pad=2)
     return plots._save(fig, path)
 
 
