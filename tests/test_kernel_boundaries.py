@@ -478,15 +478,15 @@ def test_orca_cut_off_arc_or_leg_at_the_time_horizon():
     p, r = (200.0, 30.0), 50.0
     inv_tau = 1.0 / config.time_horizon_s
 
-    def arc(vy: float) -> bool:
-        w = (10.0 - inv_tau * p[0], -vy - inv_tau * p[1])
+    def arc(vx: float, vy: float) -> bool:  # orca_lp.orca_line's test, for the relative velocity (vx, -vy)
+        w = (vx - inv_tau * p[0], -vy - inv_tau * p[1])
         w_dot_p = w[0] * p[0] + w[1] * p[1]
         return w_dot_p < 0.0 and w_dot_p * w_dot_p > r * r * (w[0] * w[0] + w[1] * w[1])
 
-    flip = edge(arc, 0.0, 1e4)
-    for vy in ulps(flip, 3):
-        _substep(config, [(100.0, 100.0)], [(10.0, 0.0)], [(100.0, 0.0)], [25.0], [130.0],
-                 [((300.0, 130.0), (0.0, vy), 25.0)])
+    for vx in (10.0, 3.7, 12.34, 0.1, 7.77):  # the edge for several own velocities: its rounding differs
+        for vy in ulps(edge(lambda vy, vx=vx: arc(vx, vy), 0.0, 1e4), 3):
+            _substep(config, [(100.0, 100.0)], [(vx, 0.0)], [(100.0, 0.0)], [25.0], [130.0],
+                     [((300.0, 130.0), (0.0, vy), 25.0)])
     d = float(norm2(np.array([300.0, 130.0]) - np.array([100.0, 100.0])))
     for dist in ulps(d):
         _substep(PedestrianOrcaConfig(neighbor_dist_cm=dist), [(100.0, 100.0)], [(10.0, 0.0)], [(100.0, 0.0)],
@@ -549,6 +549,20 @@ def test_orca_walls_and_circles_at_reach_and_contact():
 
     for top in ulps(edge(wall_within, 0.0, 1e4), 3):
         _substep(config, [(300.0, 500.0)], [(10.0, 0.0)], [(50.0, 0.0)], [25.0], [top])
+    # an oblique edge, the pedestrian's distance to it rounded (the foot on it inexact): the reach crossing it (the
+    # edge joining the pedestrian's list), for several positions along it
+    world = SimpleNamespace(bounds=WORLD.bounds, polygons=(np.array([[400.0, 300.0], [700.0, 350.0], [450.0, 500.0]]),),
+                            circles=np.zeros((0, 3)))
+    model = _orca_model(config, [25.0])
+    obstacles = model._obstacles_of(world)
+    (oblique,) = [k for k, p in enumerate(obstacles.points.tolist()) if p == [400.0, 300.0]]
+    for place in [(560.3, 260.7), (431.1, 257.9), (650.05, 301.3), (512.34567, 268.8), (553.0736224220667, 277.0278),
+                  (501.0761775227262, 265.39958693835453)]:
+        def oblique_within(top: float, place=place) -> bool:
+            return oblique in model._edges_within_reach(obstacles, np.array([place]), np.array([top]))[0]
+
+        for top in ulps(edge(oblique_within, 0.0, 1e4), 3):
+            _substep(config, [place], [(10.0, 0.0)], [(50.0, 0.0)], [25.0], [top], world=world)
     gap = float(norm2(np.array([800.0, 800.0]) - np.array([700.0, 800.0]))) - 20.0 - 25.0
     for top in ulps(gap / config.time_horizon_obst_s, 3):
         _substep(config, [(700.0, 800.0)], [(10.0, 0.0)], [(50.0, 0.0)], [25.0], [top])
