@@ -214,6 +214,25 @@ def bench_memory(episodes: int) -> dict:
             "growth": (late - early) / early if early else float("nan")}
 
 
+def kernels_line(in_use: dict[str, bool], built: dict[str, bool], switched_off: bool) -> str:
+    """The bench's first line: which compiled kernels (full module names in ``in_use``, short names in ``built``)
+    are in use, and for the others why their Python/numpy form runs — not built at install (no C compiler),
+    ``FUZZYNAV_KERNEL=python``, or named in ``FUZZYNAV_KERNELS_OFF``."""
+    def why(name: str) -> str:
+        return ("not built at install: no C compiler?" if not built.get(name.rpartition(".")[2], False) else
+                "FUZZYNAV_KERNEL=python" if switched_off else "FUZZYNAV_KERNELS_OFF")
+
+    head = "compiled kernels (fuzzynav/numerics/compiled.py): "
+    off = [name for name, on in in_use.items() if not on]
+    if not off:
+        return head + f"all {len(in_use)} in use"
+    reasons = {why(name) for name in off}
+    if len(off) == len(in_use) and len(reasons) == 1:
+        return head + f"none in use, the Python/numpy forms run ({reasons.pop()})"
+    return head + f"{len(in_use) - len(off)} of {len(in_use)} in use; " + ", ".join(
+        f"{name.rpartition('.')[2]} Python/numpy form ({why(name)})" for name in off)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="reduced sizes (under a minute)")
@@ -229,16 +248,18 @@ def main(argv: list[str] | None = None) -> int:
 
     kernels = {name: compiled.load(name) is not None and not compiled.switched_off()
                for name in compiled.KERNELS}
+    # first, before any timing: which forms the numbers below are of (an install without a C compiler builds no
+    # kernel and says so nowhere else)
+    print(kernels_line(kernels, compiled.built(), compiled.switched_off()), flush=True)
     results = {"machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),
-                           "system": platform.platform(), "compiled_kernels": kernels},
+                           "system": platform.platform(), "compiled_kernels": kernels,
+                           "kernels_built": compiled.built(), "kernels": compiled.in_use()},
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 2_000 if args.quick else 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 7)
     results["sweep"] = bench_sweep(100, rounds=1) if args.quick else bench_sweep(1000)
     results["analysis"] = bench_analysis(20 if args.quick else 200)
     results["memory"] = bench_memory(60 if args.quick else 1000)
-    print("compiled kernels (fuzzynav/numerics/compiled.py): " + ", ".join(
-        f"{name} {'in use' if on else 'not in use (Python/numpy form)'}" for name, on in kernels.items()))
     print_fuzzy(results["fuzzy"])
     sim = results["simulation"]
     print(f"\nsimulation ({sim['scenario']}, laser perception, {sim['steps']} steps, median of "

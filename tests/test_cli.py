@@ -49,11 +49,13 @@ def test_bench_quick_writes_results(tmp_path):
     for row in data["fuzzy"]:
         assert row["ratio"] > 1 and row["max_disagreement_dtheta_deg"] <= 0.01
         assert row["max_disagreement_v_cm_s"] <= 0.01
-    assert "fuzzy decision" in res.stdout and "compiled kernels" in res.stdout
-    if os.environ.get("CI"):
-        from fuzzynav.numerics.compiled import KERNELS
+    assert "fuzzy decision" in res.stdout and res.stdout.startswith("compiled kernels (")
+    from fuzzynav.numerics import compiled
 
-        assert data["machine"]["compiled_kernels"] == dict.fromkeys(KERNELS, True)
+    if os.environ.get("CI"):  # CI's install has a C compiler: every kernel built, in use unless switched off
+        assert data["machine"]["kernels_built"] == {k.rpartition(".")[2]: True for k in compiled.KERNELS}
+        assert data["machine"]["compiled_kernels"] == dict.fromkeys(compiled.KERNELS, not compiled.switched_off())
+    assert data["machine"]["kernels"] == compiled.in_use()
     for section in ("simulation", "sweep", "analysis", "memory", "tuning"):
         assert section in data, section
     assert data["simulation"]["steps_per_s_with_logging"] > 0
@@ -300,3 +302,21 @@ def test_a_sweep_that_hydra_or_a_later_job_would_refuse_is_one_line_before_any_j
     res = run_sweep(*overrides, "planner=auto", f"hydra.sweep.dir={out}")
     assert one_error_line(res).endswith(says), res.stderr
     assert not out.exists()
+
+
+def test_the_bench_says_first_which_forms_it_times_and_why():
+    from runners.bench import kernels_line
+
+    names = ("fuzzynav.sensing._raycast", "fuzzynav.pedestrians._orca")
+    built, none_built = {"_raycast": True, "_orca": True}, {"_raycast": False, "_orca": False}
+    head = "compiled kernels (fuzzynav/numerics/compiled.py): "
+    assert kernels_line(dict.fromkeys(names, True), built, False) == head + "all 2 in use"
+    assert kernels_line(dict.fromkeys(names, False), none_built, False) == \
+        head + "none in use, the Python/numpy forms run (not built at install: no C compiler?)"
+    assert kernels_line(dict.fromkeys(names, False), built, True) == \
+        head + "none in use, the Python/numpy forms run (FUZZYNAV_KERNEL=python)"
+    assert kernels_line({names[0]: True, names[1]: False}, built, False) == \
+        head + "1 of 2 in use; _orca Python/numpy form (FUZZYNAV_KERNELS_OFF)"
+    assert kernels_line({names[0]: False, names[1]: False}, {"_raycast": False, "_orca": True}, False) == \
+        head + "0 of 2 in use; _raycast Python/numpy form (not built at install: no C compiler?), _orca " \
+               "Python/numpy form (FUZZYNAV_KERNELS_OFF)"

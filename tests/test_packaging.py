@@ -20,7 +20,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 # what the wheel is built from (copied: building writes build/ and *.egg-info beside the sources)
-SOURCES = ("pyproject.toml", "README.md", "conf", "fuzzynav", "runners", "analysis")
+SOURCES = ("pyproject.toml", "README.md", "build_backend", "conf", "fuzzynav", "runners", "analysis")
 
 
 def _package_folders() -> set[str]:
