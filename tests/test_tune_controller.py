@@ -102,3 +102,61 @@ def test_bad_controller_space_is_one_line(tmp_path, groups, words):
     code, _, err = run_main(str(path), "--out", str(tmp_path / "study"))
     one_line_error(code, err, str(path), *words)
     assert code == 2
+
+
+def table1_rule_outputs() -> dict[str, str]:
+    """Table 1's rule outputs as the rule space's parameter values, read from conf/controller/table1.yaml."""
+    out = {}
+    for i, rule in enumerate(TABLE1["rules"]):
+        for clause in rule.split("->")[1].split(","):
+            var, term = (s.strip() for s in clause.split("="))
+            out[f"rule~{i}.{var}"] = term
+    return out
+
+
+def test_rule_study_searches_rule_outputs_from_table1_and_writes_a_runnable_controller(tmp_path):
+    out = tmp_path / "study"
+    path = study_file(tmp_path, controller_rules=["dtheta", "v"], sampler="random", trials=2)
+    text = yaml.safe_load(path.read_text())
+    del text["space"]
+    path.write_text(yaml.safe_dump(text))
+    res = tune(path, "--out", out)
+    assert res.returncode == 0, res.stderr
+    trials = optuna.load_study(study_name="tiny", storage=open_storage(out, "sqlite")).get_trials()
+    start = table1_rule_outputs()
+    assert len(start) == 2 * len(TABLE1["rules"])
+    assert trials[0].user_attrs["default"] and trials[0].params == start  # Table 1 as published first
+    dists = trials[1].distributions
+    assert list(dists["rule~0.dtheta"].choices) == list(TABLE1["outputs"]["dtheta"]["terms"])
+    assert list(dists["rule~5.v"].choices) == list(TABLE1["outputs"]["v"]["terms"])
+    assert trials[1].params != start  # a random point of 56 categories is not Table 1
+    (rules,) = [o for o in trials[1].user_attrs["overrides"] if o.startswith("controller.rules=")]
+    assert rules.count("->") == len(TABLE1["rules"])
+    (controller,) = (out / "controller").glob("*.yaml")
+    written = yaml.safe_load(controller.read_text())
+    best = max((t for t in trials if t.state.name == "COMPLETE"), key=lambda t: t.values[0])
+    for i, rule in enumerate(written["rules"]):  # the tuned rules: the antecedents of Table 1, the best outputs
+        ante, _, cons = rule.partition(" -> ")
+        assert ante == TABLE1["rules"][i].split("->")[0].strip()
+        assert cons == f"dtheta={best.params[f'rule~{i}.dtheta']}, v={best.params[f'rule~{i}.v']}"
+    assert written["inputs"]["front"]["terms"] == TABLE1["inputs"]["front"]["terms"]
+    report = (out / "report" / "study.md").read_text()
+    if best.params != start:  # the report lists the changed rules beside Table 1's
+        assert "## Rule outputs beside the base controller's" in report
+    run = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.searchpath=[file://{out}]",
+                          f"controller={controller.stem}", f"hydra.run.dir={tmp_path / 'run'}"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert f"__{controller.stem}__" in run.stdout
+
+
+@pytest.mark.parametrize(("outputs", "words"), [
+    (["steer"], ["controller_rules", "steer", "not an output"]),
+    (["v", "v"], ["controller_rules", "named twice"]),
+    ("v", ["controller_rules", "expected a list"]),
+])
+def test_bad_rule_space_is_one_line(tmp_path, outputs, words):
+    path = study_file(tmp_path, controller_rules=outputs)
+    code, _, err = run_main(str(path), "--out", str(tmp_path / "study"))
+    one_line_error(code, err, str(path), *words)
+    assert code == 2
