@@ -196,3 +196,21 @@ def test_a_trial_asked_for_beyond_the_budget_is_surplus_and_never_runs(tmp_path)
     assert trials[1].user_attrs == {SURPLUS: True} and trials[1].params == {} and not counted(trials[1])
     assert not (out / "trials").exists()  # no episode ran
     assert within_budget(study, first.number, 1) and not within_budget(study, 1, 1)
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "conf" / "tune").glob("*.yaml")))
+def test_every_shipped_study_file_checks(name):
+    """conf/tune's studies (the suite_v2 comparison's baselines among them) load, and their base and every bound
+    of their spaces compose and validate on each scenario before any trial."""
+    from runners.tune import check_space
+    from runners.tuning.study_file import find_study_file, load_study_file
+
+    spec = load_study_file(find_study_file(name))
+    check_space(spec)
+    if name.startswith("suite_v2_"):  # the same budget and held-out seeds for every method
+        ref = load_study_file(find_study_file("suite_v2_table1"))
+        assert spec.scenarios == ("crowd_crossing", "crowd_crossing_invisible", "corridor_flow", "random_walkers",
+                                  "groups")
+        assert (spec.train, spec.heldout, spec.trials, spec.objectives) == (ref.train, ref.heldout, ref.trials,
+                                                                            ref.objectives)
+        assert spec.heldout.seeds == range(10)  # suite_v2's own seeds
