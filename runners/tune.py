@@ -74,6 +74,16 @@ def check_space(spec) -> None:
                     groups, controller_space.start_values(groups))], spec.scenarios[0], spec.train)
             except (controller_space.ControllerSpaceError, ConfigurationError) as err:
                 raise StudyFileError(f"{spec.path}: {err}") from None
+        if spec.controller_rules:  # the base controller's rules, and Table 1 back from their outputs
+            from runners.tuning import rule_space
+            from runners.tuning.study import rule_outputs
+
+            try:
+                space = rule_outputs(spec)
+                check_configuration([*spec.base, *rule_space.overrides(space, rule_space.start_values(space))],
+                                    spec.scenarios[0], spec.train)
+            except (rule_space.RuleSpaceError, ConfigurationError) as err:
+                raise StudyFileError(f"{spec.path}: {err}") from None
         for i, p in enumerate(spec.space):
             d = p.distribution
             points = d.choices if isinstance(d, CategoricalDistribution) else (d.low, d.high)
@@ -113,12 +123,15 @@ def print_trial(spec):
     from optuna.trial import TrialState
 
     from runners.tuning.controller_space import PREFIX
+    from runners.tuning.rule_space import PREFIX as RULE_PREFIX
     from runners.tuning.study import FAIL_REASON, OVERRIDES
 
     def show(t) -> None:
         shown = t.user_attrs.get(OVERRIDES, [])[len(spec.base):len(spec.base) + len(spec.space)]
         partition = sum(k.startswith(PREFIX) for k in t.params)
-        params = " ".join([*shown, *([f"+ {partition} controller partition coordinates"] if partition else [])])
+        outputs = sum(k.startswith(RULE_PREFIX) for k in t.params)
+        params = " ".join([*shown, *([f"+ {partition} controller partition coordinates"] if partition else []),
+                           *([f"+ {outputs} rule outputs"] if outputs else [])])
         seconds = (t.datetime_complete - t.datetime_start).total_seconds() if t.datetime_complete else 0.0
         if t.state == TrialState.COMPLETE:
             values = " ".join(f"{o.name}={v:.4g}" for o, v in zip(spec.objectives, t.values, strict=True))

@@ -20,7 +20,7 @@ import yaml
 from analysis.log_inputs import find_logs
 from analysis.logs import episode_summary
 from runners.tuning.storage import open_storage
-from runners.tuning.study import INTERRUPTED, counted
+from runners.tuning.study import INTERRUPTED, SURPLUS, counted
 from tests.conftest import ROOT
 
 TINY = {
@@ -132,8 +132,9 @@ def test_workers_share_a_journal_study(tmp_path):
     assert res.returncode == 0, res.stderr
     assert (out / "study.journal").exists() and not (out / "study.db").exists()
     trials = trials_of(out, "journal")
-    assert 4 <= sum(map(counted, trials)) <= 5  # the budget, exceeded by at most workers - 1
-    assert len({(t.params["planner.h_wait"], t.params["planner.safety_margin_cm"]) for t in trials}) == len(trials)
+    assert sum(map(counted, trials)) == 4  # the budget, never exceeded
+    ran = [t for t in trials if not t.user_attrs.get(SURPLUS)]
+    assert len({(t.params["planner.h_wait"], t.params["planner.safety_margin_cm"]) for t in ran}) == len(ran)
     assert os.listdir(out / "trials")  # logs of both workers' trials
 
 
@@ -175,3 +176,41 @@ def test_a_trials_config_is_the_config_hydra_composes():
         for bad in ("planner.h_wiat=3", "planner.h_wait=2.5", "planner.h_wait=abc"):
             with pytest.raises(ConfigurationError, match=r"planner\.h_w"):
                 run_config([bad], "head_on", Seeds(0, 1))
+
+
+def test_a_trial_asked_for_beyond_the_budget_is_surplus_and_never_runs(tmp_path):
+    """Two workers both saw room for one more trial and both asked: the storage's numbering decides, the second
+    is told FAIL as surplus before any parameter is asked, and it is not counted."""
+    from runners.tuning.study import create_or_load, run_trial, within_budget
+    from runners.tuning.study_file import load_study_file
+
+    spec = load_study_file(study_file(tmp_path, trials=1))
+    out = tmp_path / "study"
+    out.mkdir()
+    study = create_or_load(spec, open_storage(out, "sqlite"))
+    first = study.ask()  # another worker's trial, in flight (the enqueued default)
+    assert within_budget(study, first.number, 1)
+    assert run_trial(study, spec, out, budget=1) is None
+    trials = trials_of(out)
+    assert [t.state.name for t in trials] == ["RUNNING", "FAIL"]
+    assert trials[1].user_attrs == {SURPLUS: True} and trials[1].params == {} and not counted(trials[1])
+    assert not (out / "trials").exists()  # no episode ran
+    assert within_budget(study, first.number, 1) and not within_budget(study, 1, 1)
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "conf" / "tune").glob("*.yaml")))
+def test_every_shipped_study_file_checks(name):
+    """conf/tune's studies (the suite_v2 comparison's baselines among them) load, and their base and every bound
+    of their spaces compose and validate on each scenario before any trial."""
+    from runners.tune import check_space
+    from runners.tuning.study_file import find_study_file, load_study_file
+
+    spec = load_study_file(find_study_file(name))
+    check_space(spec)
+    if name.startswith("suite_v2_"):  # the same budget and held-out seeds for every method
+        ref = load_study_file(find_study_file("suite_v2_table1"))
+        assert spec.scenarios == ("crowd_crossing", "crowd_crossing_invisible", "corridor_flow", "random_walkers",
+                                  "groups")
+        assert (spec.train, spec.heldout, spec.trials, spec.objectives) == (ref.train, ref.heldout, ref.trials,
+                                                                            ref.objectives)
+        assert spec.heldout.seeds == range(10)  # suite_v2's own seeds

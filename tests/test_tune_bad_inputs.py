@@ -13,7 +13,7 @@ import sys
 import optuna
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
@@ -189,6 +189,7 @@ VALUES = st.one_of(
 
 @settings(max_examples=300, deadline=None)
 @given(entries=st.lists(st.builds(lambda k, v: f"{k}={v}", KEYS, VALUES), max_size=4))
+@example(entries=["planner.safety_margin_cm=int(interval(-1E257,0))"])  # a 258-digit integer bound
 def test_space_parser_gives_parameters_or_one_line(entries):
     try:
         parameters = parse_space(entries)

@@ -68,37 +68,85 @@ def test_every_point_is_an_ordered_covering_partition(data, index):
         assert any(t["params"][-1] - t["params"][0] < var["resolution"] for t in terms.values())
 
 
-def test_controller_study_tunes_membership_functions_and_writes_a_runnable_controller(tmp_path):
-    out = tmp_path / "study"
-    path = study_file(tmp_path, space=None, controller_space=[["left", "front", "right"], ["v"]], sampler="random",
-                      trials=2)
+def controller_study(tmp_path, out, **controller) -> list[optuna.trial.FrozenTrial]:
+    """Run a two-trial random study of the controller alone (no ``space``) into ``out``; its trials."""
+    path = study_file(tmp_path, **controller, sampler="random", trials=2)
     text = yaml.safe_load(path.read_text())
     del text["space"]
     path.write_text(yaml.safe_dump(text))
     res = tune(path, "--out", out)
     assert res.returncode == 0, res.stderr
-    trials = optuna.load_study(study_name="tiny", storage=open_storage(out, "sqlite")).get_trials()
-    assert trials[0].user_attrs["default"]  # Table 1 first
-    assert "controller.inputs.front.terms.near.params=[0.0,0.0,30.0,60.0]" in trials[0].user_attrs["overrides"]
-    assert any(o.startswith("controller.outputs.v.terms.fast.params=") for o in trials[1].user_attrs["overrides"])
-    assert (out / "report" / "membership.png").stat().st_size > 0
-    (controller,) = (out / "controller").glob("*.yaml")
-    run = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.searchpath=[file://{out}]",
+    return optuna.load_study(study_name="tiny", storage=open_storage(out, "sqlite")).get_trials()
+
+
+def assert_controller_runs(study_dir, controller, tmp_path) -> None:
+    """The tuned controller file runs with ``controller=<name>`` and its episodes carry its name."""
+    run = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.searchpath=[file://{study_dir}]",
                           f"controller={controller.stem}", f"hydra.run.dir={tmp_path / 'run'}"], cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert f"__{controller.stem}__" in run.stdout
 
 
-@pytest.mark.parametrize(("groups", "words"), [
-    ([["left", "sideways"]], ["controller_space[0]", "sideways", "not a variable"]),
-    ([["angle"]], ["crisp terms are not tuned"]),
-    ([["left", "dtheta"]], ["controller_space[0]", "other terms"]),
-    ([["left"], ["left"]], ["controller_space[1]", "named twice"]),
-    ("left", ["controller_space", "expected a list"]),
+def test_controller_study_tunes_membership_functions_and_writes_a_runnable_controller(tmp_path):
+    out = tmp_path / "study"
+    trials = controller_study(tmp_path, out, controller_space=[["left", "front", "right"], ["v"]])
+    assert trials[0].user_attrs["default"]  # Table 1 first
+    assert "controller.inputs.front.terms.near.params=[0.0,0.0,30.0,60.0]" in trials[0].user_attrs["overrides"]
+    assert any(o.startswith("controller.outputs.v.terms.fast.params=") for o in trials[1].user_attrs["overrides"])
+    assert (out / "report" / "membership.png").stat().st_size > 0
+    (controller,) = (out / "controller").glob("*.yaml")
+    assert_controller_runs(out, controller, tmp_path)
+
+
+@pytest.mark.parametrize(("field", "value", "words"), [
+    ("controller_space", [["left", "sideways"]], ["controller_space[0]", "sideways", "not a variable"]),
+    ("controller_space", [["angle"]], ["crisp terms are not tuned"]),
+    ("controller_space", [["left", "dtheta"]], ["controller_space[0]", "other terms"]),
+    ("controller_space", [["left"], ["left"]], ["controller_space[1]", "named twice"]),
+    ("controller_space", "left", ["controller_space", "expected a list"]),
+    ("controller_rules", ["steer"], ["controller_rules", "steer", "not an output"]),
+    ("controller_rules", ["v", "v"], ["controller_rules", "named twice"]),
+    ("controller_rules", "v", ["controller_rules", "expected a list"]),
 ])
-def test_bad_controller_space_is_one_line(tmp_path, groups, words):
-    path = study_file(tmp_path, controller_space=groups)
+def test_bad_controller_space_or_rules_is_one_line(tmp_path, field, value, words):
+    path = study_file(tmp_path, **{field: value})
     code, _, err = run_main(str(path), "--out", str(tmp_path / "study"))
     one_line_error(code, err, str(path), *words)
     assert code == 2
+
+
+def table1_rule_outputs() -> dict[str, str]:
+    """Table 1's rule outputs as the rule space's parameter values, read from conf/controller/table1.yaml."""
+    out = {}
+    for i, rule in enumerate(TABLE1["rules"]):
+        for clause in rule.split("->")[1].split(","):
+            var, term = (s.strip() for s in clause.split("="))
+            out[f"rule~{i}.{var}"] = term
+    return out
+
+
+def test_rule_study_searches_rule_outputs_from_table1_and_writes_a_runnable_controller(tmp_path):
+    out = tmp_path / "study"
+    trials = controller_study(tmp_path, out, controller_rules=["dtheta", "v"])
+    start = table1_rule_outputs()
+    assert len(start) == 2 * len(TABLE1["rules"])
+    assert trials[0].user_attrs["default"] and trials[0].params == start  # Table 1 as published first
+    dists = trials[1].distributions
+    assert list(dists["rule~0.dtheta"].choices) == list(TABLE1["outputs"]["dtheta"]["terms"])
+    assert list(dists["rule~5.v"].choices) == list(TABLE1["outputs"]["v"]["terms"])
+    assert trials[1].params != start  # a random point of 56 categories is not Table 1
+    (rules,) = [o for o in trials[1].user_attrs["overrides"] if o.startswith("controller.rules=")]
+    assert rules.count("->") == len(TABLE1["rules"])
+    (controller,) = (out / "controller").glob("*.yaml")
+    written = yaml.safe_load(controller.read_text())
+    best = max((t for t in trials if t.state.name == "COMPLETE"), key=lambda t: t.values[0])
+    for i, rule in enumerate(written["rules"]):  # the tuned rules: the antecedents of Table 1, the best outputs
+        ante, _, cons = rule.partition(" -> ")
+        assert ante == TABLE1["rules"][i].split("->")[0].strip()
+        assert cons == f"dtheta={best.params[f'rule~{i}.dtheta']}, v={best.params[f'rule~{i}.v']}"
+    assert written["inputs"]["front"]["terms"] == TABLE1["inputs"]["front"]["terms"]
+    report = (out / "report" / "study.md").read_text()
+    if best.params != start:  # the report lists the changed rules beside Table 1's
+        assert "## Rule outputs beside the base controller's" in report
+    assert_controller_runs(out, controller, tmp_path)

@@ -81,7 +81,7 @@ def evaluate(study: optuna.Study, spec: StudySpec, study_dir: Path) -> list[Eval
     for t in chosen:
         label = "tuned" if len(chosen) == 1 else f"trial_{t.number}"
         overrides = list(t.user_attrs[OVERRIDES])
-        if spec.controller_space:  # a tuned controller is another controller: its own name in logs and reports
+        if spec.controller_space or spec.controller_rules:  # a tuned controller: its own name in logs and reports
             with hydra_conf():
                 base_name = run_config(spec.base, spec.scenarios[0], spec.heldout).controller.name
             overrides.append(f"controller.name={base_name}_{label}")
@@ -96,7 +96,7 @@ def evaluate(study: optuna.Study, spec: StudySpec, study_dir: Path) -> list[Eval
                         f"  python -m runners.run --config-dir {study_dir.absolute()} --config-name {label} "
                         f"scenario={spec.scenarios[0]}")
                 (study_dir / f"{label}.yaml").write_text(config_yaml(overrides, note))
-                if spec.controller_space:
+                if spec.controller_space or spec.controller_rules:
                     write_controller(study_dir, spec, label, number, overrides)
             out = study_dir / HELDOUT_DIR / label
             for old in out.glob("*.mcap"):  # a re-run evaluates again from nothing
@@ -122,7 +122,9 @@ def write_controller(study_dir: Path, spec: StudySpec, label: str, number: int, 
     with hydra_conf():
         section = OmegaConf.to_container(run_config(overrides, spec.scenarios[0], spec.heldout).controller,
                                          resolve=True)
-    section["description"] = f"tuned by study {spec.name}, trial {number} (membership functions searched)"
+    searched = [what for what, on in (("membership functions", spec.controller_space),
+                                      ("rule outputs", spec.controller_rules)) if on]
+    section["description"] = f"tuned by study {spec.name}, trial {number} ({' and '.join(searched)} searched)"
     path = study_dir / "controller" / f"{section['name']}.yaml"
     path.parent.mkdir(exist_ok=True)
     path.write_text(f"# run with: python -m runners.run hydra.searchpath=[file://{study_dir.absolute()}] "

@@ -18,7 +18,7 @@ import optuna
 import pandas as pd
 
 from runners.tuning.heldout import Evaluated, interval_table
-from runners.tuning.study import FAIL_REASON, INTERRUPTED, counted
+from runners.tuning.study import FAIL_REASON, INTERRUPTED, SURPLUS, counted
 from runners.tuning.study_file import StudySpec
 
 REPORT_DIR = "report"
@@ -102,6 +102,8 @@ def membership_figure(spec: StudySpec, evaluated: list[Evaluated], out: Path) ->
 def trials_table(study: optuna.Study, spec: StudySpec) -> pd.DataFrame:
     rows = []
     for t in study.get_trials(deepcopy=False):
+        if t.user_attrs.get(SURPLUS):  # asked for beyond the budget by a worker, never run
+            continue
         row = {"number": t.number, "state": t.state.name, "counted": counted(t),
                "interrupted": bool(t.user_attrs.get(INTERRUPTED, False)), "default": bool(t.user_attrs.get("default"))}
         row.update({p.key: t.params.get(p.key) for p in spec.space})
@@ -114,6 +116,28 @@ def trials_table(study: optuna.Study, spec: StudySpec) -> pd.DataFrame:
         row["fail_reason"] = t.user_attrs.get(FAIL_REASON, "")
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def rule_table(study: optuna.Study, spec: StudySpec, evaluated: list[Evaluated]) -> list[str]:
+    """For a study of rule outputs: each rule whose outputs an evaluated trial changed, beside the base
+    controller's (Table 1's) outputs."""
+    from runners.tuning import rule_space
+    from runners.tuning.study import rule_outputs
+
+    space = rule_outputs(spec)
+    tuned = [ev for ev in evaluated if ev.trial is not None and not ev.same_as_default]
+    if space is None or not tuned:
+        return []
+    base = rule_space.rules(space, rule_space.start_values(space))
+    columns = [(ev.label, rule_space.rules(space, study.trials[ev.trial].params)) for ev in tuned]
+    changed = [i for i in range(len(base)) if any(r[i] != base[i] for _, r in columns)]
+    lines = ["", f"## Rule outputs beside the base controller's ({len(changed)} of {len(base)} rules changed)", "",
+             "| rule | antecedent | base | " + " | ".join(label for label, _ in columns) + " |",
+             "|---|---|---|" + "---|" * len(columns)]
+    for i in changed:
+        ante, _, out = base[i].partition(" -> ")
+        lines.append(f"| {i} | {ante} | {out} | " + " | ".join(r[i].partition(" -> ")[2] for _, r in columns) + " |")
+    return lines
 
 
 def _f(v: float) -> str:
@@ -162,11 +186,14 @@ def write_report(study: optuna.Study, spec: StudySpec, study_dir: Path, evaluate
         where = f"trial {ev.trial}, `{ev.label}.yaml`" if ev.trial is not None else "untuned"
         if ev.same_as_default:
             where += "; the default configuration itself: no tuned value beat it on the training seeds"
-        shown = [o for o in ev.overrides[len(spec.base):] if ".terms." not in o or not spec.controller_space]
-        terms = len(ev.overrides) - len(spec.base) - len(shown)
+        shown = [o for o in ev.overrides[len(spec.base):] if (".terms." not in o or not spec.controller_space)
+                 and not o.startswith("controller.rules=") and not o.startswith("controller.name=")]
+        terms = sum(".terms." in o for o in ev.overrides[len(spec.base):]) if spec.controller_space else 0
         params = f"`{' '.join(shown)}`" if shown else "(defaults)"
         if terms:  # the searched membership functions: in the controller file and the membership figure
             params += f" and {terms} term overrides (see `controller/` and `membership.png`)"
+        if spec.controller_rules and ev.trial is not None:
+            params += " and its rules (see the rule table below and `controller/`)"
         lines.append(f"- **{ev.label}** ({where}): held-out objectives {values}; {params}")
     lines += ["", "| scenario | metric | configuration | n | mean [95 % CI] | vs default [95 % CI] |",
               "|---|---|---|---|---|---|"]
@@ -175,6 +202,7 @@ def write_report(study: optuna.Study, spec: StudySpec, study_dir: Path, evaluate
             if r["configuration"] != "default" else ""
         lines.append(f"| {r['scenario']} | {r['metric']} | {r['configuration']} | {r['n']} | {_f(r['mean'])} "
                      f"[{_f(r['ci_low'])}, {_f(r['ci_high'])}] | {diff} |")
+    lines += rule_table(study, spec, evaluated)
     if len(evaluated) > 1:
         best = evaluated[1]
         lines += ["", f"Run the tuned configuration: `python -m runners.run --config-dir {study_dir.absolute()} "

@@ -27,6 +27,7 @@ from optuna.distributions import BaseDistribution, CategoricalDistribution, Floa
 MAX_PARAMETERS = 64  # more is not a search a study of episodes can cover
 MAX_CHOICES = 1_000
 MAX_TEXT = 300  # characters of one entry
+MAX_INT_BOUND = 10**15  # an integer parameter beyond this is no run parameter (and its value overflows an entry)
 
 
 class SpaceError(ValueError):
@@ -60,6 +61,12 @@ def _number(value: Any, where: str) -> float:
     return value
 
 
+def _int_bounds(where: str, *bounds: int) -> None:
+    for b in bounds:
+        if abs(b) > MAX_INT_BOUND:
+            raise SpaceError(f"{where}: integer bound {b:.3g} is beyond +-{MAX_INT_BOUND:.0e}")
+
+
 def _distribution(value: Any, where: str) -> BaseDistribution:
     tags = set(getattr(value, "tags", set()) or set())
     unknown = tags - {"log"}
@@ -74,6 +81,7 @@ def _distribution(value: Any, where: str) -> BaseDistribution:
         if log and low <= 0:
             raise SpaceError(f"{where}: a log-scale interval needs a lower bound above 0, got {low:g}")
         if isinstance(value.start, int) and isinstance(value.end, int):
+            _int_bounds(where, int(low), int(high))
             return IntDistribution(int(low), int(high), log=log)
         return FloatDistribution(float(low), float(high), log=log)
     if isinstance(value, RangeSweep):
@@ -86,6 +94,7 @@ def _distribution(value: Any, where: str) -> BaseDistribution:
             raise SpaceError(f"{where}: range({start:g},{stop:g}) is {'empty' if start == stop else 'inverted'}: "
                              "it has no value")
         if all(isinstance(v, int) for v in (value.start, value.stop, value.step)):
+            _int_bounds(where, int(start), int(stop))
             last = start + (stop - 1 - start) // step * step
             if last == start:
                 raise SpaceError(f"{where}: range({start},{stop}) has one value: set it in the study's base "

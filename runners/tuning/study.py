@@ -7,8 +7,12 @@ fail (outcome ``error``, a log left out) or whose objective is NaN is told FAIL 
 trial's ``fail_reason`` attribute; the study goes on. A stopped trial (Ctrl-C, SIGTERM, a killed worker) is
 FAIL with ``interrupted`` and is not counted: re-running the command runs it again.
 
-The trial budget counts the trials that ended (completed or failed, not interrupted); workers sharing one study
-each stop when it is reached, so it may be exceeded by at most the number of workers minus one.
+The trial budget counts the trials that ended (completed or failed, not interrupted). Workers sharing one study
+never exceed it: the storage numbers trials in the order they were created (one writer at a time), so after
+``ask`` a worker counts the trials numbered before its own that use the budget or are running; if they already
+fill it, its trial is surplus, told FAIL with the ``surplus`` attribute before any parameter is asked (not
+counted, never run) and the worker stops. Optuna's ``MaxTrialsCallback`` is not enough: it stops a worker after
+its trial, when the trials other workers already began overrun the budget.
 """
 
 from __future__ import annotations
@@ -23,13 +27,14 @@ import optuna
 from optuna.trial import FrozenTrial, TrialState
 
 from analysis.objectives import objective_value, undefined
-from runners.tuning import controller_space
+from runners.tuning import controller_space, rule_space
 from runners.tuning.episodes import ConfigurationError, hydra_conf, run_configuration
 from runners.tuning.space import Parameter, overrides_of, suggest
 from runners.tuning.study_file import StudySpec
 
 FAIL_REASON = "fail_reason"
 INTERRUPTED = "interrupted"
+SURPLUS = "surplus"
 OVERRIDES = "overrides"
 METRICS = "metrics"
 TRIALS_DIR = "trials"
@@ -78,15 +83,31 @@ def partition_groups(spec: StudySpec) -> tuple[controller_space.PartitionGroup, 
     return tuple(controller_space.resolve(spec.controller_space, OmegaConf.to_container(cfg.controller, resolve=True)))
 
 
+@functools.lru_cache(maxsize=8)
+def rule_outputs(spec: StudySpec) -> rule_space.RuleSpace | None:
+    """The rule outputs searched (``controller_rules``), from the base configuration's controller (composed)."""
+    if not spec.controller_rules:
+        return None
+    from omegaconf import OmegaConf
+
+    from runners.tuning.episodes import run_config
+
+    with hydra_conf():
+        cfg = run_config(spec.base, spec.scenarios[0], spec.train)
+    return rule_space.resolve(spec.controller_rules, OmegaConf.to_container(cfg.controller, resolve=True))
+
+
 def all_parameters(spec: StudySpec) -> list[Parameter]:
-    """The searched parameters: the space's, then the controller partitions' coordinates."""
-    return [*spec.space, *controller_space.parameters(partition_groups(spec))]
+    """The searched parameters: the space's, the controller partitions' coordinates, the rule outputs."""
+    return [*spec.space, *controller_space.parameters(partition_groups(spec)),
+            *rule_space.parameters(rule_outputs(spec))]
 
 
 def trial_overrides(spec: StudySpec, values: dict[str, Any]) -> list[str]:
-    """A trial's overrides: the base, the space's keys at their values, the partitions' terms."""
+    """A trial's overrides: the base, the space's keys at their values, the partitions' terms, the rules."""
     return [*spec.base, *overrides_of(spec.space, values),
-            *controller_space.overrides(partition_groups(spec), values)]
+            *controller_space.overrides(partition_groups(spec), values),
+            *rule_space.overrides(rule_outputs(spec), values)]
 
 
 def default_values(spec: StudySpec) -> dict[str, Any] | None:
@@ -105,7 +126,8 @@ def default_values(spec: StudySpec) -> dict[str, Any] | None:
         if "." not in p.key or not p.contains(value):
             return None
         values[p.key] = value
-    return {**values, **controller_space.start_values(partition_groups(spec))}
+    return {**values, **controller_space.start_values(partition_groups(spec)),
+            **rule_space.start_values(rule_outputs(spec))}
 
 
 def create_or_load(spec: StudySpec, storage: Any, worker: int = 0) -> optuna.Study:
@@ -141,9 +163,22 @@ def fail(study: optuna.Study, trial: optuna.Trial, reason: str) -> None:
     study.tell(trial, state=TrialState.FAIL)
 
 
-def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path) -> FrozenTrial:
-    """Ask, run the trial's episodes, tell; returns the trial as stored."""
+def within_budget(study: optuna.Study, number: int, budget: int) -> bool:
+    """Whether trial ``number`` fits the budget: the trials numbered before it that are counted or running
+    (:func:`counted`) leave room for it."""
+    before = study.get_trials(deepcopy=False)[:number]
+    return sum(counted(t) or t.state == TrialState.RUNNING for t in before) < budget
+
+
+def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int | None = None
+              ) -> FrozenTrial | None:
+    """Ask, run the trial's episodes, tell; returns the trial as stored, or None when the trial asked for was
+    surplus (another worker's trials fill ``budget``)."""
     trial = study.ask()
+    if budget is not None and not within_budget(study, trial.number, budget):
+        trial.set_user_attr(SURPLUS, True)
+        study.tell(trial, state=TrialState.FAIL)
+        return None
     values = suggest(trial, all_parameters(spec))
     overrides = trial_overrides(spec, values)
     trial.set_user_attr(OVERRIDES, overrides)
@@ -179,7 +214,9 @@ def run_trials(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: in
     """Run trials until ``budget`` trials of the study are counted (:func:`counted`), by anyone."""
     with hydra_conf():
         while sum(counted(t) for t in study.get_trials(deepcopy=False)) + running(study) < budget:
-            frozen = run_trial(study, spec, study_dir)
+            frozen = run_trial(study, spec, study_dir, budget)
+            if frozen is None:  # the other workers' trials fill the budget
+                break
             if on_trial is not None:
                 on_trial(frozen)
 

@@ -16,6 +16,7 @@
     sampler_seed: 0
     trials: 20
     controller_space: [[left, front, right], [dtheta], [v]]   # optional: membership functions (controller_space.py)
+    controller_rules: [dtheta, v]        # optional: each rule's output terms (rule_space.py)
 
 :func:`load_study_file` reads and checks it; each problem is one :class:`StudyFileError` naming the file and field.
 """
@@ -34,13 +35,15 @@ from fuzzynav.conf import CONF_DIR
 from fuzzynav.params import limits
 from runners.configuration.data_files import CONFIG_FILE, DataFileError, check_data_file
 from runners.tuning.controller_space import ControllerSpaceError, check_entries
+from runners.tuning.rule_space import RuleSpaceError
+from runners.tuning.rule_space import check_entries as check_rule_entries
 from runners.tuning.space import Parameter, SpaceError, parse_space
 
 STUDY_DIR = CONF_DIR / "tune"
 SAMPLERS = ("tpe", "cmaes", "random", "nsga2")
 SINGLE_OBJECTIVE_SAMPLERS = ("cmaes",)
-FIELDS = ("name", "base", "space", "controller_space", "objectives", "scenarios", "train_seeds", "heldout_seeds",
-          "sampler", "sampler_seed", "trials", "description")
+FIELDS = ("name", "base", "space", "controller_space", "controller_rules", "objectives", "scenarios", "train_seeds",
+          "heldout_seeds", "sampler", "sampler_seed", "trials", "description")
 MAX_TRIALS = 100_000
 MAX_EPISODES_PER_TRIAL = 10_000
 
@@ -81,6 +84,7 @@ class StudySpec:
     sampler_seed: int
     trials: int
     description: str = ""
+    controller_rules: tuple[str, ...] = ()
 
     @property
     def directions(self) -> list[str]:
@@ -137,13 +141,16 @@ def _study_from_data(data: Any, path: Path) -> StudySpec:
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name.replace("-", "_").isidentifier():
         raise StudyFileError(f"{path}: name: expected a name (letters, digits, _ and -), got {str(name)[:40]!r}")
-    if "space" not in data and "controller_space" not in data:
-        raise StudyFileError(f"{path}: space: missing (or controller_space: the controller's membership functions)")
+    if "space" not in data and "controller_space" not in data and "controller_rules" not in data:
+        raise StudyFileError(f"{path}: space: missing (or controller_space: the controller's membership functions, "
+                             "controller_rules: its rule outputs)")
     try:
         controller_space = check_entries(data.get("controller_space"))
-        space = tuple(parse_space(data["space"])) if "space" in data or not controller_space else ()
+        controller_rules = check_rule_entries(data.get("controller_rules"))
+        space = tuple(parse_space(data["space"])) \
+            if "space" in data or not (controller_space or controller_rules) else ()
         objectives = tuple(objectives_from_data(data["objectives"]))
-    except (SpaceError, ObjectiveError, ControllerSpaceError) as err:
+    except (SpaceError, ObjectiveError, ControllerSpaceError, RuleSpaceError) as err:
         raise StudyFileError(f"{path}: {err}") from None
     base = _strings(data.get("base", []), "base", "overrides")
     for i, text in enumerate(base):
@@ -188,7 +195,7 @@ def _study_from_data(data: Any, path: Path) -> StudySpec:
     if not isinstance(description, str):
         raise StudyFileError(f"{path}: description: expected text")
     return StudySpec(path, name, base, space, controller_space, objectives, scenarios, train, heldout, sampler, seed,
-                     trials, description)
+                     trials, description, controller_rules)
 
 
 def load_study_file(path: Path) -> StudySpec:
