@@ -86,6 +86,12 @@ def check_source(source: Any, path: Path) -> None:
                            "hex digits")
 
 
+def scene_windows(source: dict[str, Any], scene: str) -> int:
+    """How many windows of ``scene`` a dataset runs: its own ``windows``, else ``source.windows``."""
+    entry = source["scenes"].get(scene) or {}
+    return len(entry.get("windows", source["windows"]))
+
+
 def _check_windows(windows: Any, where: str) -> None:
     if not (isinstance(windows, list) and windows and len(windows) <= MAX_WINDOWS and all(
             isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= 1_000_000 for k in windows)
