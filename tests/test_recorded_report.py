@@ -4,12 +4,17 @@ for other logs); the episode identity holding the recording's SHA-256; the limit
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import hashlib
 import math
 
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from analysis.episode_log import load_episode
 from analysis.horizon_errors import column, count_column, horizon_errors, horizons_of_columns
@@ -72,11 +77,16 @@ def test_constant_velocity_people_are_predicted_exactly_by_both(tmp_path, table1
                 assert row[column(predictor, "ade", k)] == pytest.approx(0.0, abs=1e-6)
 
 
-def _oracle(path, track_t, track_xy, dt=1.0):
+def _read(path):
+    """The log's truth of its one obstacle per step, and its TPT tables."""
+    return ([m["obstacles"][0] for _, _, m in iter_messages(path, ["/obstacles/truth"])],
+            [m for _, _, m in iter_messages(path, ["/tpt"])])
+
+
+def _oracle(path, track_t, track_xy, dt=1.0, read=None):
     """Per horizon: the TPT's and constant velocity's errors on the one person of the log, computed plainly from the
     log's tables and truth (one obstacle column, every step)."""
-    truth = [m["obstacles"][0] for _, _, m in iter_messages(path, ["/obstacles/truth"])]
-    tables = [m for _, _, m in iter_messages(path, ["/tpt"])]
+    truth, tables = read or _read(path)
     xs, ys = np.array([p[0] for p in track_xy]), np.array([p[1] for p in track_xy])
     errors: dict[tuple[str, int], list[float]] = {}
     for t in tables:
@@ -251,3 +261,42 @@ def test_a_window_of_150_people_is_a_scenario(tmp_path):
     scenario, _ = make({"recording": str(many), "duration_s": 2.0, "robot_start": [-300, -300],
                         "robot_goal": [-300, 600]})
     assert len(scenario.dynamic_obstacles) == 150
+
+
+@pytest.fixture(scope="module")
+def turning_log(tmp_path_factory):
+    from tests.conftest import load_controller
+
+    p = turning()
+    path = episode_log(tmp_path_factory.mktemp("turning"), load_controller("table1"), [p])
+    return load_episode(path), path, p, _read(path)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(points=st.lists(st.tuples(st.floats(-5000, 5000), st.floats(-5000, 5000)), min_size=80, max_size=80),
+       reacting_from=st.one_of(st.none(), st.integers(0, 30)))
+def test_fuzz_the_baseline_follows_the_logged_annotations(turning_log, points, reacting_from):
+    """Whatever annotations the logged scenario holds for the person (the TPT's tables and the truth unchanged), the
+    baseline is the plain computation from them; a person reacting from a step is scored only before it."""
+    log, path, p, read = turning_log
+    world_ = yaml.safe_load(log.meta["scenario_yaml"])
+    world_["dynamic_obstacles"][0]["waypoints"] = [list(q) for q in points]
+    truth = copy.deepcopy(log.truth)
+    if reacting_from is not None:
+        for k, m in enumerate(truth):
+            m["obstacles"][0]["reacting"] = k >= reacting_from
+    mutated = dataclasses.replace(log, meta={**log.meta, "scenario_yaml": yaml.safe_dump(world_)}, truth=truth)
+    row = horizon_errors(mutated)
+    oracle = _oracle(path, p["model_params"]["t_s"], [list(q) for q in points], read=read)
+    counts = [row.get(count_column(k), 0.0) for k in range(1, 10)]  # no column: nothing scored
+    assert counts == sorted(counts, reverse=True)  # a prediction scored at k is scored at every shorter horizon
+    for k in range(1, 10):
+        if reacting_from is not None or ("cv", k) not in oracle:
+            continue
+        values = oracle[("cv", k)]
+        assert row[count_column(k)] == len(values)
+        assert row[column("cv", "fde", k)] == pytest.approx(sum(values) / len(values), rel=1e-9, abs=1e-6)
+    if reacting_from is not None:
+        tables = [t["step"] for t in log.tpts.values() if t["obstacle_radii_cm"]]
+        scored = sum(1 for s in tables if s + 1 < reacting_from and s * log.dt - 0.4 >= 0 and s + 1 < len(truth))
+        assert row.get(count_column(1), 0.0) <= scored
