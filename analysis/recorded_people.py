@@ -10,6 +10,7 @@ FDE_k (cm) with a 95 % bootstrap interval over the episodes. Written as ``record
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -78,6 +79,8 @@ def horizon_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] 
     the episodes' step (s) when it is one for all, to label the horizon in seconds."""
     if table.empty:
         return None
+    from matplotlib.ticker import MaxNLocator
+
     from analysis.plots import pyplot
 
     plt = pyplot()
@@ -100,7 +103,8 @@ def horizon_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] 
                             linestyle=style, marker="o" if predictor == "tpt" else "s", markersize=3, capsize=2,
                             color=color, label=f"{variant} · {predictor}")
         for ax, error in ((ax_a, "ADE"), (ax_f, "FDE")):
-            ax.set_title(f"{scenario} · {error}", fontsize=7)
+            ax.set_title(textwrap.fill(f"{scenario} · {error}", 48), fontsize=6)
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # horizons are whole steps
             ax.set_xlabel(f"horizon (steps{f' of {dt_s:g} s' if dt_s else ''})", fontsize=7)
             ax.set_ylabel(f"{error} (cm)", fontsize=7)
             ax.tick_params(labelsize=6)
