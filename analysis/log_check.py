@@ -47,7 +47,7 @@ from analysis.json_checks import (
 )
 from analysis.log_format import SCHEMAS, TOPICS
 from analysis.schema_checks import Ranges, build_check, field_paths
-from fuzzynav.episode_identity import POLICY_SOURCE, config_hash  # what runners.run records: one definition
+from fuzzynav.episode_identity import POLICY_SOURCE, RECORDING, config_hash  # what runners.run records: one definition
 from fuzzynav.params import limits
 from fuzzynav.params import names as policy_names
 from fuzzynav.params.names import DEFAULT_POLICY, STRATEGIES
@@ -328,9 +328,10 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
     for key, allowed in (("strategy", STRATEGIES), ("perception", PERCEPTIONS)):
         if meta[key] not in allowed:
             raise CheckError(key, f"{meta[key][:40]!r} is not one of {', '.join(allowed)}")
-    source = meta.get(POLICY_SOURCE)
-    if source is not None and not _SHA256.fullmatch(source):
-        raise CheckError(POLICY_SOURCE, f"{source[:80]!r} is not a SHA-256 digest")
+    for key in (POLICY_SOURCE, RECORDING):
+        source = meta.get(key)
+        if source is not None and not _SHA256.fullmatch(source):
+            raise CheckError(key, f"{source[:80]!r} is not a SHA-256 digest")
     if "policy" in meta and not policy_names.is_policy_id(meta["policy"]):  # logs before policies have none
         raise CheckError("policy", f"{meta['policy'][:80]!r} is not a policy name or import path")
     config = _parse_config(meta.get("config", ""))

@@ -24,6 +24,7 @@ import pandas as pd
 import shapely
 
 from analysis.episode_log import EpisodeLog, load_episode
+from analysis.horizon_errors import COLUMN_PATTERN, horizon_errors
 from analysis.log_inputs import find_logs
 from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
@@ -81,7 +82,10 @@ def column_unit(column: str) -> str:
     outside :data:`analysis.tpt_errors.STANDING_MODELS` (``""`` for a column without a unit)."""
     if column in COLUMN_UNITS:
         return COLUMN_UNITS[column]
-    return "cm" if column.startswith((ADE_PREFIX, FDE_PREFIX)) else ""
+    if column.startswith((ADE_PREFIX, FDE_PREFIX)):
+        return "cm"
+    match = COLUMN_PATTERN.fullmatch(column)  # the per-horizon errors on recorded people (analysis.horizon_errors)
+    return ("" if match.group(3) else "cm") if match else ""
 
 
 def turn_count(heading_changes_deg: np.ndarray, threshold_deg: float = 5.0) -> int:
@@ -276,6 +280,7 @@ def episode_metrics(log: EpisodeLog, options: MetricOptions | None = None) -> di
     ade, fde, by_model = tpt_errors(log)
     row["tpt_ade_cm"], row["tpt_fde_cm"] = ade, fde
     row.update(model_columns(by_model, obstacle_models(log.meta).values()))
+    row.update(horizon_errors(log))  # recorded people: per horizon step, the TPT against constant velocity
     row["compute_time_us_median"], row["compute_time_us_p99"] = median_and_p99(
         [d["compute_time_us"] for d in log.decisions])
     return row

@@ -38,6 +38,7 @@ from analysis.density import density_figure, density_table
 from analysis.drawing import Figure, Figures
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.overview import overview
+from analysis.recorded_people import horizon_figure, horizon_table, shown_table
 from analysis.run_parameters import SHOWN, Grouping, format_value, provenance_warning
 from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import with_relative_logs, write_tables
@@ -424,6 +425,15 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         density.to_csv(out / "density.csv", index=False)
         colours = {variant: style.color for variant, style in plots.palette(df).items()}
         density_figure_ = figures.add(density_figure, density, out, colours, cost=2)
+    horizons = horizon_table(df)
+    horizon_figure_ = None
+    if not horizons.empty:
+        horizons.to_csv(out / "recorded_horizons.csv", index=False)
+        colours = {variant: style.color for variant, style in plots.palette(df).items()}
+        dts = pd.unique(df["dt"]) if "dt" in df.columns else []
+        horizon_figure_ = figures.add(horizon_figure, horizons, out, colours,
+                                      float(dts[0]) if len(dts) == 1 else None,
+                                      cost=horizons["scenario"].nunique())
     traces, contacts, unreadable = pictured_logs(analysis, jobs)
     groups = df.groupby("scenario_label", sort=False)["variant"].nunique()
     trajectory_figures = [figures.add(plots.trajectories, df, scenario, traces, out, cost=0.7 * groups[scenario])
@@ -455,6 +465,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                             "to compare (sweep e.g. `planner=auto_h1,auto_h2,auto_h3,auto_h4,wait,detour`).")
 
         _crowd_sections(report, df, density_figure_)
+        _recorded_section(report, horizons, horizon_figure_)
 
         report.add("h2", "Trajectories")
         report.add("p", "Per scenario, a panel per group with the robot paths of its seeds (thin lines; up to "
@@ -581,6 +592,28 @@ def _crowd_sections(report: Report, df: pd.DataFrame, density: Figure | None) ->
                         "predicted that model's obstacles, 95 % bootstrap interval). The TPT assumes constant "
                         "velocity: scripted obstacles fit it, reactive pedestrians do not.")
         report.add("table", by_model)
+
+
+def _recorded_section(report: Report, horizons: pd.DataFrame, figure: Figure | None) -> None:
+    """Recorded people (:mod:`analysis.recorded_people`): the TPT's error per horizon step against constant velocity,
+    figure first; nothing for logs without TPT predictions of recorded people."""
+    if horizons.empty or figure is None:
+        return
+    report.add("h2", "Recorded people: the TPT against constant velocity")
+    report.add("img", figure)
+    report.add("p", "Per scenario group (a recording's window) and variant: how far the Trajectory Prediction "
+                    "Table's rows put the recorded people they predicted from where the recording has them k steps "
+                    "later (FDE: at step k; ADE: the mean over steps 1 … k; cm), solid, and the trajectory-prediction "
+                    "benchmarks' constant-velocity baseline (velocity over the last annotation interval) on the same "
+                    "predictions of the same people, dashed; mean over the episodes with its 95 % bootstrap "
+                    "interval. Laser tracks and ground truth (perception) are separate variants. A prediction counts "
+                    "while the person is a replay (not reacting). Every horizon, ADE and FDE: recorded_horizons.csv; "
+                    "every policy on each window: the overview figure and Outcomes per scenario and variant (windows "
+                    "are scenario groups, never pooled).")
+    table, note = _bounded(shown_table(horizons), "recorded_horizons.csv", "groups")
+    report.add("table", table)
+    if note:
+        report.add("p", note)
 
 
 def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:

@@ -37,7 +37,7 @@ from typing import Any
 
 import yaml
 
-from fuzzynav.episode_identity import POLICY_SOURCE
+from fuzzynav.episode_identity import POLICY_SOURCE, RECORDING
 from fuzzynav.params.names import PLANNER_OFF, reads_h_wait
 
 EPISODE_PARAMETERS = ("scenario", "policy", "strategy", "h_wait", "seed", "controller", "perception")
@@ -64,6 +64,8 @@ CONFIG = "config"  # "logged", or "none" for a log without a readable config: it
 UNSET = "unset"  # label of a parameter a log does not have (e.g. a key added to the config later)
 OFF = "off (planner=none)"  # the value of a planner parameter that nothing reads: never a difference, never a label
 SEP = " · "
+RECORDING_PARAMETER = f"scenario.{RECORDING}"  # a scenario parameter: the world it was read from
+RECORDING_PATH = "scenario.params.recording"  # ... which names it by its path: a dimension where one path has two
 _MISSING = object()
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when PyYAML has it: ~10x faster
 
@@ -131,6 +133,8 @@ def parameters_of(meta: Mapping[str, str], config: Mapping[str, Any] | None = No
                 continue
             params[key] = value
     params.update({key: value for key, value in meta.items() if is_provenance(key)})
+    if RECORDING in meta:  # the recording's content: two recordings of one file name are two worlds, never pooled
+        params[RECORDING_PARAMETER] = meta[RECORDING]
     # a parameter of a part that is off is no dimension: h_wait where the strategy does not read it, every
     # planner parameter under planner=none (tests/test_parameters_off.py: the episodes are the same bits)
     if not reads_h_wait(params["strategy"]):
@@ -142,8 +146,10 @@ def parameters_of(meta: Mapping[str, str], config: Mapping[str, Any] | None = No
 
 
 def _implied_by_name(key: str, runs: Sequence[Mapping[str, Any]]) -> bool:
-    """Whether ``key`` lies in a named subtree and has one value per name among ``runs``."""
-    owner = next((name for prefix, name in NAMED_SUBTREES.items() if key.startswith(prefix)), None)
+    """Whether ``key`` lies in a named subtree and has one value per name among ``runs`` (the recording's digest: one
+    value per recording path)."""
+    owner = RECORDING_PATH if key == RECORDING_PARAMETER else next(
+        (name for prefix, name in NAMED_SUBTREES.items() if key.startswith(prefix)), None)
     if owner is None:
         return False
     seen: dict[Any, Any] = {}

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from itertools import chain
 from operator import itemgetter
 from typing import Any
@@ -59,28 +60,13 @@ def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, fl
     nan = (math.nan, math.nan)
     if not log.tpts or not log.truth:
         return *nan, {}
-    ids = [o["id"] for o in log.truth[0]["obstacles"]]  # the same obstacles at every step (the log check)
-    last = {oid: j for j, oid in enumerate(ids)}  # an id given twice: its last entry, as a dict of the step keeps
-    if not last:
+    obstacles = scored_tables(log)
+    if obstacles is None:
         return *nan, {}
-    columns = list(last.values())
-    truth = _pairs([list(map(_XY, m["obstacles"])) for m in log.truth], len(ids))
-    absent = [(k, j) for k, m in enumerate(log.truth) for j, o in enumerate(m["obstacles"])
-              if not o.get("present", True)]
-    if absent:  # nowhere: matched to no table column, and the rows predicting it after it left are not scored
-        steps, rows = zip(*absent, strict=True)
-        truth[list(steps), list(rows)] = math.inf
-    truth = truth[:, columns]  # (steps, obstacles, 2)
-    models = obstacle_models(log.meta)
-    model_of = np.array([models.get(oid, DEFAULT_MODEL) for oid in last])
     errors: dict[str, list[np.ndarray]] = {}
     finals: dict[str, list[np.ndarray]] = {}
-    by_shape: dict[tuple[int, int], list[dict[str, Any]]] = {}
-    for step, t in log.tpts.items():
-        if step < len(truth) and t["obstacle_radii_cm"]:
-            by_shape.setdefault((len(t["obstacles_cm"]), len(t["obstacle_radii_cm"])), []).append(t)
-    for (rows, k), tables in by_shape.items():
-        for model, errs, final in _score(truth, tables, rows, k, model_of):
+    for scored in obstacles.scored:
+        for model, errs, final in _score(scored, obstacles.model_of):
             errors.setdefault(model, []).append(errs)
             finals.setdefault(model, []).append(final)
     if not errors:
@@ -91,11 +77,65 @@ def tpt_errors(log: EpisodeLog) -> tuple[float, float, dict[str, tuple[float, fl
             {m: (by_model[m], finals_by_model[m]) for m in by_model})
 
 
-def _score(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int, model_of: np.ndarray):
-    """Yield (model, displacement errors, final errors) in cm for ``tables`` of ``rows`` rows and ``k`` obstacle
-    columns, all within the truth's steps. ``truth``: (steps, obstacles, 2) cm; ``model_of``: per obstacle."""
-    if rows < 2:  # a table of the present only predicts nothing
-        return
+@dataclass(frozen=True)
+class ScoredTables:
+    """The tables of one shape (``rows`` rows x obstacle columns) matched to the logged truth (:func:`tpt_errors`).
+    ``step`` (tables,): each table's step; ``match`` (tables, k): the true obstacle of each column; ``errs``
+    (tables, rows - 1, k): cm between row h's prediction and the matched obstacle's true position h steps later;
+    ``counted`` (tables, rows - 1, k): the errors that are scored (matched, within the episode, the obstacle
+    present); ``final`` (tables, k) the error of the last scored row, scored where ``has_final``."""
+
+    step: np.ndarray
+    match: np.ndarray
+    errs: np.ndarray
+    counted: np.ndarray
+    final: np.ndarray
+    has_final: np.ndarray
+
+
+@dataclass(frozen=True)
+class MatchedObstacles:
+    """A log's TPT tables matched to its truth: ``ids`` the true obstacles (in the truth's column order),
+    ``model_of`` each one's model, ``truth`` (steps, obstacles, 2) cm (inf where absent), ``scored`` per shape."""
+
+    ids: list[str]
+    model_of: np.ndarray
+    truth: np.ndarray
+    scored: list[ScoredTables]
+
+
+def scored_tables(log: EpisodeLog) -> MatchedObstacles | None:
+    """The log's TPT tables matched to the logged truth, one :class:`ScoredTables` per table shape; None when the
+    log has no tables or no obstacles. Each predicted obstacle is matched to the nearest true obstacle at the
+    table's time (within its radius + 50 cm; the first of equally near ones); rows past the end of the episode are
+    not scored."""
+    if not log.tpts or not log.truth:
+        return None
+    ids = [o["id"] for o in log.truth[0]["obstacles"]]  # the same obstacles at every step (the log check)
+    last = {oid: j for j, oid in enumerate(ids)}  # an id given twice: its last entry, as a dict of the step keeps
+    if not last:
+        return None
+    columns = list(last.values())
+    truth = _pairs([list(map(_XY, m["obstacles"])) for m in log.truth], len(ids))
+    absent = [(k, j) for k, m in enumerate(log.truth) for j, o in enumerate(m["obstacles"])
+              if not o.get("present", True)]
+    if absent:  # nowhere: matched to no table column, and the rows predicting it after it left are not scored
+        steps, rows = zip(*absent, strict=True)
+        truth[list(steps), list(rows)] = math.inf
+    truth = truth[:, columns]  # (steps, obstacles, 2)
+    models = obstacle_models(log.meta)
+    model_of = np.array([models.get(oid, DEFAULT_MODEL) for oid in last])
+    by_shape: dict[tuple[int, int], list[dict[str, Any]]] = {}
+    for step, t in log.tpts.items():
+        if step < len(truth) and t["obstacle_radii_cm"]:
+            by_shape.setdefault((len(t["obstacles_cm"]), len(t["obstacle_radii_cm"])), []).append(t)
+    scored = [_match(truth, tables, rows, k) for (rows, k), tables in by_shape.items() if rows >= 2]
+    return MatchedObstacles(list(last), model_of, truth, scored)
+
+
+def _match(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int) -> ScoredTables:
+    """:class:`ScoredTables` of ``tables`` of ``rows`` (>= 2: a table of the present only predicts nothing) rows
+    and ``k`` obstacle columns, all within the truth's steps. ``truth``: (steps, obstacles, 2) cm."""
     n_steps = len(truth)
     step = np.array([t["step"] for t in tables])
     predicted = _table_pairs([t["obstacles_cm"] for t in tables], k).reshape(len(tables), rows, k, 2)
@@ -114,10 +154,15 @@ def _score(truth: np.ndarray, tables: list[dict[str, Any]], rows: int, k: int, m
     has_final = near & (scored >= 1)[:, None]  # (tables, k)
     final = np.take_along_axis(errs, np.maximum(scored - 1, 0)[:, None, None], axis=1)[:, 0, :]  # (tables, k)
     has_final &= np.isfinite(final)
-    model = model_of[match]  # (tables, k)
-    for name in dict.fromkeys(model[has_final].tolist()):
+    return ScoredTables(step, match, errs, counted, final, has_final)
+
+
+def _score(scored: ScoredTables, model_of: np.ndarray):
+    """Yield (model, displacement errors, final errors) in cm of one shape's tables; ``model_of``: per obstacle."""
+    model = model_of[scored.match]  # (tables, k)
+    for name in dict.fromkeys(model[scored.has_final].tolist()):
         mine = model == name
-        yield name, errs[counted & mine[:, None, :]], final[has_final & mine]
+        yield name, scored.errs[scored.counted & mine[:, None, :]], scored.final[scored.has_final & mine]
 
 
 def _pairs(rows: list[list[Any]], k: int) -> np.ndarray:

@@ -5,7 +5,8 @@ as YAML text, the episode's seed and the fuzzynav version.
 
 * :func:`episode_key` — the episode's identity: the config without the top-level keys that only say how seeds
   were batched into jobs (``seed``, a job's first seed, ``episodes``, and ``resume``), plus the episode's own seed
-  and the fuzzynav version. ``seed=0 episodes=4`` and ``seed=0,2 episodes=2`` run the same four episodes, so the
+  and the fuzzynav version (and, for a scenario generated from a recording, the recording's SHA-256:
+  :data:`RECORDING`). ``seed=0 episodes=4`` and ``seed=0,2 episodes=2`` run the same four episodes, so the
   resume keeps each once and the analysis counts each once, whatever the directories and batching.
 * :func:`config_hash` — the ``config_hash`` written into every log (the config without ``resume`` only, so it
   still depends on the batching). It is kept as it is because the datasets' manifests hash the logs' content; it
@@ -22,6 +23,9 @@ BATCHING_KEYS = ("seed", "episodes", "resume")  # top-level config keys that do 
 HASH_IGNORED_KEYS = ("resume",)  # what the logged config_hash leaves out (unchanged: logs must stay the same)
 IDENTITY_FIELDS = ("config", "seed", "fuzzynav_version")  # the metadata fields the identity is computed from
 POLICY_SOURCE = "policy_source_sha256"  # and this one where present: a _target_ policy's source digest
+#: and this one where present: the SHA-256 of the recording a scenario's people were read from (the config names the
+#: file by its path only: two recordings of one name are two worlds)
+RECORDING = "recording_sha256"
 
 
 def _digest(config_yaml: str, ignored: tuple[str, ...], seed: int | str, fuzzynav_version: str) -> str:
@@ -32,12 +36,16 @@ def _digest(config_yaml: str, ignored: tuple[str, ...], seed: int | str, fuzzyna
     return hashlib.sha256(f"{body}\nseed={seed}\nfuzzynav={fuzzynav_version}".encode()).hexdigest()
 
 
-def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str, policy_source: str = "") -> str:
+def episode_key(config_yaml: str, seed: int | str, fuzzynav_version: str, policy_source: str = "",
+                recording: str = "") -> str:
     """The identity of the episode of ``seed`` run with the resolved config ``config_yaml`` by this fuzzynav
     version, whatever the seed batching (see the module docstring); ``policy_source``: the digest of a
     ``_target_`` policy's source (:func:`fuzzynav.policies.base.policy_source_digest`; '' for fuzzynav's own policies,
-    which leaves the key as it was before policies could be chosen)."""
+    which leaves the key as it was before policies could be chosen); ``recording``: the SHA-256 of the recording
+    the scenario was generated from ('' for other scenarios, which leaves their key as it was)."""
     version = f"{fuzzynav_version}+policy:{policy_source}" if policy_source else fuzzynav_version
+    if recording:
+        version = f"{version}+recording:{recording}"
     return _digest(config_yaml, BATCHING_KEYS, seed, version)
 
 
@@ -46,7 +54,8 @@ def episode_key_of(meta: Mapping[str, Any] | None) -> str | None:
     the fuzzynav version as text (a hand-written or damaged record: no identity, never merged with another)."""
     if not meta or not all(isinstance(meta.get(field), str) for field in IDENTITY_FIELDS):
         return None
-    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"], str(meta.get(POLICY_SOURCE, "")))
+    return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"], str(meta.get(POLICY_SOURCE, "")),
+                       str(meta.get(RECORDING, "")))
 
 
 def config_hash(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:

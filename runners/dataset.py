@@ -525,9 +525,13 @@ def list_datasets(root: Path = DATASETS) -> list[dict[str, Any]]:
             rows.append({"name": name, "error": str(err)})
             continue
         logs = list((path.parent / "logs").glob("*.mcap"))
-        # a dataset of recordings runs each scene once per window
-        per_scene = len(m["source"]["windows"]) if "source" in m else 1
-        rows.append({"name": name, "episodes": len(jobs(m)) * per_scene, "built": bool(m.get("episodes")),
+        # a dataset of recordings runs each scene once per window (its own windows, or the dataset's)
+        scenes = m["sweep"]["scenarios"]
+        episodes = len(jobs(m))
+        if "source" in m:
+            episodes = episodes // max(len(scenes), 1) * sum(recorded_source.scene_windows(m["source"], s)
+                                                             for s in scenes)
+        rows.append({"name": name, "episodes": episodes, "built": bool(m.get("episodes")),
                      "committed_logs": len(logs), "logs_MB": round(sum(p.stat().st_size for p in logs) / 1e6, 2),
                      "description": m.get("description", "")})
     return rows

@@ -40,6 +40,7 @@ from fuzzynav.pedestrians.base import model_source_digest
 from fuzzynav.planning.layer import POLICY_NOTE, PolicyError
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.generator import generator_source_digest
+from fuzzynav.scenarios.generators.recorded import recording_digest
 from fuzzynav.scenarios.scenario import Scenario
 from runners.configuration import plugins as config_plugins
 from runners.configuration import schema
@@ -133,11 +134,19 @@ def episode_metadata(scenario: Scenario, evaluator: FastEvaluator, ep_cfg: Episo
     ``runners.gym_log.RecordMcap``, so that both logs are the same); ``generator``: the name of the generator that
     made ``scenario`` (:func:`scenario_generator`), None for a scenario file."""
     source = code_source(ep_cfg.policy, scenario, generator)
+    recording = scenario_recording(scenario, generator)
     return run_metadata(config_yaml, seed, scenario.name, {
         "policy": ep_cfg.policy, "strategy": ep_cfg.planner.strategy, "h_wait": ep_cfg.planner.h_wait,
         "controller": evaluator.spec.name, "perception": ep_cfg.perception.mode,
         "scenario_yaml": scenario_yaml(scenario), "config_hash": digest or config_hash(config_yaml, seed),
-        **({episode_identity.POLICY_SOURCE: source} if source else {})})
+        **({episode_identity.POLICY_SOURCE: source} if source else {}),
+        **({episode_identity.RECORDING: recording} if recording else {})})
+
+
+def scenario_recording(scenario: Scenario, generator: Any) -> str:
+    """The SHA-256 of the recording a scenario of the ``recorded`` generator was read from (part of its episodes'
+    identity, recorded as ``recording_sha256``: the config names the recording by its path only); '' for others."""
+    return recording_digest(scenario.description) if generator == "recorded" else ""
 
 
 def outcome_reason(outcome: str, max_steps: int) -> str:
@@ -239,7 +248,8 @@ def run_job(cfg: DictConfig) -> list[dict[str, Any]]:
             source = code_source(ep_cfg.policy, scenario, generator)
             path = log_path(out_dir, scenario.name, plain, seed)
             digest = config_hash(config_yaml, seed)
-            key = episode_identity.episode_key(config_yaml, seed, version, source)  # whatever the seed batching
+            key = episode_identity.episode_key(config_yaml, seed, version, source,  # whatever the seed batching
+                                               scenario_recording(scenario, generator))
             kept = sweep_resume.keep(path, key, sweep_dir) if plain.get("resume") else None
             if kept is not None:
                 kept.update(kept=True, reason="resumed: complete log kept")

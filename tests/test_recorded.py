@@ -220,11 +220,19 @@ def test_a_corrupt_recording_names_the_file_and_line(tmp_path):
 
 
 def test_more_than_a_scenarios_people_is_refused(tmp_path):
-    rows = sorted((10 * k, i, 0.1 * i, 0.05 * k) for i in range(101) for k in range(5))
+    rows = sorted((10 * k, i, 0.1 * i, 0.05 * k) for i in range(301) for k in range(5))
     many = tmp_path / "obsmat.txt"
     many.write_text(obsmat(rows))
-    with pytest.raises(ScenarioError, match=r"params\.duration_s: 101 people in the window, more than the limit"):
+    with pytest.raises(ScenarioError, match=r"params\.duration_s: 301 people in the window, more than the limit"):
         make({"recording": str(many), "duration_s": 1.6})
+
+
+def test_more_annotations_than_a_log_holds_are_refused(tmp_path):
+    rows = sorted((10 * k, i, 0.1 * i, 0.05 * k) for i in range(200) for k in range(80))  # 16,000 annotations
+    many = tmp_path / "obsmat.txt"
+    many.write_text(obsmat(rows))
+    with pytest.raises(ScenarioError, match=r"^params\.duration_s: the window's 200 people keep 16,000 annotations"):
+        make({"recording": str(many), "duration_s": 31.6})
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -265,12 +273,10 @@ def test_fuzz_recording_file_contents(tmp_path_factory, text):
 def test_a_recorded_scenario_runs_end_to_end_and_its_log_verifies(recording, tmp_path):
     conf = tmp_path / "conf" / "scenario"
     conf.mkdir(parents=True)
-    (conf / "eth_window.yaml").write_text(yaml.safe_dump({
-        "name": "eth_window", "generator": "recorded",
-        "params": {"recording": str(recording), "start_s": 8.0, "duration_s": 20.0}}))
-    out = tmp_path / "run"
-    res = subprocess.run([sys.executable, "-m", "runners.run", f"hydra.searchpath=[file://{tmp_path / 'conf'}]",
-                          "scenario=eth_window", "navigator=fuzzy_tpt", f"hydra.run.dir={out}", "seed=3"],
+    out = tmp_path / "run"  # the shipped scenario: the user names the recording
+    res = subprocess.run([sys.executable, "-m", "runners.run", "scenario=recorded",
+                          f"scenario.params.recording={recording}", "scenario.params.duration_s=20",
+                          "navigator=fuzzy_tpt", f"hydra.run.dir={out}", "seed=3"],
                          cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     (log,) = out.glob("*.mcap")
@@ -289,6 +295,11 @@ def test_a_recorded_scenario_runs_end_to_end_and_its_log_verifies(recording, tmp
                          cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode != 0 and "Traceback" not in res.stderr
     assert f"params.recording: {tmp_path / 'nope.txt'}: no such file" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1, res.stderr
+    res = subprocess.run([sys.executable, "-m", "runners.run", "scenario=recorded",
+                          f"hydra.run.dir={tmp_path / 'run3'}"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 2 and res.stderr.startswith("error: ") and "Traceback" not in res.stderr
+    assert "recorded.yaml: params.recording: missing: name your copy" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1, res.stderr
 
 

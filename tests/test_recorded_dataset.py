@@ -91,12 +91,14 @@ def test_the_committed_eth_ucy_definition_is_not_built():
     assert "episodes" not in m and "sha256" not in m["source"] and "metrics_columns" not in m
     assert not (dataset.DATASETS / "eth_ucy_v1" / "logs").exists()
     rows = {r["name"]: r for r in dataset.list_datasets()}
-    assert rows["eth_ucy_v1"]["episodes"] == 4 * 5 * 7 * 3 and not rows["eth_ucy_v1"]["built"]
+    # students03 has three windows of its own
+    assert rows["eth_ucy_v1"]["episodes"] == (4 * 5 + 3) * 7 * 3 and not rows["eth_ucy_v1"]["built"]
 
 
 @pytest.mark.parametrize("edit, message", [
     (lambda s: s.pop("windows"), "source.windows: expected a list of distinct window numbers"),
     (lambda s: s.update(windows=[1, 1]), "source.windows: expected a list of distinct"),
+    (lambda s: s["scenes"]["plaza"].update(windows=[]), "source.scenes.plaza.windows: expected a list of distinct"),
     (lambda s: s.update(colour=1), "source.colour: unknown field"),
     (lambda s: s["scenes"]["plaza"].update(file="../../etc/passwd"), "source.scenes.plaza.file: expected a relative"),
     (lambda s: s["scenes"]["plaza"].update(file="/etc/passwd"), "source.scenes.plaza.file: expected a relative"),
@@ -129,3 +131,22 @@ def test_fuzz_source_field(source):
         check_source(source, Path("m.yaml"))
     except DatasetError as err:
         assert str(err).startswith("m.yaml: source") and "\n" not in str(err)
+
+
+def test_a_scene_may_have_windows_of_its_own(setup, tmp_path):
+    """students03 is 216 s long: three 60-s windows where the other scenes have five."""
+    import copy
+
+    from runners.datasets import recorded_source
+
+    root, source = setup
+    manifest = copy.deepcopy(MANIFEST)
+    manifest["source"]["scenes"]["plaza"]["windows"] = [1]
+    recorded_source.check_source(manifest["source"], root / "m.yaml")
+    run_manifest, overrides, notes = recorded_source.prepare(manifest, root / "m.yaml", source, tmp_path / "conf",
+                                                             building=True)
+    assert run_manifest["sweep"]["scenarios"] == ["plaza_w1"] and overrides and notes
+    written = yaml.safe_load((tmp_path / "conf" / "scenario" / "plaza_w1.yaml").read_text())
+    assert written["params"]["window"] == 1 and written["params"]["duration_s"] == 20
+    assert recorded_source.scene_windows(manifest["source"], "plaza") == 1
+    assert recorded_source.scene_windows(manifest["source"], "hall") == 2

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import atexit
+import functools
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -18,6 +22,16 @@ from runners.run import episode_config, load_scenario
 from tests.conftest import CONF, ROOT, load_controller
 
 SCENARIOS = sorted(p.stem for p in (CONF / "scenario").glob("*.yaml"))
+
+
+@functools.cache
+def _user_recording() -> Path:
+    """A synthetic recording in ETH's format for the scenarios that read the user's (tests.test_recorded)."""
+    from tests.test_recorded import crossing_file
+
+    folder = Path(tempfile.mkdtemp(prefix="fuzzynav-recording-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return crossing_file(folder / "obsmat.txt")
 EVALUATOR = FastEvaluator(load_controller("table1"))
 
 
@@ -26,6 +40,9 @@ def composed(scenario: str, **extra) -> dict:
             "navigator": yaml.safe_load((CONF / "navigator" / "fuzzy_tpt.yaml").read_text()),
             "planner": yaml.safe_load((CONF / "planner" / "auto.yaml").read_text()),
             "scenario": yaml.safe_load((CONF / "scenario" / f"{scenario}.yaml").read_text())}
+    params = base["scenario"].get("params") or {}
+    if params.get("recording") == "???":  # the user names a recording (conf/scenario/recorded.yaml): one written here
+        params["recording"] = str(_user_recording())
     for key, value in extra.items():
         base[key] = {**base.get(key, {}), **value}
     return base

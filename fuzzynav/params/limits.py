@@ -81,6 +81,13 @@ MAX_STATIC_OBSTACLES = 500
 MAX_POLYGON_VERTICES = 1_000
 MAX_TOTAL_VERTICES = 2_000
 MAX_DYNAMIC_OBSTACLES = 100
+#: recorded people (obstacles of model ``recorded``), beside the other dynamic obstacles: a replayed person is an
+#: array lookup per step, and one outside the sensors' range is neither sensed nor tracked (runners.bench: 300)
+MAX_RECORDED_PEOPLE = 300
+#: annotations a recorded scenario keeps, all people together: about 46 bytes each in the scenario every log holds
+#: (its metadata is read up to 1 MB: analysis.log_check)
+MAX_RECORDED_ANNOTATIONS = 15_000
+RECORDED_MODEL = "recorded"  # the obstacle model whose obstacles count against MAX_RECORDED_PEOPLE
 MAX_WAYPOINTS = 1_000
 MAX_STEPS = 100_000
 MAX_PEDESTRIAN_SUBSTEPS = 20_000_000  # reactive pedestrians x substeps per step x max_steps
@@ -124,7 +131,14 @@ SIZE_LIMITS: tuple[Limit, ...] = (
     Limit("static_obstacles[i].polygon vertices", MAX_POLYGON_VERTICES, "ray casting: beams x edges per step"),
     Limit("polygon vertices in a scenario", MAX_TOTAL_VERTICES,
           "ray casting: 2,000 edges within laser range cost about 5-10 ms per step"),
-    Limit("dynamic_obstacles", MAX_DYNAMIC_OBSTACLES, "tracking (Hungarian) and TPT grow with them"),
+    Limit("dynamic_obstacles (other than recorded people)", MAX_DYNAMIC_OBSTACLES,
+          "tracking (Hungarian) and TPT grow with them"),
+    Limit("dynamic_obstacles of model recorded (replayed people)", MAX_RECORDED_PEOPLE,
+          "a replay is an array lookup per step and only present people in the sensors' range are sensed: 300 add "
+          "about 6 % to a step (runners.bench)"),
+    Limit("annotations of a recorded window, all people together", MAX_RECORDED_ANNOTATIONS,
+          "the scenario is logged whole in every log (about 46 bytes an annotation; a log's metadata is read up to "
+          "1 MB)"),
     Limit("dynamic_obstacles[i].waypoints", MAX_WAYPOINTS, "path bookkeeping per step"),
     Limit("max_steps (also params.max_steps)", MAX_STEPS,
           "an episode of 100,000 steps takes minutes and writes a log of about 200 MB"),

@@ -267,6 +267,16 @@ def _model(data: Mapping[str, Any], path: str) -> dict[str, Any]:
         raise ScenarioError(str(err)) from None
 
 
+def check_dynamic_count(models: list[Any]) -> None:
+    """The size limits of ``dynamic_obstacles`` (their ``model`` entries, None where none): recorded people
+    (:data:`fuzzynav.params.limits.MAX_RECORDED_PEOPLE`) and the others (``MAX_DYNAMIC_OBSTACLES``) each."""
+    recorded = sum(1 for m in models if m == limits.RECORDED_MODEL)
+    check_count(len(models) - recorded, "dynamic_obstacles", limits.MAX_DYNAMIC_OBSTACLES, ScenarioError,
+                "obstacles (other than recorded people)")
+    check_count(recorded, "dynamic_obstacles", limits.MAX_RECORDED_PEOPLE, ScenarioError,
+                f"obstacles of model {limits.RECORDED_MODEL}")
+
+
 def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
     """Validate plain data (as loaded from YAML) and build a :class:`Scenario`."""
     data = _mapping(data, "scenario")
@@ -280,11 +290,11 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
     bounds = tuple(_finite(v, f"bounds[{i}]") for i, v in enumerate(b))
     statics = data.get("static_obstacles") or []
     dynamics = data.get("dynamic_obstacles") or []
-    for key, value, limit in (("static_obstacles", statics, limits.MAX_STATIC_OBSTACLES),
-                              ("dynamic_obstacles", dynamics, limits.MAX_DYNAMIC_OBSTACLES)):
+    for key, value in (("static_obstacles", statics), ("dynamic_obstacles", dynamics)):
         if not _is_list(value):
             raise ScenarioError(f"{key}: expected a list")
-        check_count(len(value), key, limit, ScenarioError, "obstacles")
+    check_count(len(statics), "static_obstacles", limits.MAX_STATIC_OBSTACLES, ScenarioError, "obstacles")
+    check_dynamic_count([o.get("model") if isinstance(o, Mapping) else None for o in dynamics])
     max_steps = data.get("max_steps", 300)
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
         raise ScenarioError(f"max_steps: expected a positive integer, got {show(max_steps)}")
@@ -310,8 +320,7 @@ def validate_limits(s: Scenario) -> None:
         raise ScenarioError(f"max_steps: expected a positive integer, got {show(s.max_steps)}")
     check_count(s.max_steps, "max_steps", limits.MAX_STEPS, ScenarioError, "steps")
     check_count(len(s.static_obstacles), "static_obstacles", limits.MAX_STATIC_OBSTACLES, ScenarioError, "obstacles")
-    check_count(len(s.dynamic_obstacles), "dynamic_obstacles", limits.MAX_DYNAMIC_OBSTACLES, ScenarioError,
-                "obstacles")
+    check_dynamic_count([o.model for o in s.dynamic_obstacles])
     numbers: list[tuple[str, Any]] = [(f"bounds[{i}]", v) for i, v in enumerate(s.bounds)]
     numbers += [("robot.start", s.robot.start), ("robot.goal", s.robot.goal), ("robot.heading", s.robot.heading),
                 ("robot.radius", s.robot.radius), ("goal_tolerance", s.goal_tolerance)]

@@ -6,9 +6,9 @@ Such a manifest has a ``source`` field::
     source:
       scenes:                      # scene -> where its file is under --source (the first that exists), options
         eth: {file: [seq_eth/obsmat.txt, ETH/seq_eth/obsmat.txt, eth/obsmat.txt]}
-        students03: {file: [students03/obsmat.txt], max_gap: 1}
+        students03: {file: [students03/obsmat.txt], max_gap: 1, windows: [0, 1, 2]}   # its own windows
       params: {duration_s: 60, path_length: 800, max_steps: 60}   # the recorded generator's, for every scene
-      windows: [0, 1, 2, 3, 4]     # params.window of each scenario
+      windows: [0, 1, 2, 3, 4]     # params.window of each scenario (a scene's own ``windows`` replace them)
       sha256: {eth: ...}           # written by build: the scenes built and their files' SHA-256
 
 and ``sweep.scenarios`` names scenes. ``build`` uses the scenes of ``sweep.scenarios`` whose file the user has
@@ -34,7 +34,7 @@ from fuzzynav.scenarios.recordings import FORMATS
 from runners.datasets.manifest import DatasetError
 
 SOURCE_FIELDS = ("scenes", "params", "windows", "sha256")
-SCENE_FIELDS = ("file", "format", "max_gap")
+SCENE_FIELDS = ("file", "format", "max_gap", "windows")
 MAX_WINDOWS = 1000
 
 
@@ -75,17 +75,29 @@ def check_source(source: Any, path: Path) -> None:
     for key in ("recording", "window", "start_s", "format", "max_gap"):
         if key in params:
             raise DatasetError(f"{path}: source.params.{key}: set by the dataset (scenes and windows)")
-    windows = source.get("windows")
-    if not (isinstance(windows, list) and windows and len(windows) <= MAX_WINDOWS and all(
-            isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= 1_000_000 for k in windows)
-            and len(set(windows)) == len(windows)):
-        raise DatasetError(f"{path}: source.windows: expected a list of distinct window numbers (0 or more), at most "
-                           f"{MAX_WINDOWS}, got {windows!r:.60}")
+    _check_windows(source.get("windows"), f"{path}: source.windows")
+    for scene, entry in scenes.items():
+        if "windows" in entry:
+            _check_windows(entry["windows"], f"{path}: source.scenes.{_shown(scene)}.windows")
     digests = source.get("sha256")
     if digests is not None and not (isinstance(digests, dict) and digests and all(
             s in scenes and isinstance(d, str) and re.fullmatch("[0-9a-f]{64}", d) for s, d in digests.items())):
         raise DatasetError(f"{path}: source.sha256: expected a mapping of scenes of source.scenes to 64 lowercase "
                            "hex digits")
+
+
+def scene_windows(source: dict[str, Any], scene: str) -> int:
+    """How many windows of ``scene`` a dataset runs: its own ``windows``, else ``source.windows``."""
+    entry = source["scenes"].get(scene) or {}
+    return len(entry.get("windows", source["windows"]))
+
+
+def _check_windows(windows: Any, where: str) -> None:
+    if not (isinstance(windows, list) and windows and len(windows) <= MAX_WINDOWS and all(
+            isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= 1_000_000 for k in windows)
+            and len(set(windows)) == len(windows)):
+        raise DatasetError(f"{where}: expected a list of distinct window numbers (0 or more), at most "
+                           f"{MAX_WINDOWS}, got {windows!r:.60}")
 
 
 def _shown(key: Any) -> str:
@@ -166,7 +178,7 @@ def prepare(manifest: dict[str, Any], path: Path, source: Path | None, conf_dir:
     for scene, file in files.items():
         entry = spec["scenes"][scene]
         options = {k: entry[k] for k in ("format", "max_gap") if entry.get(k) is not None}
-        for k in spec["windows"]:
+        for k in entry.get("windows", spec["windows"]):
             name = f"{scene}_w{k}"
             params = {"recording": str(file.resolve()), **options, **(spec.get("params") or {}), "window": k}
             (scenario_dir / f"{name}.yaml").write_text(yaml.safe_dump(

@@ -20,7 +20,8 @@ Parameters (``scenario.params``; cm, s):
 The window's people are those present in it (inside the crop) at the annotations' resolution; each keeps its
 annotations in the window plus the one before and the one after it (so that it is where the recording has it
 from t = 0), with their times from the window's start (``model_params.t_s``), and is absent after the window
-(``until_s``). At most 100 people (the scenarios' limit): a busier window is an error naming ``duration_s``.
+(``until_s``). At most 300 people (the scenarios' limit of recorded people): a busier window is an error naming
+``duration_s``.
 The world's walls are the box of every kept annotation, the crop and the robot's start and goal, 100 cm wider on
 each side (people never walk through a wall; outside the crop they are absent).
 
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -61,6 +63,7 @@ MARGIN_CM = 100.0  # the walls' distance from the box of the annotations
 GRID_CM = 100.0  # the busiest-crossing rule's cell
 EDGE_CM = 20.0  # the robot's start and goal stay this far (beyond its radius) inside the crop
 TRIES = 64
+DIGEST = re.compile(r"\(sha256 ([0-9a-f]{64})\)")  # the recording's digest in the scenario's description
 
 _KNOWN = {"recording", "format", "max_gap", "annotation_hz", "start_s", "window", "stride_s", "duration_s", "crop",
           "robot_start", "robot_goal", "robot_heading", "path_length", "radius", "static_obstacles", "max_steps",
@@ -109,6 +112,9 @@ def _crop(params: Mapping[str, Any]) -> tuple[float, float, float, float] | None
 def read_window_recording(params: Mapping[str, Any]) -> tuple[Recording, str]:
     """The recording ``params.recording`` names, and its SHA-256 (``ScenarioError`` naming the parameter)."""
     path = params.get("recording")
+    if path == "???":  # Hydra's mark of a value conf/scenario/recorded.yaml leaves to the command line
+        raise ScenarioError("params.recording: missing: name your copy of the recording "
+                            "(scenario.params.recording=PATH; docs/recordings.md says where to get them)")
     if not isinstance(path, str) or not path or "\0" in path:
         raise ScenarioError(f"params.recording: expected the path of a recording file, got {show(path)}")
     fmt = params.get("format")
@@ -134,7 +140,7 @@ def window_start(params: Mapping[str, Any], duration_s: float) -> float:
 
 def recording_windows(recording: Recording, duration_s: float, stride_s: float | None = None,
                       crop: tuple[float, float, float, float] | None = None, min_people: int = 1,
-                      max_people: int = limits.MAX_DYNAMIC_OBSTACLES) -> list[int]:
+                      max_people: int = limits.MAX_RECORDED_PEOPLE) -> list[int]:
     """The suite of windows of a recording: the indices k of the windows [k·stride, k·stride + duration] s (stride
     default: ``duration_s``, windows side by side) that lie wholly in the recording and have from ``min_people``
     to ``max_people`` people in them (inside ``crop``) — what ``params.window`` takes."""
@@ -189,9 +195,9 @@ def recorded(params: Mapping[str, Any], seed: int, name: str = "recorded") -> di
     if not people:
         raise ScenarioError(f"params.start_s: nobody is recorded in the window [{start_s:g}, {start_s + duration:g}] "
                             "s" + (" inside the crop" if crop else ""))
-    if len(people) > limits.MAX_DYNAMIC_OBSTACLES:
+    if len(people) > limits.MAX_RECORDED_PEOPLE:
         raise ScenarioError(f"params.duration_s: {len(people)} people in the window, more than the limit of "
-                            f"{limits.MAX_DYNAMIC_OBSTACLES} (a shorter window or a smaller crop)")
+                            f"{limits.MAX_RECORDED_PEOPLE} (a shorter window or a smaller crop)")
     end_s = start_s + duration
     dynamics, kept = [], []
     for track in recording.tracks:
@@ -214,6 +220,11 @@ def recorded(params: Mapping[str, Any], seed: int, name: str = "recorded") -> di
                                   **({"crop": list(crop)} if crop else {}), **reaction}}
         dynamics.append(entry)
         kept.append(xy)
+    annotations = sum(len(xy) for xy in kept)
+    if annotations > limits.MAX_RECORDED_ANNOTATIONS:
+        raise ScenarioError(f"params.duration_s: the window's {len(dynamics)} people keep {annotations:,} annotations, "
+                            f"more than the limit of {limits.MAX_RECORDED_ANNOTATIONS:,} (a shorter window or a "
+                            "smaller crop)")
     points = np.concatenate(kept)
     box = [float(points[:, 0].min()), float(points[:, 1].min()), float(points[:, 0].max()),
            float(points[:, 1].max())]
@@ -240,11 +251,18 @@ def recorded(params: Mapping[str, Any], seed: int, name: str = "recorded") -> di
     source = Path(str(params["recording"])).name
     how = f"start and goal by the busiest-crossing rule (seed {seed})" if chosen else "start and goal given"
     return {"name": name, "bounds": [round(b, 6) for b in bounds],
-            "description": (f"{source} (sha256 {digest[:16]}), window {start_s:g}-{end_s:g} s"
+            "description": (f"{source} (sha256 {digest}), window {start_s:g}-{end_s:g} s"
                             f"{', crop ' + str(list(crop)) if crop else ''}, {len(dynamics)} people; {how}"),
             "robot": {"start": [round(float(v), 6) for v in start], "goal": [round(float(v), 6) for v in goal],
                       "heading": round(float(heading), 9), "radius": ROBOT_RADIUS},
             "static_obstacles": list(statics), "dynamic_obstacles": dynamics, "max_steps": max_steps}
+
+
+def recording_digest(description: str) -> str:
+    """The SHA-256 of the recording a scenario of this generator was made from, as its description records it
+    ('' when the description names none)."""
+    found = DIGEST.search(description)
+    return found.group(1) if found else ""
 
 
 def _busiest_crossing(recording: Recording, start_s: float, duration: float,
