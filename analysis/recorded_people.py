@@ -81,6 +81,7 @@ def horizon_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] 
         return None
     from matplotlib.ticker import MaxNLocator
 
+    from analysis import plots
     from analysis.plots import pyplot
 
     plt = pyplot()
@@ -110,7 +111,4 @@ def horizon_figure(table: pd.DataFrame, out: Path, colors: Mapping[str, object] 
             ax.tick_params(labelsize=6)
             ax.grid(alpha=0.3)
         ax_f.legend(fontsize=5, loc="upper left")
-    path = out / "recorded_horizons.png"
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return plots._save(fig, out / "recorded_horizons.png")
