@@ -94,6 +94,7 @@ def check_before_trials(comparison: Comparison, out: Path, storage: str | None) 
 def run_comparison(args: argparse.Namespace, comparison: Comparison, out: Path) -> int:
     from runners import tune
     from runners.tuning.comparison_report import write_comparison_report
+    from runners.tuning.storage import StorageError
 
     try:
         check_before_trials(comparison, out, args.storage)
@@ -111,7 +112,13 @@ def run_comparison(args: argparse.Namespace, comparison: Comparison, out: Path) 
         code = tune.main(argv)
         if code:
             raise ComparisonStopped(code)
-        results.append(heldout_results(spec, out / spec.name))
+        try:
+            results.append(heldout_results(spec, out / spec.name))
+        except (StorageError, OSError) as err:  # the storage or the disk failed after the trials: kept, resumable
+            what = f"{err.filename}: {err.strerror or err}" if isinstance(err, OSError) and err.filename else err
+            print(f"error: {' '.join(str(what).split())[:400]}; the trials are kept: re-run the command to resume",
+                  file=sys.stderr)
+            return 1
     report = write_comparison_report(comparison, out, results)
     print(f"report: {report}")
     return 0

@@ -27,7 +27,7 @@ from typing import Any
 import yaml
 
 from runners.configuration.data_files import CONFIG_FILE, DataFileError, check_data_file
-from runners.tuning.study_file import STUDY_DIR, StudyFileError, StudySpec, load_study_file
+from runners.tuning.study_file import STUDY_DIR, StudyFileError, StudySpec, find_study_file, load_study_file
 
 COMPARISON_DIR = STUDY_DIR / "compare"
 FIELDS = ("name", "description", "reference", "studies")
@@ -57,17 +57,13 @@ class Comparison:
 
 def find_comparison_file(name_or_path: str) -> Path:
     """``conf/tune/compare/<name>.yaml`` for a bare name, else the path as given."""
-    if "/" not in name_or_path and not name_or_path.endswith((".yaml", ".yml")):
-        return COMPARISON_DIR / f"{name_or_path}.yaml"
-    return Path(name_or_path)
+    return find_study_file(name_or_path, COMPARISON_DIR)
 
 
 def study_path(entry: str, comparison_path: Path) -> Path:
     """A ``studies`` entry's study file: ``conf/tune/<name>.yaml`` for a bare name, else a path relative to the
     comparison file's folder."""
-    if "/" not in entry and not entry.endswith((".yaml", ".yml")):
-        return STUDY_DIR / f"{entry}.yaml"
-    path = Path(entry)
+    path = find_study_file(entry)
     return path if path.is_absolute() else comparison_path.parent / path
 
 
