@@ -18,7 +18,7 @@ import optuna
 import pandas as pd
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from analysis.log_inputs import find_logs
@@ -221,3 +221,35 @@ def test_fuzzed_comparison_is_a_comparison_or_one_line(tmp_path_factory, data, w
             ref.train, ref.heldout, ref.trials, set(ref.scenarios), ref.objectives)
         assert not set(spec.train.seeds) & set(spec.heldout.seeds)
     assert comparison.budget == ref.trials * len(ref.scenarios) * ref.train.count
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(trials=st.integers(1, 3), train=st.tuples(st.integers(0, 101), st.integers(1, 3)),
+       heldout=st.tuples(st.integers(0, 101), st.integers(1, 3)))
+@example(trials=2, train=(0, 2), heldout=(100, 2))  # the same as the first study: a comparison
+@example(trials=3, train=(0, 2), heldout=(100, 2))
+def test_fuzzed_budget_and_seeds_give_the_comparison_or_the_field_that_differs(tmp_path_factory, trials, train,
+                                                                                 heldout):
+    """The second study's trials and seeds drawn near the first's (trials 2, training 0..1, held-out 100..101):
+    the comparison loads exactly when they are the same, else the one line names the field that differs."""
+    tmp = tmp_path_factory.mktemp("budget")
+    path = write(tmp, dwa={**DWA, "trials": trials, "train_seeds": {"start": train[0], "count": train[1]},
+                           "heldout_seeds": {"start": heldout[0], "count": heldout[1]}})
+    mine, held = set(range(train[0], sum(train))), set(range(heldout[0], sum(heldout)))
+    if mine & held:
+        expected = ["dwa.yaml: heldout_seeds:", "overlap train_seeds"]  # the study file's own check
+    elif mine & set(range(100, 102)) or held & {0, 1}:
+        expected = ["train_seeds:", "overlap the held-out seeds"]
+    elif train != (0, 2):
+        expected = ["dwa.yaml: train_seeds:"]
+    elif heldout != (100, 2):
+        expected = ["dwa.yaml: heldout_seeds:"]
+    elif trials != 2:
+        expected = ["dwa.yaml: trials:", "budget of episodes"]
+    else:
+        assert load_comparison(path).budget == 2 * 1 * 2
+        return
+    with pytest.raises(ComparisonFileError) as err:
+        load_comparison(path)
+    message = str(err.value)
+    assert "\n" not in message and all(word in message for word in expected), message
