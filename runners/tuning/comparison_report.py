@@ -111,9 +111,9 @@ def comparison_figure(comparison: Comparison, table: pd.DataFrame, path: Path) -
             rows = table[(table["quantity"] == objective) & (table["kind"] == "objective")
                          & (table["scenario"] == scenario)]
             ref = rows[(rows["study"] == comparison.reference.name) & (rows["configuration"] == PUBLISHED)].iloc[0]
-            ax.axhline(ref["mean"], color="0.4", linestyle="--", linewidth=1)
+            ax.axhline(ref["mean"], color="0.2", linestyle="--", linewidth=1)
             if not math.isnan(ref["ci_low"]):
-                ax.axhspan(ref["ci_low"], ref["ci_high"], color="0.85", zorder=0)
+                ax.axhspan(ref["ci_low"], ref["ci_high"], color="0.3", alpha=0.15, linewidth=0, zorder=0)
             for x, study in enumerate(studies):
                 configurations = rows[rows["study"] == study]
                 width = 0.5 / max(1, len(configurations))
@@ -158,7 +158,8 @@ def write_comparison_report(comparison: Comparison, out: Path, results: list[tup
                                            if o.fill else "") for o in ref.objectives), "",
              f"Common reference: **{ref.name} {PUBLISHED}** (the reference study's default configuration).", "",
              "## Methods", "",
-             "| study | method | sampler | trials completed / failed | configuration | trial | held-out "
+             *[f"- **{spec.name}**: {spec.description or '(no description)'}" for spec in comparison.studies], "",
+             "| study | base | sampler | trials completed / failed | configuration | trial | held-out "
              + " | ".join(o.name for o in ref.objectives) + " (all scenarios) |",
              "|---|---|---|---|---|---|" + "---|" * len(ref.objectives)]
     for spec, study, evaluated in results:
@@ -167,7 +168,7 @@ def write_comparison_report(comparison: Comparison, out: Path, results: list[tup
         failed = sum(counted(t) and t.state.name == "FAIL" for t in trials)
         for ev in evaluated:
             trial = "—" if ev.trial is None else str(ev.trial) + (" (= published)" if ev.same_as_default else "")
-            lines.append(f"| {spec.name} | {spec.description or ' '.join(spec.base)} | {spec.sampler} | {done} / "
+            lines.append(f"| {spec.name} | `{' '.join(spec.base) or '(none)'}` | {spec.sampler} | {done} / "
                          f"{failed} | {configuration_name(ev)} | {trial} | "
                          + " | ".join(_f(ev.objectives.get(o.name)) for o in ref.objectives) + " |")
     lines += ["", "The all-scenario objective is the study's own (each scenario's mean, then their mean): the number "
