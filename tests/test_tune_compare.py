@@ -125,6 +125,34 @@ def test_ctrl_c_is_one_line_and_rerunning_continues(tmp_path):
     assert sum(map(counted, trials_of(out / "tiny_dwa", "tiny_dwa"))) == 2
 
 
+def test_a_stopped_heldout_evaluation_runs_again_and_a_complete_one_does_not(tmp_path, monkeypatch):
+    import runners.tuning.heldout as heldout
+
+    path, out = write(tmp_path), tmp_path / "out"
+    real, calls = heldout.run_configuration, []
+
+    def stopped_in_the_second_study(overrides, *args):
+        calls.append(list(overrides))
+        if "navigator=dwa" in overrides:
+            raise KeyboardInterrupt  # Ctrl-C while the second study's default runs on the held-out seeds
+        return real(overrides, *args)
+
+    monkeypatch.setattr(heldout, "run_configuration", stopped_in_the_second_study)
+    code, _, err = run_main("--compare", str(path), "--out", str(out))
+    one_line_error(code, err, "interrupted: comparison tiny_cmp stopped; re-run the command to resume")
+    assert code == 130
+    assert (out / "tiny" / "heldout" / "evaluated.json").exists()  # the first study's evaluation is complete
+    assert not (out / "tiny_dwa" / "heldout" / "evaluated.json").exists() and not (out / "report").exists()
+    calls.clear()
+    monkeypatch.setattr(heldout, "run_configuration", lambda overrides, *args: calls.append(list(overrides))
+                        or real(overrides, *args))
+    code, stdout, err = run_main("--compare", str(path), "--out", str(out))
+    assert code == 0, err
+    assert "held-out: tiny already evaluated" in stdout
+    assert calls and all("navigator=dwa" in c for c in calls)  # only the stopped study's configurations ran
+    assert (out / "report" / "comparison.md").exists()
+
+
 MISMATCHES = [  # (change to the second study, words of the error)
     ({"trials": 3}, ["dwa.yaml: trials:", "3 x 2 episodes = 6 episodes differ", "tiny.yaml", "budget"]),
     ({"train_seeds": {"start": 0, "count": 3}}, ["dwa.yaml: train_seeds: 0..2 differ", "tiny.yaml's 0..1"]),
