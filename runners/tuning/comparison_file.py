@@ -77,10 +77,11 @@ def _same_setup(spec: StudySpec, ref: StudySpec, comparison: str) -> None:
     if set(spec.scenarios) != set(ref.scenarios):
         raise ComparisonFileError(f"{spec.path}: scenarios: {', '.join(spec.scenarios)} differ from {ref.path}'s "
                                   f"{', '.join(ref.scenarios)}: {budget} scenarios")
-    for field, mine, theirs in (("train_seeds", spec.train, ref.train), ("heldout_seeds", spec.heldout, ref.heldout)):
+    for field, words, mine, theirs in (("train_seeds", "training seeds", spec.train, ref.train),
+                                       ("heldout_seeds", "held-out seeds", spec.heldout, ref.heldout)):
         if mine != theirs:
             raise ComparisonFileError(f"{spec.path}: {field}: {mine.text()} differ from {ref.path}'s {theirs.text()}: "
-                                      f"{budget} {field.replace('_', ' ')}")
+                                      f"{budget} {words}")
     if spec.trials != ref.trials:
         episodes = len(spec.scenarios) * spec.train.count
         raise ComparisonFileError(
