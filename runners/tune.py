@@ -4,6 +4,7 @@
     python -m runners.tune my_study.yaml --out studies/x --trials 40 --workers 2
     python -m runners.tune h_wait_margin --storage journal --workers 8   # Optuna's journal file for many workers
     python -m runners.tune h_wait_margin --no-heldout          # trials only (held-out evaluation later)
+    python -m runners.tune --compare suite_v2         # conf/tune/compare/suite_v2.yaml: every study, one report
 
 The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
 the scenarios and the training and held-out seeds (:mod:`runners.tuning.study_file`). The study lives in Optuna's
@@ -31,13 +32,20 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     from analysis.cli_args import OneLineParser
 
     parser = OneLineParser(prog="python -m runners.tune", description=__doc__.split("\n\n")[0])
-    parser.add_argument("study", help="a study name (conf/tune/<name>.yaml) or a study file")
+    parser.add_argument("study", nargs="?", help="a study name (conf/tune/<name>.yaml) or a study file")
+    parser.add_argument("--compare", metavar="COMPARISON",
+                        help="instead of one study, every study of a comparison (conf/tune/compare/<name>.yaml or a "
+                             "file) and one report (runners.tuning.comparison)")
     parser.add_argument("--out", help="the study folder (default: studies/<name>)")
     parser.add_argument("--trials", type=int, help="trials in all (default: the study file's)")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes sharing the study")
     parser.add_argument("--storage", choices=KINDS, help="sqlite (default) or journal (many workers)")
     parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
     args = parser.parse_args(argv)
+    if (args.study is None) == (args.compare is None):
+        parser.error("name a study, or a comparison with --compare (not both)")
+    if args.compare is not None and args.no_heldout:
+        parser.error("--no-heldout: a comparison compares held-out results")
     if args.out is not None and not args.out.strip():  # "" would be the current folder
         parser.error("--out: an empty path; name the study folder")
     args.out = Path(args.out) if args.out is not None else None
@@ -143,6 +151,10 @@ def print_trial(spec):
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.compare is not None:
+        from runners.tuning.comparison import compare_command
+
+        return compare_command(args)
     from runners.sweeping import lock
     from runners.sweeping.paths import lock_file
     from runners.tuning.storage import StorageError, existing_kind, open_storage
