@@ -55,6 +55,7 @@ def overview(df: pd.DataFrame, groups: pd.DataFrame, out: Path) -> Path:
                            wspace=0.3, sharey=True)
     axes = axes[0]
     for ax, (metric, label, over) in zip(axes, PANELS, strict=True):
+        bars: list = []
         for yy, scenario, variant in rows:
             key = (scenario, variant, metric)
             if key not in stats.index:
@@ -62,7 +63,8 @@ def overview(df: pd.DataFrame, groups: pd.DataFrame, out: Path) -> Path:
             mean, lo, hi = (float(stats.at[key, c]) for c in ("mean", "ci_low", "ci_high"))
             if math.isnan(mean):
                 continue
-            plots.interval(ax, yy, mean, lo, hi, pal[variant], variant, horizontal=True, size=point)
+            plots.interval(ax, yy, mean, lo, hi, pal[variant], variant, horizontal=True, size=point, bars=bars)
+        plots.draw_bars(ax, bars)
         for edge in edges[:-1]:
             ax.axhline(edge, color="0.8", lw=0.8)
         ax.set_xlabel(f"{label}\n{over}", fontsize=8)
