@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import pandas as pd
-
 from analysis import plots
+from analysis.deferred import deferred
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 PANELS = (("success", "success rate", "(Wilson 95 %)"),
           ("time_to_goal_s", "time to goal (s)", "(episodes reaching the goal; bootstrap 95 %)"),

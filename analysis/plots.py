@@ -16,12 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
+from analysis.deferred import deferred
 from analysis.palette import CONTACT, OBSTACLE, Style, group_styles
 from analysis.run_parameters import SEP
 from analysis.stats import bootstrap_mean, wilson
 from analysis.trace import MAX_SEEDS_PER_PANEL, Trace, World
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 DPI = 90
 

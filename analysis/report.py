@@ -30,10 +30,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from analysis import gallery, plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
+from analysis.deferred import deferred
 from analysis.density import density_figure, density_table
 from analysis.drawing import Figure, Figures
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
@@ -44,6 +44,8 @@ from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import with_relative_logs, write_tables
 from analysis.tpt_errors import models_of_columns
 from analysis.trace import Trace, load_traces
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
            "collisions_static", "collisions_dynamic", "min_clearance_static_cm", "min_clearance_dynamic_cm",
