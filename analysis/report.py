@@ -120,7 +120,7 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
     factors = _factors(df, grouping)
     rows = []
     for scenario, sub in df[df["strategy"] != "none"].groupby("scenario_label", sort=False):
-        per_seed = {v: g.groupby(PAIR_KEY)[PAIRED_METRICS].mean() for v, g in sub.groupby("variant", sort=False)}
+        per_seed = {v: _per_seed(g) for v, g in sub.groupby("variant", sort=False)}
         h_values = sorted({float(factors[v][0][1]) for v in per_seed
                            if factors[v][0][0] == "auto" and factors[v][0][1]})
         for a, b in itertools.combinations(per_seed, 2):
@@ -129,19 +129,32 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
             if len(changed) != 1 or (changed == [0] and both_auto
                                      and not _neighbours(factors[a][0][1], factors[b][0][1], h_values)):
                 continue
-            left, right = per_seed[a], per_seed[b]
-            common = left.index.intersection(right.index)
+            (seeds_a, left), (seeds_b, right) = per_seed[a], per_seed[b]
+            common, at_a, at_b = np.intersect1d(seeds_a, seeds_b, assume_unique=True, return_indices=True)
             if len(common) == 0:
                 continue
-            diffs = left.loc[common, PAIRED_METRICS].astype(float) - right.loc[common, PAIRED_METRICS].astype(float)
-            for metric in PAIRED_METRICS:
-                diff = diffs[metric]
+            diffs = left[at_a] - right[at_b]  # a row per common seed, ascending
+            for j, metric in enumerate(PAIRED_METRICS):
+                diff = diffs[:, j]
                 mean, lo, hi = bootstrap_mean(diff)
-                rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": int(diff.notna().sum()),
+                pairs = int((~np.isnan(diff)).sum())
+                rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": pairs,
                              "mean_a_minus_b": mean, "ci_low": lo, "ci_high": hi,
                              "excludes_zero": excludes_zero(lo, hi)})
     return pd.DataFrame(rows, columns=["scenario", "A", "B", "metric", "pairs", "mean_a_minus_b", "ci_low", "ci_high",
                                        "excludes_zero"])
+
+
+def _per_seed(g: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """(the seeds of a group's episodes, ascending; their :data:`PAIRED_METRICS` as floats, a row per seed): each
+    seed's episode, or where a seed was run more than once the mean of its episodes (pandas' group mean; plain
+    arrays otherwise: grouping every group of every scenario was most of the table's time)."""
+    seeds = g[PAIR_KEY].to_numpy()
+    if len(np.unique(seeds)) < len(seeds):
+        means = g.groupby(PAIR_KEY)[PAIRED_METRICS].mean()
+        return means.index.to_numpy(), means.to_numpy(dtype=float, na_value=np.nan)
+    order = np.argsort(seeds, kind="stable")
+    return seeds[order], g[PAIRED_METRICS].to_numpy(dtype=float, na_value=np.nan)[order]
 
 
 def _neighbours(h_a: str, h_b: str, h_values: list[float]) -> bool:
