@@ -470,10 +470,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
 
         report.add("h2", "Effect of h_wait")
         if h_wait_figure is not None:
-            report.add("p", "Mean against h_wait for auto (a point per group in its colour, joined by a grey line "
-                            "per setting of the other differing parameters) with its 95 % interval (success: "
-                            "Wilson; others: bootstrap); groups that do not read h_wait as horizontal lines with "
-                            "their interval as a band. Every metric per group: groups.csv.")
+            report.add("p", f"{', '.join(plots.H_WAIT_METRICS)}: the mean against h_wait for auto (a point per "
+                            "group in its colour, joined by a grey line per setting of the other differing "
+                            "parameters) with its 95 % bootstrap interval; groups that do not read h_wait as "
+                            "horizontal lines with their interval as a band. Success rate, time-to-goal and path "
+                            "length per group with their intervals: the overview figure (auto's h_wait settings next "
+                            "to each other). Every metric per group: groups.csv.")
             report.add("img", h_wait_figure)
         else:
             report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "
