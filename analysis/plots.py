@@ -322,8 +322,10 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
             data = [by_variant[v][metric].dropna().to_numpy(dtype=float) if v in by_variant else np.empty(0)
                     for v in variants]
             boxes(ax, data, colors)
-            # the groups' names under the bottom row only (the panels above are the same groups)
-            ax.set_xticks(range(1, len(variants) + 1), variants if row == len(metrics) - 1 else [])
+            # the groups' names under the bottom row only (the panels above are the same groups, in the same
+            # columns: no ticks there, each costs time in every panel)
+            ax.set_xticks(range(1, len(variants) + 1) if row == len(metrics) - 1 else [],
+                          variants if row == len(metrics) - 1 else [])
             ax.grid(alpha=0.3, axis="y")
             ax.yaxis.set_major_locator(MaxNLocator(4))  # fewer ticks: each costs time in every panel
             ax.tick_params(labelsize=7)
