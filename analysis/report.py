@@ -424,8 +424,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     if df.empty:
         report.add("p", logs_line)
         _left_out(report, excluded)
-        write_tables(out, df, pd.DataFrame(), pd.DataFrame(), logs_from=tables_dir)  # CSV and Parquet with units
-        _write(report, out)
+        _write(report, out, df, pd.DataFrame(), pd.DataFrame(), tables_dir)
         return report
     main, long = group_table(df, grouping)
     # the figures first, drawn in worker processes while this one computes and writes the rest (analysis.drawing)
@@ -551,10 +550,9 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
             if note:
                 report.add("p", note)
         _left_out(report, excluded)
-        write_tables(out, df, long, paired, logs_from=tables_dir)  # CSV and Parquet with units
 
     figures.draw(jobs, meanwhile=compose)
-    _write(report, out)
+    _write(report, out, df, long, paired, tables_dir)
     return report
 
 
@@ -653,8 +651,9 @@ def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _write(report: Report, out: Path) -> None:
-    """``report.md`` and ``report.html``, once the figures they show are drawn."""
+def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame,
+           tables_dir: Path) -> None:
+    write_tables(out, df, long, paired, logs_from=tables_dir)  # CSV and Parquet with units
     (out / "report.md").write_text(report.markdown())
     (out / "report.html").write_text(report.html())
 
