@@ -12,9 +12,10 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-import pandas as pd
-
+from analysis.deferred import deferred
 from analysis.stats import bootstrap_mean, wilson
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 #: the scenario parameters that count pedestrians (``groups``: the number of groups of ``group_size``)
 COUNT_KEYS = ("scenario.params.n", "scenario.params.n_groups")

@@ -15,12 +15,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import pandas as pd
-
 from analysis import plots
+from analysis.deferred import deferred
 from analysis.drawing import Figures
 from analysis.tables import relative_log
 from analysis.trace import Trace
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 MAX_PER_GROUP = 5
 """Failures pictured per group (scenario label and variant); the others are counted and listed in failures.csv."""

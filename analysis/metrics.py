@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 import shapely
 
+from analysis.deferred import deferred, load
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.horizon_errors import COLUMN_PATTERN, horizon_errors
 from analysis.log_inputs import find_logs
@@ -32,6 +32,8 @@ from analysis.tpt_errors import ADE_PREFIX, FDE_PREFIX, STANDING_MODELS, model_c
 from analysis.trace import KeptTraces, Trace
 from fuzzynav.numerics.geometry import swept_distance, wrap_180
 from fuzzynav.numerics.portable_math import bearing_deg, dist, norm2
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 PARAMETERS = EPISODE_PARAMETERS
 EXCLUDED_OUTCOMES = ("error", "interrupted", "incomplete")
@@ -518,8 +520,15 @@ def analyse_logs(paths: Iterable[str | Path], options: MetricOptions | None = No
     metadata is readable (left-out ones too, so that the summary can count them in their group). ``traces``: also
     keep what the report's pictures need of the logs (:class:`analysis.trace.KeptTraces`), so that a report of this
     analysis reads each log once. ``meanwhile``: work of this process's own, done while workers forked from it read
-    the logs (:func:`analysis.logs.read_logs`; not called without them)."""
-    rows, excluded, kept = _read(paths, options, jobs, traces, meanwhile)
+    the logs (:func:`analysis.logs.read_logs`; not called without them), after loading pandas (the readers do
+    without it: :mod:`analysis.deferred`)."""
+
+    def tables_library() -> None:
+        load(pd)
+        if meanwhile is not None:
+            meanwhile()
+
+    rows, excluded, kept = _read(paths, options, jobs, traces, tables_library)
     distinct = {text: json.loads(text) for text in {r[RUN_PARAMETERS] for r in rows + excluded if RUN_PARAMETERS in r}}
     grouping = find_grouping(list(distinct.values()), split_provenance)
     labels = {text: grouping.columns(run) for text, run in distinct.items()}

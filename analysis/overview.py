@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import pandas as pd
-
 from analysis import plots
+from analysis.deferred import deferred
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 PANELS = (("success", "success rate", "(Wilson 95 %)"),
           ("time_to_goal_s", "time to goal (s)", "(episodes reaching the goal; bootstrap 95 %)"),
@@ -55,6 +56,7 @@ def overview(df: pd.DataFrame, groups: pd.DataFrame, out: Path) -> Path:
                            wspace=0.3, sharey=True)
     axes = axes[0]
     for ax, (metric, label, over) in zip(axes, PANELS, strict=True):
+        bars: list = []
         for yy, scenario, variant in rows:
             key = (scenario, variant, metric)
             if key not in stats.index:
@@ -62,7 +64,8 @@ def overview(df: pd.DataFrame, groups: pd.DataFrame, out: Path) -> Path:
             mean, lo, hi = (float(stats.at[key, c]) for c in ("mean", "ci_low", "ci_high"))
             if math.isnan(mean):
                 continue
-            plots.interval(ax, yy, mean, lo, hi, pal[variant], variant, horizontal=True, size=point)
+            plots.interval(ax, yy, mean, lo, hi, pal[variant], variant, horizontal=True, size=point, bars=bars)
+        plots.draw_bars(ax, bars)
         for edge in edges[:-1]:
             ax.axhline(edge, color="0.8", lw=0.8)
         ax.set_xlabel(f"{label}\n{over}", fontsize=8)

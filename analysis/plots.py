@@ -16,12 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
+from analysis.deferred import deferred
 from analysis.palette import CONTACT, OBSTACLE, Style, group_styles
 from analysis.run_parameters import SEP
 from analysis.stats import bootstrap_mean, wilson
 from analysis.trace import MAX_SEEDS_PER_PANEL, Trace, World
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 DPI = 90
 
@@ -150,19 +152,35 @@ def _mean_interval(values: pd.Series, metric: str) -> tuple[float, float, float]
 
 
 def interval(ax, position: float, mean: float, lo: float, hi: float, style: Style, label: str,
-             horizontal: bool = False, size: float = 5.0) -> None:
+             horizontal: bool = False, size: float = 5.0, bars: list | None = None) -> None:
     """A mean as a dot and its interval as a bar from ``lo`` to ``hi`` (drawn as they are: a percentile bootstrap
     interval need not be symmetric, and a mean a rounding error outside it is not moved into it), at ``position``
-    on the other axis; the legend entry shows the group's marker and colour."""
+    on the other axis; the legend entry shows the group's marker and colour. ``bars``: a panel's list that collects
+    the bar (:func:`draw_bars` draws them all at once) instead of drawing it now."""
     if not (math.isnan(lo) or math.isnan(hi)):
         xs, ys = ([lo, hi], [position, position]) if horizontal else ([position, position], [lo, hi])
-        ax.plot(xs, ys, color=style.color, lw=1.4, solid_capstyle="butt", zorder=3)
+        if bars is None:
+            ax.plot(xs, ys, color=style.color, lw=1.4, solid_capstyle="butt", zorder=3)
+        else:
+            bars.append((list(zip(xs, ys, strict=True)), style.color))
     x, y = (mean, position) if horizontal else (position, mean)
     ax.plot([x], [y], marker=style.marker, ms=size, color=style.color, linestyle="-", lw=1.4, label=label, zorder=4)
 
 
-H_WAIT_METRICS = ("success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "wait_steps", "spl")
-"""The rows of the h_wait figure (every metric per group is in groups.csv)."""
+def draw_bars(ax, bars: list) -> None:
+    """The interval bars :func:`interval` collected for a panel, as one collection (a line each cost as much to make
+    and draw as the rest of the panel)."""
+    from matplotlib.collections import LineCollection
+
+    if bars:
+        segments, colors = zip(*bars, strict=True)
+        ax.add_collection(LineCollection(segments, colors=colors, linewidths=1.4, capstyle="butt", zorder=3))
+
+
+H_WAIT_METRICS = ("min_clearance_dynamic_cm", "wait_steps", "spl")
+"""The rows of the h_wait figure: success rate, time-to-goal and path length with the same intervals are the overview
+figure's (:mod:`analysis.overview`, a row per group, auto's h_wait settings next to each other); every metric per
+group is in groups.csv."""
 
 
 MIN_SPAN = 0.2  # a panel's y range covers at least this fraction of its largest value's magnitude
@@ -189,6 +207,8 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
     group's colour and joined by a grey line per setting of the other differing parameters (settings shifted a
     little sideways so that they do not hide each other); the groups that do not read h_wait as horizontal lines
     in their colour with their interval as a band."""
+    from matplotlib.ticker import MaxNLocator
+
     pal = palette(df)
     scenarios = list(pd.unique(df["scenario_label"]))
     settings = list(pd.unique(df["setting"]))
@@ -207,6 +227,7 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
         other_groups = list(sub[sub["strategy"] != "auto"].groupby("variant", sort=False))
         for row, metric in enumerate(metrics):
             ax = axes[row][col]
+            bars: list = []
             for i, setting, groups in auto_groups:
                 shift = dodge * (i - (len(settings) - 1) / 2)
                 points = []
@@ -216,7 +237,7 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
                         continue
                     x = float(g["h_wait"].iloc[0]) + shift
                     points.append((x, mean))
-                    interval(ax, x, mean, lo, hi, pal[variant], variant)
+                    interval(ax, x, mean, lo, hi, pal[variant], variant, bars=bars)
                 if points:
                     xs, ys = zip(*sorted(points), strict=True)
                     ax.plot(xs, ys, color="0.45", lw=1, linestyle=setting_lines[i % len(setting_lines)], zorder=2,
@@ -228,7 +249,9 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
                 ax.axhline(mean, label=variant, lw=1.2, **pal[variant].line())
                 if not math.isnan(lo):
                     ax.axhspan(lo, hi, color=pal[variant].color, alpha=0.12, lw=0)
+            draw_bars(ax, bars)  # before the limits are read: they cover the bars
             ax.set_ylim(*honest_ylim(*ax.get_ylim(), metric))
+            ax.yaxis.set_major_locator(MaxNLocator(4))  # fewer ticks: each costs time in every panel
             if hs:  # whole steps only, and room around a single h_wait
                 ax.set_xticks(hs)
                 ax.set_xlim(min(hs) - 0.5, max(hs) + 0.5)
@@ -245,12 +268,48 @@ def h_wait_effect(df: pd.DataFrame, metrics: tuple[str, ...], out: Path) -> Path
     return _save(fig, out / "h_wait_effect.png")
 
 
+def boxes(ax, data: list[np.ndarray], colors: list[str], width: float = 0.6) -> None:
+    """Tukey box plots at x = 1, 2, ...: a box from the lower to the upper quartile in its colour, the median, whiskers
+    to the furthest values within 1.5 interquartile ranges, caps, and the values beyond as small circles (the numbers
+    of matplotlib's ``boxplot``: :func:`matplotlib.cbook.boxplot_stats`). Drawn as one collection each of boxes,
+    lines and outliers per panel: ``Axes.boxplot`` makes seven artists per box, which were most of the figure's
+    drawing time. An empty sample draws nothing at its place."""
+    from matplotlib.cbook import boxplot_stats
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    polygons, faces, whiskers, medians, fliers = [], [], [], [], []
+    half, cap = width / 2, width / 4
+    for position, (x, color) in enumerate(zip(data, colors, strict=True), start=1):
+        if not len(x):
+            continue
+        s = boxplot_stats(x)[0]
+        left, right = position - half, position + half
+        polygons.append([(left, s["q1"]), (right, s["q1"]), (right, s["q3"]), (left, s["q3"])])
+        faces.append(color)
+        medians.append([(left, s["med"]), (right, s["med"])])
+        whiskers += [[(position, s["q1"]), (position, s["whislo"])], [(position, s["q3"]), (position, s["whishi"])],
+                     [(position - cap, s["whislo"]), (position + cap, s["whislo"])],
+                     [(position - cap, s["whishi"]), (position + cap, s["whishi"])]]
+        fliers += [(position, y) for y in s["fliers"]]
+    ax.add_collection(PolyCollection(polygons, facecolors=faces, edgecolors="black", linewidths=1.0, alpha=0.6,
+                                     zorder=2))
+    ax.add_collection(LineCollection(whiskers, colors="black", linewidths=1.0, zorder=2))
+    ax.add_collection(LineCollection(medians, colors="C1", linewidths=1.0, zorder=2.1))
+    if fliers:
+        xs, ys = zip(*fliers, strict=True)
+        ax.plot(xs, ys, "o", mfc="none", mec="black", ms=2, alpha=0.5, zorder=2)
+    ax.set_xlim(0.5, len(data) + 0.5)
+    ax.autoscale_view(scalex=False)
+
+
 def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
-    """``box_metrics.png``: a row per metric, a column per scenario group, a box per group in its colour."""
+    """``box_metrics.png``: a row per metric, a column per scenario group, a box per group in its colour
+    (:func:`boxes`)."""
     from matplotlib.ticker import MaxNLocator
 
     pal = palette(df)
     variants = list(pal)
+    colors = [pal[v].color for v in variants]
     scenarios = list(pd.unique(df["scenario_label"]))
     longest = max(len(v) for v in variants)
     fig, axes = grid(len(metrics), len(scenarios), max(2.8, 0.25 * len(variants)), 1.5, left=0.9, hspace=0.2,
@@ -262,12 +321,11 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
             ax = axes[row][col]
             data = [by_variant[v][metric].dropna().to_numpy(dtype=float) if v in by_variant else np.empty(0)
                     for v in variants]
-            box = ax.boxplot(data, patch_artist=True, widths=0.6, flierprops={"markersize": 2, "alpha": 0.5})
-            # the groups' names under the bottom row only (the panels above are the same groups)
-            ax.set_xticks(range(1, len(variants) + 1), variants if row == len(metrics) - 1 else [])
-            for patch, v in zip(box["boxes"], variants, strict=True):
-                patch.set_facecolor(pal[v].color)
-                patch.set_alpha(0.6)
+            boxes(ax, data, colors)
+            # the groups' names under the bottom row only (the panels above are the same groups, in the same
+            # columns: no ticks there, each costs time in every panel)
+            ax.set_xticks(range(1, len(variants) + 1) if row == len(metrics) - 1 else [],
+                          variants if row == len(metrics) - 1 else [])
             ax.grid(alpha=0.3, axis="y")
             ax.yaxis.set_major_locator(MaxNLocator(4))  # fewer ticks: each costs time in every panel
             ax.tick_params(labelsize=7)

@@ -14,10 +14,11 @@ import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
-import pandas as pd
-
+from analysis.deferred import deferred
 from analysis.horizon_errors import PREDICTORS, column, count_column, horizons_of_columns
 from analysis.stats import bootstrap_mean
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 COLUMNS = ["scenario", "variant", "predictor", "horizon", "episodes", "predictions", "ade_cm", "ade_lo", "ade_hi",
            "fde_cm", "fde_lo", "fde_hi"]

@@ -30,10 +30,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from analysis import gallery, plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
+from analysis.deferred import deferred
 from analysis.density import density_figure, density_table
 from analysis.drawing import Figure, Figures
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
@@ -44,6 +44,8 @@ from analysis.stats import bootstrap_mean, excludes_zero, wilson
 from analysis.tables import with_relative_logs, write_tables
 from analysis.tpt_errors import models_of_columns
 from analysis.trace import Trace, load_traces
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
 
 METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", "heading_change_deg_total",
            "collisions_static", "collisions_dynamic", "min_clearance_static_cm", "min_clearance_dynamic_cm",
@@ -118,7 +120,7 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
     factors = _factors(df, grouping)
     rows = []
     for scenario, sub in df[df["strategy"] != "none"].groupby("scenario_label", sort=False):
-        per_seed = {v: g.groupby(PAIR_KEY)[PAIRED_METRICS].mean() for v, g in sub.groupby("variant", sort=False)}
+        per_seed = {v: _per_seed(g) for v, g in sub.groupby("variant", sort=False)}
         h_values = sorted({float(factors[v][0][1]) for v in per_seed
                            if factors[v][0][0] == "auto" and factors[v][0][1]})
         for a, b in itertools.combinations(per_seed, 2):
@@ -127,19 +129,32 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
             if len(changed) != 1 or (changed == [0] and both_auto
                                      and not _neighbours(factors[a][0][1], factors[b][0][1], h_values)):
                 continue
-            left, right = per_seed[a], per_seed[b]
-            common = left.index.intersection(right.index)
+            (seeds_a, left), (seeds_b, right) = per_seed[a], per_seed[b]
+            common, at_a, at_b = np.intersect1d(seeds_a, seeds_b, assume_unique=True, return_indices=True)
             if len(common) == 0:
                 continue
-            diffs = left.loc[common, PAIRED_METRICS].astype(float) - right.loc[common, PAIRED_METRICS].astype(float)
-            for metric in PAIRED_METRICS:
-                diff = diffs[metric]
+            diffs = left[at_a] - right[at_b]  # a row per common seed, ascending
+            for j, metric in enumerate(PAIRED_METRICS):
+                diff = diffs[:, j]
                 mean, lo, hi = bootstrap_mean(diff)
-                rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": int(diff.notna().sum()),
+                pairs = int((~np.isnan(diff)).sum())
+                rows.append({"scenario": scenario, "A": a, "B": b, "metric": metric, "pairs": pairs,
                              "mean_a_minus_b": mean, "ci_low": lo, "ci_high": hi,
                              "excludes_zero": excludes_zero(lo, hi)})
     return pd.DataFrame(rows, columns=["scenario", "A", "B", "metric", "pairs", "mean_a_minus_b", "ci_low", "ci_high",
                                        "excludes_zero"])
+
+
+def _per_seed(g: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """(the seeds of a group's episodes, ascending; their :data:`PAIRED_METRICS` as floats, a row per seed): each
+    seed's episode, or where a seed was run more than once the mean of its episodes (pandas' group mean; plain
+    arrays otherwise: grouping every group of every scenario was most of the table's time)."""
+    seeds = g[PAIR_KEY].to_numpy()
+    if len(np.unique(seeds)) < len(seeds):
+        means = g.groupby(PAIR_KEY)[PAIRED_METRICS].mean()
+        return means.index.to_numpy(), means.to_numpy(dtype=float, na_value=np.nan)
+    order = np.argsort(seeds, kind="stable")
+    return seeds[order], g[PAIRED_METRICS].to_numpy(dtype=float, na_value=np.nan)[order]
 
 
 def _neighbours(h_a: str, h_b: str, h_values: list[float]) -> bool:
@@ -455,10 +470,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
 
         report.add("h2", "Effect of h_wait")
         if h_wait_figure is not None:
-            report.add("p", "Mean against h_wait for auto (a point per group in its colour, joined by a grey line "
-                            "per setting of the other differing parameters) with its 95 % interval (success: "
-                            "Wilson; others: bootstrap); groups that do not read h_wait as horizontal lines with "
-                            "their interval as a band. Every metric per group: groups.csv.")
+            report.add("p", f"{', '.join(plots.H_WAIT_METRICS)}: the mean against h_wait for auto (a point per "
+                            "group in its colour, joined by a grey line per setting of the other differing "
+                            "parameters) with its 95 % bootstrap interval; groups that do not read h_wait as "
+                            "horizontal lines with their interval as a band. Success rate, time-to-goal and path "
+                            "length per group with their intervals: the overview figure (auto's h_wait settings next "
+                            "to each other). Every metric per group: groups.csv.")
             report.add("img", h_wait_figure)
         else:
             report.add("p", "Not drawn: every scenario was run with a single strategy variant, so there is nothing "

@@ -24,11 +24,11 @@ import json
 import os
 from pathlib import Path
 
-import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
-
+from analysis.deferred import deferred
 from analysis.metrics import column_unit
+
+pd = deferred("pandas")  # loaded once the logs are being read (analysis.deferred)
+pa = deferred("pyarrow")
 
 SCHEMA_VERSION = "2"
 #: units of the groups table's own columns (``mean``/``ci_low``/``ci_high``: the unit of the row's metric)
@@ -67,6 +67,8 @@ def write_parquet(df: pd.DataFrame, path: Path, table: str, extra_metadata: dict
     metadata = {**(arrow.schema.metadata or {}), b"fuzzynav.schema_version": SCHEMA_VERSION.encode(),
                 b"fuzzynav.table": table.encode(), b"fuzzynav.units": json.dumps(units).encode()}
     metadata.update({k.encode(): v.encode() for k, v in (extra_metadata or {}).items()})
+    import pyarrow.parquet as pq
+
     pq.write_table(arrow.cast(pa.schema(fields, metadata=metadata)), path)
 
 
@@ -110,4 +112,6 @@ def write_tables(out: Path, episodes: pd.DataFrame, groups: pd.DataFrame, paired
 
 def read_units(path: Path) -> dict[str, str]:
     """Column -> unit of a Parquet table written by :func:`write_parquet`."""
+    import pyarrow.parquet as pq
+
     return json.loads(pq.read_schema(path).metadata[b"fuzzynav.units"])

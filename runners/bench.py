@@ -26,7 +26,8 @@
    logging, each tree in its own child process, alternated (:mod:`runners.benchmarks.baseline`).
 9. The main job (:mod:`runners.benchmarks.main_job`): ``sweep efficiency`` (the default sweep's episodes/s as a
    whole command / (cores x the same episodes in one plain process)), the time to the first step of
-   ``runners.run``, the report's episodes/s against the metrics alone; in the full run also each compiled kernel's
+   ``runners.run``, the report's episodes/s against the metrics alone (in one warm process, and as a cold command
+   on every core); in the full run also each compiled kernel's
    end-to-end gain on the documented workloads (each kernel off in turn, ``FUZZYNAV_KERNELS_OFF``), and a 1,000-episode
    sweep's efficiency, on these cores and on 16 by simulation of the launcher's schedule from the measured jobs.
 10. Tuning (:mod:`runners.benchmarks.tuning`, issue #39): trials per minute of ``runners.tune``'s trial loop and

@@ -259,6 +259,39 @@ def test_neighbouring_h_wait_settings_are_paired_and_distant_ones_are_not(tmp_pa
     assert clearance.loc["auto(h=2)", "mean_a_minus_b"] == pytest.approx(0.0)
 
 
+def test_paired_differences_are_those_of_each_seeds_mean(tmp_path):
+    """Margin 5 on seeds 0, 1 (twice in the table: 30 and 50 cm from the obstacle, as two runs of one configuration
+    are) and 2, margin 30 on seeds 0, 1 and 3: the pairs are the common seeds 0 and 1, seed 1 of margin 5 the mean
+    of its two episodes, as pandas' group mean of each seed gives them (the table's own arithmetic is plain arrays
+    where no seed repeats)."""
+    from analysis.report import PAIRED_METRICS, paired_table
+    from analysis.stats import bootstrap_mean
+
+    poses = [(0.0, 0.0, 0.0), (50.0, 0.0, 0.0), (100.0, 0.0, 0.0)]
+    for name, margin, seed, gap in (("a0", 5.0, 0, 30.0), ("a1", 5.0, 1, 30.0), ("a2", 5.0, 2, 30.0),
+                                    ("b0", 30.0, 0, 80.0), ("b1", 30.0, 1, 70.0), ("b3", 30.0, 3, 80.0)):
+        y = 20 + 10 + gap
+        write_log(tmp_path / f"{name}.mcap", poses, goal=(100.0, 0.0),
+                  obstacles=[[("o", 0, y, 50, y, 10)], [("o", 50, y, 100, y, 10)]],
+                  meta=meta(setter("planner.safety_margin_cm", margin), seed=seed))
+    analysis = analyse_logs([tmp_path])
+    again = analysis.episodes[analysis.episodes["log"].str.endswith("a1.mcap")].assign(min_clearance_dynamic_cm=50.0)
+    df = pd.concat([analysis.episodes, again], ignore_index=True)
+    paired = paired_table(df, analysis.grouping)
+    a, b = pd.unique(df["variant"])
+    per_seed = {v: g.groupby("seed")[PAIRED_METRICS].mean() for v, g in df.groupby("variant")}
+    common = per_seed[a].index.intersection(per_seed[b].index)
+    assert list(common) == [0, 1]
+    for metric in PAIRED_METRICS:
+        diff = per_seed[a].loc[common, metric].astype(float) - per_seed[b].loc[common, metric].astype(float)
+        row = paired[paired["metric"] == metric].iloc[0]
+        assert (row["A"], row["B"], row["pairs"]) == (a, b, int(diff.notna().sum()))
+        assert (row["mean_a_minus_b"], row["ci_low"], row["ci_high"]) == pytest.approx(bootstrap_mean(diff),
+                                                                                       nan_ok=True, rel=0, abs=0)
+    clearance = paired[paired["metric"] == "min_clearance_dynamic_cm"].iloc[0]
+    assert clearance["mean_a_minus_b"] == pytest.approx(((30 - 80) + ((30 + 50) / 2 - 70)) / 2)
+
+
 def test_summary_and_metrics_agree_on_success(tmp_path):
     """Logs where the two former definitions disagreed: a goal outcome with a contact seen only in the geometry
     (the simulator's flags and /episode say none), and a goal outcome whose positions never reach the goal."""

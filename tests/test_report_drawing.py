@@ -135,6 +135,36 @@ def test_matplotlib_is_imported_when_a_figure_is_drawn_not_with_the_report():
     assert res.returncode == 0 and res.stdout.lower().split() == ["false", "agg"], res.stderr
 
 
+def test_the_report_starts_its_readers_before_pandas_and_pyarrow_are_loaded():
+    """Importing the report leaves pandas and pyarrow unloaded (analysis.deferred): its forked log readers start
+    without them and the report's process loads pandas while they read; the tables are the same."""
+    import subprocess
+    import sys
+
+    code = ("import sys, analysis.report, analysis.tables; "
+            "print(any(m.startswith(('pandas.', 'pyarrow.')) for m in sys.modules)); "
+            "from analysis.report import pd; print(pd.DataFrame({'a': [1]}).shape); "
+            "print('pandas.core.frame' in sys.modules)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and res.stdout.split() == ["False", "(1,", "1)", "True"], res.stderr
+
+
+def test_a_deferred_module_is_the_module_once_used():
+    import subprocess
+    import sys
+
+    code = ("import sys; from analysis.deferred import deferred, load; import json; "
+            "assert deferred('json') is json; m = deferred('colorsys'); "
+            "print('colorsys' in sys.modules, hasattr(m, 'rgb_to_hsv'), m.rgb_to_hsv(1, 0, 0)); "
+            "n = deferred('wave'); load(n); print(n.Wave_read.__module__)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and res.stdout.split() == ["True", "True", "(0.0,", "1.0,", "1)", "wave"], res.stderr
+    from analysis.deferred import deferred
+
+    with pytest.raises(ModuleNotFoundError):
+        deferred("no_such_module_anywhere")
+
+
 STOPPED_WHILE_DRAWING = """
 import os, sys, time
 from pathlib import Path

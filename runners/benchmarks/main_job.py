@@ -8,7 +8,10 @@
   file appearing (the log is opened just before the first step).
 * **Report speed**: ``python -m analysis.report`` on the default sweep's logs, in episodes/s, against the metrics
   alone (:func:`analysis.metrics.analyse_logs` in one process) on the same logs. The report is a whole command
-  (start-up, imports, figures) on every core: it reads the logs and draws its figures in forked workers.
+  (start-up, imports, figures) on every core: it reads the logs and draws its figures in forked workers. Beside it,
+  the same report against the metrics as a cold command on every core (:func:`metrics_command_seconds`: start-up,
+  imports and the forked readers, as the report has them), so that what the report adds (its tables and figures)
+  shows apart from what any command pays.
 * **Kernels end to end** (:func:`bench_kernels`): each compiled kernel left off in turn
   (``FUZZYNAV_KERNELS_OFF``) on the documented workloads, as ratios to all kernels on, alternated in each round.
 """
@@ -140,10 +143,30 @@ def report_seconds(logs: Path, out: Path) -> float:
 
 
 def metrics_seconds(logs: Path) -> float:
+    """Seconds of :func:`analysis.metrics.analyse_logs` on ``logs`` in this process, warm: its libraries loaded
+    before the timing (pandas too, which the module defers: :mod:`analysis.deferred`)."""
+    from analysis import metrics
+    from analysis.deferred import load
     from analysis.metrics import analyse_logs
 
+    load(metrics.pd)
     tic = time.perf_counter()
     analyse_logs([logs], jobs=1)
+    return time.perf_counter() - tic
+
+
+METRICS_COMMAND = "import sys; from analysis.metrics import analyse_logs; analyse_logs(sys.argv[1:], jobs=-1)"
+"""The metrics alone as a command: a fresh interpreter, :func:`analysis.metrics.analyse_logs` on every core (its
+readers forked, as the report's are)."""
+
+
+def metrics_command_seconds(logs: Path) -> float:
+    """Seconds of :data:`METRICS_COMMAND` on ``logs``, from its start to its exit."""
+    tic = time.perf_counter()
+    res = subprocess.run([sys.executable, "-c", METRICS_COMMAND, str(logs)], capture_output=True, text=True,
+                         timeout=1800, stdin=subprocess.DEVNULL)
+    if res.returncode != 0:
+        raise RuntimeError(f"the metrics command failed: {res.stderr[-500:]}")
     return time.perf_counter() - tic
 
 
@@ -152,7 +175,7 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
     cores = os.cpu_count() or 1
     rows: dict[str, list[float]] = {k: [] for k in ("sweep_wall_s", "sweep_first_log_s", "sweep_last_log_s",
                                                     "plain_s", "first_step_s", "report_s", "metrics_s",
-                                                    "sim_wall_s", "sim_phase_s")}
+                                                    "metrics_command_s", "sim_wall_s", "sim_phase_s")}
     episodes = 0
     for _ in range(rounds):
         with tempfile.TemporaryDirectory() as tmp:
@@ -172,6 +195,7 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
             rows["first_step_s"].append(first_step_seconds(Path(tmp) / "run"))
             rows["report_s"].append(report_seconds(Path(tmp) / "sweep", Path(tmp) / "report"))
             rows["metrics_s"].append(metrics_seconds(Path(tmp) / "sweep"))
+            rows["metrics_command_s"].append(metrics_command_seconds(Path(tmp) / "sweep"))
     med = {k: statistics.median(v) for k, v in rows.items()}
     plain_rate = episodes / med["plain_s"]
     out = {"cores": cores, "episodes": episodes, "rounds": rounds, **med,
@@ -185,8 +209,10 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
            "simulated_sweep_efficiency": episodes / med["sim_wall_s"] / (SIMULATED_CORES * plain_rate),
            "simulated_episodes_phase_efficiency": episodes / med["sim_phase_s"] / (SIMULATED_CORES * plain_rate),
            "report_episodes_per_s": episodes / med["report_s"],
-           "metrics_episodes_per_s": episodes / med["metrics_s"]}
+           "metrics_episodes_per_s": episodes / med["metrics_s"],
+           "metrics_command_episodes_per_s": episodes / med["metrics_command_s"]}
     out["report_over_metrics"] = out["report_episodes_per_s"] / out["metrics_episodes_per_s"]
+    out["report_over_metrics_command"] = out["report_episodes_per_s"] / out["metrics_command_episodes_per_s"]
     return out
 
 
@@ -255,6 +281,9 @@ def print_main_job(r: dict[str, Any]) -> None:
     print(f"time to first step of runners.run: {r['first_step_s']:.2f} s")
     print(f"report: {r['report_episodes_per_s']:.1f} episodes/s ({r['report_s']:.1f} s), the metrics alone "
           f"{r['metrics_episodes_per_s']:.1f} episodes/s: report / metrics = {r['report_over_metrics']:.2f}")
+    print(f"  against the metrics as a cold command on every core ({r['metrics_command_s']:.2f} s, "
+          f"{r['metrics_command_episodes_per_s']:.1f} episodes/s): report / metrics command = "
+          f"{r['report_over_metrics_command']:.2f}")
 
 
 #: documented workloads (docs/quickstart, docs/crowds.md, docs/datasets.md): (name, python -m arguments; {t} is a
