@@ -174,6 +174,9 @@ def main(argv: list[str] | None = None) -> int:
             raise StorageError(f"{study_dir}: the study folder is in use by {holder} (lock {lock_file(study_dir)}): "
                                "wait for it to finish (or add workers to it with --workers) or choose another --out") \
                 from None
+        from runners.tuning.slurm_workers import refuse_live_array
+
+        refuse_live_array(study_dir)
         kind = existing_kind(study_dir)
         if kind is not None and args.storage not in (None, kind):
             raise StorageError(f"{study_dir}: the study is stored in {kind}; --storage {args.storage} would start "

@@ -6,7 +6,8 @@ Slurm cluster started on this machine (the ``slurm`` fixture, :mod:`tests.slurm_
 - ``scancel`` of one task while its trial runs: that trial (only) is lost as interrupted, the command names the
   task and its Submitit log in one line; re-running resumes and completes the budget exactly;
 - Ctrl-C of the command cancels the array: no task is left, the trials in flight are interrupted, re-run completes;
-- a study stored in SQLite is refused for Slurm workers in one line.
+- a killed command leaves its array running: a re-run is refused in one line until the array has ended;
+- a study stored in SQLite, and a partition the cluster does not have, are refused in one line.
 
 Tiny studies: head_on (~42 steps an episode), the training seeds set how long a trial runs.
 """
@@ -153,6 +154,31 @@ def test_ctrl_c_cancels_the_array_and_a_rerun_completes(slurm: Cluster, tmp_path
     print(f"Ctrl-C: array cancelled, {len(interrupted)} trial(s) interrupted, command ended {took:.1f} s later")
 
 
+def test_a_killed_command_leaves_its_array_and_a_rerun_waits_for_it(slurm: Cluster, tmp_path: Path) -> None:
+    """SIGKILL of the command cannot cancel its array: its workers run on. A re-run (which would mark their
+    trials in flight interrupted) is refused in one line naming the array until it has ended."""
+    out, path = tmp_path / "study", long_trials(tmp_path)
+    proc = subprocess.Popen(tune_args(out, path, "--workers", "2", "--no-heldout"), cwd=ROOT, env=slurm.env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        assert wait_for(lambda: running_task(out) is not None or proc.poll() is not None, 180), "no trial ran"
+    finally:
+        proc.kill()
+        proc.wait()
+    array = running_task(out).split("_")[0]  # type: ignore[union-attr]
+    res = tune_on(slurm, out, path, "--workers", "2", "--no-heldout")
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert res.returncode == 2 and len(lines) == 1, res.stderr
+    assert lines[0].startswith(f"error: {out}: the Slurm job array {array} of an earlier command still runs this "
+                               f"study's workers") and f"scancel {array}" in lines[0], lines[0]
+    assert not [t for t in trials_of(out, "journal") if t.user_attrs.get(INTERRUPTED)]  # theirs left alone
+    slurm.run("scancel", array)
+    assert wait_for(slurm.idle, 90), slurm.jobs()
+    res = tune_on(slurm, out, path, "--workers", "2", "--no-heldout")
+    assert res.returncode == 0, f"{res.stderr[-3000:]}\n{slurm.logs()}"
+    assert sum(map(counted, trials_of(out, "journal"))) == 3
+
+
 def test_a_sqlite_study_is_refused_for_slurm_workers(slurm: Cluster, tmp_path: Path) -> None:
     out, path = tmp_path / "study", study_file(tmp_path, trials=1)
     local = subprocess.run([sys.executable, "-m", "runners.tune", str(path), "--out", str(out), "--no-heldout"],
@@ -168,3 +194,15 @@ def test_a_sqlite_study_is_refused_for_slurm_workers(slurm: Cluster, tmp_path: P
     res = tune_on(slurm, tmp_path / "other", path, "--storage", "sqlite")  # asked for explicitly: refused too
     assert res.returncode == 2 and "--storage sqlite: Slurm workers share the study through the journal file" \
         in res.stderr and not (tmp_path / "other").exists(), res.stderr
+
+
+def test_a_partition_the_cluster_does_not_have_is_one_line(slurm: Cluster, tmp_path: Path) -> None:
+    out, path = tmp_path / "study", study_file(tmp_path, trials=1)
+    res = subprocess.run([sys.executable, "-m", "runners.tune", str(path), "--out", str(out), "--launcher", "slurm",
+                          "hydra.launcher.partition=nosuch"], cwd=ROOT, env=slurm.env, capture_output=True,
+                         text=True, timeout=300)
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert res.returncode == 2 and len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
+    assert re.fullmatch(r"error: Slurm did not accept the workers' job array: sbatch: error: .*partition.*",
+                        lines[0]), lines[0]
+    assert {t.state.name for t in trials_of(out, "journal")} == {"WAITING"} and slurm.idle()  # the default, not run

@@ -12,6 +12,8 @@ ends its trial in flight as interrupted (and a trial a task left running is mark
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import signal
 import socket
@@ -147,6 +149,55 @@ def submit(params: dict[str, Any], spec: Any, study_dir: Path, kind: str, budget
                               [kind] * workers, [budget] * workers, list(n))
 
 
+def array_file(study_dir: Path) -> Path:
+    """Where the command notes the job array that runs the study's workers, until its tasks have ended."""
+    from runners.sweeping.paths import lock_file
+
+    return lock_file(study_dir).parent / "slurm_array"
+
+
+def refuse_live_array(study_dir: Path) -> None:
+    """Refuse a study whose workers of an earlier command (killed before it could cancel them) still run on Slurm:
+    this command would mark their trials in flight interrupted while they run, and add workers of its own. Asked
+    only where the study folder notes an array and ``squeue`` answers (any launcher: a local run too)."""
+    path = array_file(study_dir)
+    try:
+        array = path.read_text().strip()
+    except OSError:
+        return
+    if not array.isdigit():
+        return
+    try:
+        done = subprocess.run(["squeue", "--noheader", f"--jobs={array}", "--format=%i"], capture_output=True,
+                              text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return
+    if done.returncode == 0 and done.stdout.strip():
+        raise SlurmWorkersError(f"{study_dir}: the Slurm job array {array} of an earlier command still runs this "
+                                f"study's workers ({len(done.stdout.split())} task(s) pending or running): wait for "
+                                f"it to end or cancel it (scancel {array}), then re-run")
+    path.unlink(missing_ok=True)
+
+
+def pending(jobs: list[Any], force: bool) -> list[Any]:
+    """The tasks not ended yet; ``force``: ask Slurm (one ``squeue`` for the whole array) rather than its cache."""
+    left = [job for job in jobs if not job.done()]
+    if left and force and left[0].done(force_check=True):
+        left = [job for job in left[1:] if not job.done()]
+    return left
+
+
+EXIT_SUBMIT = 2  # the array was refused: the launcher options (partition, account ...) are bad input
+
+
+def submission_error(err: BaseException) -> str:
+    """sbatch's first error line (it names the value it refused) out of Submitit's exception, which holds the
+    command's whole output."""
+    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
+    said = [line for line in lines if "sbatch: error" in line] or lines[-1:] or [type(err).__name__]
+    return " ".join(said[0].split())[:300]
+
+
 class _Stop(Exception):
     def __init__(self, signum: int) -> None:
         super().__init__(signum)
@@ -186,8 +237,21 @@ def run_on_slurm(params: dict[str, Any], spec: Any, study: Any, study_dir: Path,
     jobs: list[Any] = []
     try:
         try:
-            jobs = submit(params, spec, study_dir, kind, budget, workers)
-            array = jobs[0].job_id.split("_")[0]
+            stops = {signal.SIGINT, signal.SIGTERM}
+            signal.pthread_sigmask(signal.SIG_BLOCK, stops)  # a stop while sbatch runs would leave an array unknown
+            try:
+                with contextlib.redirect_stderr(io.StringIO()):  # Submitit prints sbatch's refusal, then raises it
+                    jobs = submit(params, spec, study_dir, kind, budget, workers)
+                array = jobs[0].job_id.split("_")[0]
+                array_file(study_dir).write_text(array)
+            except OSError:
+                raise  # writing into the study folder: the command's line for a disk problem
+            except Exception as err:  # sbatch refused the array (a partition, account or QOS it does not know)
+                print(f"error: Slurm did not accept the workers' job array: {submission_error(err)}",
+                      file=sys.stderr)
+                return EXIT_SUBMIT
+            finally:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, stops)  # a stop asked for meanwhile cancels the array now
             print(f"submitted {workers} Slurm worker task(s) as job array {array} (logs: "
                   f"{jobs[0].paths.folder.parent / array}_*)", flush=True)
             polls = 0
@@ -197,18 +261,16 @@ def run_on_slurm(params: dict[str, Any], spec: Any, study: Any, study_dir: Path,
                         seen.add(t.number)
                         if not t.user_attrs.get(SURPLUS):
                             show(t)
-                pending = [job for job in jobs if not job.done()]
-                if not pending:
-                    break
                 polls += 1
-                if polls % FORCE_EVERY == 0:
-                    pending[0].done(force_check=True)  # one squeue for every task of the array
+                if not pending(jobs, force=polls % FORCE_EVERY == 0):
+                    break
                 time.sleep(POLL_S)
         except _Stop as stop:
-            return cancel(jobs, stop.signum)
+            return cancel(jobs, stop.signum, study_dir)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+    array_file(study_dir).unlink(missing_ok=True)
     failures = [(job, why) for job in jobs if (why := task_failure(job)) is not None]
     if failures:
         named = "; ".join(f"{job.job_id} {why} (log {job.paths.stderr})" for job, why in failures[:SHOWN_FAILURES])
@@ -219,7 +281,7 @@ def run_on_slurm(params: dict[str, Any], spec: Any, study: Any, study_dir: Path,
     return 0
 
 
-def cancel(jobs: list[Any], signum: int) -> int:
+def cancel(jobs: list[Any], signum: int, study_dir: Path) -> int:
     """Cancel the array (its tasks end their trials in flight as interrupted) and wait for its tasks to end."""
     code = 128 + signum
     if not jobs:  # stopped while submitting: Submitit had not returned the array
@@ -230,8 +292,12 @@ def cancel(jobs: list[Any], signum: int) -> int:
     end = time.monotonic() + CANCEL_WAIT_S
     previous = {s: signal.signal(s, _raise_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        while time.monotonic() < end and not all(job.done(force_check=True) for job in jobs):
+        while pending(jobs, force=True):
+            if time.monotonic() > end:
+                break
             time.sleep(POLL_S)
+        else:
+            array_file(study_dir).unlink(missing_ok=True)
     except _Stop:  # a second Ctrl-C: do not wait for the tasks to end
         pass
     finally:
