@@ -153,3 +153,17 @@ def undefined(episodes: pd.DataFrame, objective: Objective) -> str:
                 return (f"{metric} undefined in {scenario} (no episode there defines it; give the objective a fill "
                         f"value for {metric})")
     return ""
+
+
+def episode_values(episodes: pd.DataFrame, objective: Objective) -> pd.Series:
+    """Each episode's objective: sum of weight x metric (fill applied), NaN where a term is undefined. Where no
+    value of a scenario is NaN their mean is that scenario's term of :func:`objective_value` (the mean of a sum is
+    the sum of the means), so that intervals and paired differences of the objective are those of a mean."""
+    fill = dict(objective.fill)
+    total = pd.Series(0.0, index=episodes.index)
+    for metric, weight in objective.terms:
+        column = episodes[metric].astype(float) if metric in episodes else pd.Series(math.nan, index=episodes.index)
+        if metric in fill:
+            column = column.fillna(fill[metric])
+        total = total + weight * column.where(column.map(math.isfinite))
+    return total

@@ -318,13 +318,16 @@ JOB_NAME = Path(__file__).stem
 
 def run_composed(cfg: DictConfig) -> None:
     """A single run from the config that the command-line check composed (with Hydra's node), as ``hydra.main``
-    runs one: logging configured, the ``hydra.callbacks`` notified, the job run by Hydra's own
-    :func:`hydra.core.utils.run_job` (output directory, ``.hydra/`` snapshot, job logging, ``HydraConfig``).
+    runs one: logging configured, the ``hydra.callbacks`` notified, the job run as Hydra's own
+    :func:`hydra.core.utils.run_job` runs it (output directory, ``.hydra/`` snapshot, job logging, ``HydraConfig``) by
+    :func:`runners.sweeping.job_run.run_job`, which spares Hydra's copies of the config (tests/test_launcher.py).
     ``hydra.main`` composed the same config twice more (~0.1 s each: once for ``hydra.mode``, once to run); the
     config Hydra would have composed is this one with ``hydra.mode=RUN`` added, as Hydra adds it."""
     from hydra import initialize_config_dir
-    from hydra.core.utils import configure_log, run_job
+    from hydra.core.utils import configure_log
     from hydra.types import HydraContext
+
+    from runners.sweeping.job_run import run_job
 
     with open_dict(cfg.hydra):  # what Hydra does for a run whose config leaves hydra.mode unset
         cfg.hydra.mode = RunMode.RUN
@@ -334,9 +337,8 @@ def run_composed(cfg: DictConfig) -> None:
         configure_log(cfg.hydra.hydra_logging, cfg.hydra.verbose)
         callbacks = RunCallbacks(cfg)
         callbacks.on_run_start(config=cfg, config_name="config")
-        ret = run_job(task_function=task, config=cfg, job_dir_key="hydra.run.dir", job_subdir_key=None,
-                      hydra_context=HydraContext(config_loader=None, callbacks=callbacks),  # type: ignore[arg-type]
-                      configure_logging=True)
+        ret = run_job(cfg, HydraContext(config_loader=None, callbacks=callbacks),  # type: ignore[arg-type]
+                      task, job_dir_key="hydra.run.dir", job_subdir_key=None)
         callbacks.on_run_end(config=cfg, config_name="config", job_return=ret)
     try:
         ret.return_value  # noqa: B018 -- a job's exception: Hydra's line naming the overrides, then raised

@@ -5,6 +5,7 @@
     python -m runners.tune h_wait_margin --storage journal --workers 8   # Optuna's journal file for many workers
     python -m runners.tune h_wait_margin --no-heldout          # trials only (held-out evaluation later)
     python -m runners.tune h_wait_margin --workers 8 --launcher slurm hydra.launcher.partition=cpu  # a job array
+    python -m runners.tune --compare suite_v2         # conf/tune/compare/suite_v2.yaml: every study, one report
 
 The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
 the scenarios and the training and held-out seeds (:mod:`runners.tuning.study_file`). The study lives in Optuna's
@@ -23,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-from runners.tuning.slurm_workers import LAUNCHERS
+from runners.tuning.slurm_workers import LAUNCHERS, OVERRIDE_PREFIXES
 from runners.tuning.storage import KINDS
 
 EXIT_INPUT = 2
@@ -33,7 +34,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     from analysis.cli_args import OneLineParser
 
     parser = OneLineParser(prog="python -m runners.tune", description=__doc__.split("\n\n")[0])
-    parser.add_argument("study", help="a study name (conf/tune/<name>.yaml) or a study file")
+    parser.add_argument("study", nargs="?", help="a study name (conf/tune/<name>.yaml) or a study file")
+    parser.add_argument("--compare", metavar="COMPARISON",
+                        help="instead of one study, every study of a comparison (conf/tune/compare/<name>.yaml or a "
+                             "file) and one report (runners.tuning.comparison)")
     parser.add_argument("--out", help="the study folder (default: studies/<name>)")
     parser.add_argument("--trials", type=int, help="trials in all (default: the study file's)")
     parser.add_argument("--workers", type=int, default=1, help="worker processes (or Slurm tasks) sharing the study")
@@ -44,6 +48,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                         help="with --launcher slurm: options of the Slurm preset (partition, account, timeout_min ...)")
     parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
     args = parser.parse_intermixed_args(argv)
+    if args.compare is not None and args.study is not None and args.study.startswith(OVERRIDE_PREFIXES):
+        args.study, args.launcher_options = None, [args.study, *args.launcher_options]  # no study: an option
+    if (args.study is None) == (args.compare is None):
+        parser.error("name a study, or a comparison with --compare (not both)")
+    if args.compare is not None and args.no_heldout:
+        parser.error("--no-heldout: a comparison compares held-out results")
     if args.launcher_options and args.launcher != "slurm":
         parser.error(f"{args.launcher_options[0][:80]!r}: launcher options need --launcher slurm")
     if args.launcher == "slurm" and args.storage == "sqlite":
@@ -154,6 +164,10 @@ def print_trial(spec):
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.compare is not None:
+        from runners.tuning.comparison import compare_command
+
+        return compare_command(args)
     from runners.sweeping import lock
     from runners.sweeping.paths import lock_file
     from runners.tuning.storage import StorageError, existing_kind, open_storage

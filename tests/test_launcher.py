@@ -1,4 +1,4 @@
-"""The launcher's job runner (hydra_plugins.fuzzynav_sweeper.job_run) against Hydra's own run_job, on the same
+"""The launcher's job runner (runners.sweeping.job_run) against Hydra's own run_job, on the same
 configs: the same .hydra/ snapshot, output directory, working directory, environment, callbacks and result."""
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.singleton import Singleton
 from hydra.core.utils import JobRuntime, JobStatus, run_job
 from hydra.types import HydraContext
-from hydra_plugins.fuzzynav_sweeper import job_run, launch_state
+from hydra_plugins.fuzzynav_sweeper import launch_state
 from omegaconf import OmegaConf, open_dict
 
 from fuzzynav.conf import CONF_DIR
 from runners.configuration import schema
+from runners.sweeping import job_run
 
 
 class Recorder:
@@ -63,22 +64,29 @@ def task_noting(seen: dict[str, Any], fail: bool):
 
 @pytest.mark.parametrize("chdir", [False, True])
 @pytest.mark.parametrize("fail", [False, True])
-def test_job_run_matches_hydras_run_job(tmp_path: Path, chdir: bool, fail: bool) -> None:
+@pytest.mark.parametrize("mode", ["sweep", "run"])
+def test_job_run_matches_hydras_run_job(tmp_path: Path, chdir: bool, fail: bool, mode: str) -> None:
+    """A sweep's job (``hydra.sweep.dir``/``hydra.sweep.subdir``) and ``runners.run``'s single run
+    (``hydra.run.dir``)."""
     JobRuntime.instance().set("name", "run")
     overrides = ["scenario=head_on", "planner=wait", "seed=7"]
+    keys = ("hydra.sweep.dir", "hydra.sweep.subdir") if mode == "sweep" else ("hydra.run.dir", None)
     outputs = {}
     for name, runner in (("hydra", "hydra"), ("ours", "ours")):
         sweep_dir = tmp_path / name
         cfg = sweep_config(sweep_dir, overrides, chdir=chdir, env={"FUZZYNAV_TEST_ENV": "set"})
+        if mode == "run":
+            with open_dict(cfg):
+                cfg.hydra.run.dir = str(sweep_dir / "3")
         seen: dict[str, Any] = {}
         callbacks = Recorder()
         context = HydraContext(config_loader=None, callbacks=callbacks)  # type: ignore[arg-type]
         before_cwd, before_hydra = os.getcwd(), HydraConfig.instance().cfg
         if runner == "hydra":
             ret = run_job(task_function=task_noting(seen, fail), config=copy.deepcopy(cfg),
-                          job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir", hydra_context=context)
+                          job_dir_key=keys[0], job_subdir_key=keys[1], hydra_context=context)
         else:
-            ret = job_run.run_job(copy.deepcopy(cfg), context, task_noting(seen, fail))
+            ret = job_run.run_job(copy.deepcopy(cfg), context, task_noting(seen, fail), *keys)
         assert os.getcwd() == before_cwd and HydraConfig.instance().cfg is before_hydra
         assert "FUZZYNAV_TEST_ENV" not in os.environ
         job_dir = sweep_dir / "3"

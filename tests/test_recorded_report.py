@@ -300,3 +300,24 @@ def test_fuzz_the_baseline_follows_the_logged_annotations(turning_log, points, r
         tables = [t["step"] for t in log.tpts.values() if t["obstacle_radii_cm"]]
         scored = sum(1 for s in tables if s + 1 < reacting_from and s * log.dt - 0.4 >= 0 and s + 1 < len(truth))
         assert row.get(count_column(1), 0.0) <= scored
+
+
+def test_a_resume_keeps_a_log_of_another_recording_as_another_world(tmp_path, table1):
+    """A resume's restore tells the same episode run by other code (superseded: replaced by its re-run) from the
+    same config and seed on another recording of the same file name (another world: a dimension of the report, so
+    its log is kept beside the new one in ``earlier/``)."""
+    from runners.sweeping.resume import _same_episode
+
+    logs = {}
+    for people in (4, 10, 4):
+        folder = tmp_path / f"rec{len(logs)}"
+        folder.mkdir()
+        crossing_file(folder / "obsmat.txt", people=people)
+        # one recording path, as a sweep's config names it, whose content changed between the runs
+        scenario, _ = make({"recording": str(folder / "obsmat.txt"), "start_s": 8.0, "duration_s": 20.0})
+        path = folder / "run.mcap"
+        run_episode(scenario, FastEvaluator(table1), episode_config_from_dict({}), 0, path,
+                    "scenario:\n  params:\n    recording: obsmat.txt\n", generator="recorded")
+        logs[len(logs)] = path
+    assert _same_episode(logs[0], logs[2])  # the same recording: the same episode
+    assert not _same_episode(logs[0], logs[1])  # another recording of the same name: another world

@@ -230,6 +230,26 @@ def detect_python(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
     return out
 
 
+def associate(cost: np.ndarray, inside: np.ndarray) -> dict[int, int]:
+    """The detection -> track pairs of the minimum-cost assignment of tracks (rows) to detections (columns) over
+    the pairs ``inside`` the gate: as many gated pairs as possible, then the least total ``cost`` (cm).
+
+    Where no track and no detection has two gated partners (one person in sight, people far apart) the gated
+    pairs are the assignment itself, taken without the Hungarian method; otherwise
+    ``scipy.optimize.linear_sum_assignment`` on the cost with 1e9 outside the gate (a pair outside it is never
+    kept). Same pairs either way: the gated pairs are disjoint, so every assignment with fewer of them costs 1e9
+    more. The fast case spares a run's first frames scipy.optimize's import (~0.25 s) and most steps its call."""
+    if (inside.sum(axis=0) <= 1).all() and (inside.sum(axis=1) <= 1).all():
+        rows, cols = np.nonzero(inside)
+        return {int(c): int(r) for r, c in zip(rows, cols, strict=True)}
+    # imported here: scipy.optimize takes ~0.25 s to import, which every process importing fuzzynav (a sweep's
+    # launching process, the analysis' tests, a single run's start-up) would otherwise pay
+    from scipy.optimize import linear_sum_assignment
+
+    rows, cols = linear_sum_assignment(np.where(inside, cost, 1e9))
+    return {int(c): int(r) for r, c in zip(rows, cols, strict=True) if inside[r, c]}
+
+
 def update(state: TrackerState, scan: LaserScan, time_s: float,
            config: TrackerConfig) -> tuple[TrackerState, list[Track], np.ndarray]:
     """Advance the tracker by one frame taken at ``time_s`` seconds.
@@ -248,13 +268,7 @@ def update(state: TrackerState, scan: LaserScan, time_s: float,
             gate[i, 0] = config.gate_cm if t.hits >= 2 else max(config.gate_cm, config.max_speed_cm_s * dt)
             for j, d in enumerate(dets):
                 cost[i, j] = hypot(d.x - px, d.y - py)
-        # imported here: scipy.optimize takes ~0.25 s to import, which every process importing fuzzynav (a
-        # sweep's launching process, the analysis' tests, a single run's start-up) would otherwise pay
-        from scipy.optimize import linear_sum_assignment
-
-        inside = cost <= gate
-        rows, cols = linear_sum_assignment(np.where(inside, cost, 1e9))
-        matched = {int(c): int(r) for r, c in zip(rows, cols, strict=True) if inside[r, c]}
+        matched = associate(cost, cost <= gate)
     tracks: list[_Tracked] = []
     next_id = state.next_id
     used = set(matched.values())

@@ -12,8 +12,8 @@ for the recording's 600 s, with a robot standing in the plaza's middle. Timed pe
   before any beam is cast against it);
 
 against a whole step of the ``mixed`` scenario (laser perception, no logging), the simulation's reference
-workload. The Crowd is built directly: a scenario holds at most 100 moving obstacles, a recording's people over
-its whole length are more (the limit is for the tracker and the TPT, which see only the present people in range).
+workload. The Crowd is built directly, from the 300 people (``fuzzynav.params.limits.MAX_RECORDED_PEOPLE``, the
+most a scenario's window may hold) and no scenario around them.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ three differences, each there because a job of a few episodes cost more than its
    its overrides and number only. Hydra's launcher pickles ~175 kB per job in the launching process.
 2. Each job's config is made in its worker by :class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs`
    (assembled from the configs composed once per swept value; the same config), not composed again (~0.1 s).
-3. The job runs through :func:`.job_run.run_job`: Hydra's ``run_job`` without its second copy of the config, and
-   the result comes back without the configs.
+3. The job runs through :func:`runners.sweeping.job_run.run_job`: Hydra's ``run_job`` without its second copy of
+   the config, and the result comes back without the configs.
 """
 
 from __future__ import annotations
@@ -26,7 +26,9 @@ from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
-from . import job_run, launch_state
+from runners.sweeping import job_run
+
+from . import launch_state
 from .job_configs import JobConfigs
 
 log = logging.getLogger(__name__)
@@ -116,7 +118,7 @@ def compose_job(ref: launch_state.LaunchStateFile, overrides: list[str]) -> Dict
 
 def execute_job(ref: launch_state.LaunchStateFile, overrides: list[str], idx: int) -> JobReturn:
     """One job in a worker process: its config made here (from the launch's shared state), run as Hydra runs a
-    job (:func:`~hydra_plugins.fuzzynav_sweeper.job_run.run_job`)."""
+    job (:func:`runners.sweeping.job_run.run_job`)."""
     state = launch_state.worker_state(ref)
     if state.job_configs is not None:
         config = state.job_configs.config(overrides)

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fuzzynav.episode_identity import episode_key, episode_key_of
+from fuzzynav.episode_identity import RECORDING, episode_key, episode_key_of
 from runners.sweeping.paths import holding_dir, job_logs
 
 FINAL_OUTCOMES = ("goal", "collision", "timeout")  # the outcomes a resume keeps; error/interrupted run again
@@ -194,7 +194,9 @@ def restore(sweep_dir: Path) -> tuple[int, int, int]:
 
 def _same_episode(a: Path, b: Path) -> bool:
     """Whether two logs record the same episode (config and seed, the seed batching aside: the identity without the
-    fuzzynav version and the plug-ins' code); False when either's metadata cannot be read."""
+    fuzzynav version and the plug-ins' code, which a re-run replaces); False when either's metadata cannot be read.
+    The recording's digest stays in: people read from another recording of the same file name are another world
+    (a dimension of the report), so the old log goes to ``earlier/``, analysed beside the new, not superseded."""
     from analysis.logs import RUN_METADATA
     from analysis.mcap_verify import peek_metadata
 
@@ -205,8 +207,9 @@ def _same_episode(a: Path, b: Path) -> bool:
                 metas.append(peek_metadata(f, RUN_METADATA))
         except OSError:
             return False
-    keys = [episode_key(m["config"], m["seed"], "") if m and isinstance(m.get("config"), str)
-            and isinstance(m.get("seed"), str) else None for m in metas]  # no version, no plug-in code
+    keys = [episode_key(m["config"], m["seed"], "", recording=str(m.get(RECORDING, "")))
+            if m and isinstance(m.get("config"), str) and isinstance(m.get("seed"), str) else None
+            for m in metas]  # no version, no plug-in code
     return keys[0] is not None and keys[0] == keys[1]
 
 

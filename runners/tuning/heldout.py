@@ -132,7 +132,9 @@ def write_controller(study_dir: Path, spec: StudySpec, label: str, number: int, 
     return path
 
 
-def _interval(metric: str, values: list[float]) -> tuple[float, float, float, int]:
+def metric_interval(metric: str, values: list[float]) -> tuple[float, float, float, int]:
+    """(mean, low, high, n) of a metric's values (NaNs dropped): the success rate with its Wilson interval, any
+    other metric's mean with its percentile bootstrap interval (95 %)."""
     finite = [v for v in values if not math.isnan(v)]
     if not finite:
         return math.nan, math.nan, math.nan, 0
@@ -159,7 +161,7 @@ def interval_table(evaluated: list[Evaluated], spec: StudySpec) -> pd.DataFrame:
                 eps = ev.results.episodes
                 sub = eps[eps["scenario"] == scenario].set_index("seed")[metric].astype(float) if not eps.empty \
                     else pd.Series(dtype=float)
-                mean, lo, hi, n = _interval(metric, sub.tolist())
+                mean, lo, hi, n = metric_interval(metric, sub.tolist())
                 row = {"scenario": scenario, "metric": metric, "configuration": ev.label, "n": n, "mean": mean,
                        "ci_low": mean if n == 0 else lo, "ci_high": hi}
                 if ev is not default and not ev.same_as_default:

@@ -91,10 +91,10 @@ class StudySpec:
         return [o.direction for o in self.objectives]
 
 
-def find_study_file(name_or_path: str) -> Path:
-    """``conf/tune/<name>.yaml`` for a bare name, else the path as given."""
+def find_study_file(name_or_path: str, folder: Path = STUDY_DIR) -> Path:
+    """``<folder>/<name>.yaml`` (``conf/tune/`` by default) for a bare name, else the path as given."""
     if "/" not in name_or_path and not name_or_path.endswith((".yaml", ".yml")):
-        return STUDY_DIR / f"{name_or_path}.yaml"
+        return folder / f"{name_or_path}.yaml"
     return Path(name_or_path)
 
 

@@ -1,4 +1,5 @@
-"""One sweep job in a worker process: what Hydra's ``hydra.core.utils.run_job`` does, without its two copies.
+"""One Hydra job (a sweep's, in a worker process, or ``runners.run``'s single run): what Hydra's
+``hydra.core.utils.run_job`` does, without its two copies.
 
 Hydra's ``run_job`` (Hydra 1.3) deep-copies the job's config to make the task's config and deep-copies Hydra's
 node for the job's result, and sets ``HydraConfig`` twice; in a worker of :class:`FuzzynavLauncher` the config
@@ -34,15 +35,19 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 from runners.logs import yaml_text
 
 
-def run_job(config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction) -> JobReturn:
-    """Run the sweep job whose config is ``config`` (this job's own object: it becomes the task's config, without its
-    ``hydra`` node). Returns the job's result with only ``hydra.job`` of Hydra's node (:func:`slim`)."""
+def run_job(config: DictConfig, hydra_context: HydraContext, task_function: TaskFunction,
+            job_dir_key: str = "hydra.sweep.dir", job_subdir_key: str | None = "hydra.sweep.subdir") -> JobReturn:
+    """Run the job whose config is ``config`` (this job's own object: it becomes the task's config, without its
+    ``hydra`` node) in the directory ``job_dir_key`` / ``job_subdir_key`` name, as Hydra's ``run_job`` takes them: a
+    sweep job by default, ``("hydra.run.dir", None)`` for a single run (``runners.run``). Returns the job's full
+    result (a sweep's launcher sends it back :func:`slim`)."""
     callbacks = hydra_context.callbacks
     old_cwd = os.getcwd()
     orig_hydra_cfg = HydraConfig.instance().cfg
     HydraConfig.instance().set_config(config)  # before the output directory: it may use ${hydra:...}
-    output_dir = os.path.join(str(OmegaConf.select(config, "hydra.sweep.dir")),
-                              str(OmegaConf.select(config, "hydra.sweep.subdir")))
+    output_dir = str(OmegaConf.select(config, job_dir_key))
+    if job_subdir_key is not None:
+        output_dir = os.path.join(output_dir, str(OmegaConf.select(config, job_subdir_key)))
     hydra_cfg = HydraConfig.instance().cfg  # the job's own copy of Hydra's node (set_config copies it)
     assert isinstance(hydra_cfg, DictConfig)
     for node in (config, hydra_cfg):
