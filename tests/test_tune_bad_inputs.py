@@ -202,6 +202,16 @@ def test_bad_launcher_input_is_one_line_and_nothing_written(tmp_path, monkeypatc
     assert {p.name for p in tmp_path.iterdir()} == {"tiny.yaml", "bin"}
 
 
+def test_a_comparison_passes_the_launcher_and_its_options_to_its_studies(tmp_path, monkeypatch):
+    """``--compare`` with ``--launcher slurm`` and an option after the comparison's name: each study's command is
+    asked for Slurm workers with that option (here: no Slurm on the machine, one line, exit 2, no trial)."""
+    no_slurm(monkeypatch, tmp_path)
+    code, _, err = run_main("--compare", "suite_v2", "hydra.launcher.partition=cpu", "--out", str(tmp_path / "cmp"),
+                            "--launcher", "slurm")
+    one_line_error(code, err, "--launcher slurm: Slurm's sbatch, srun, squeue not found on PATH")
+    assert code == 2 and not list((tmp_path / "cmp").rglob("trials"))
+
+
 LAUNCHER_ARGS = st.lists(st.one_of(
     st.sampled_from(["--launcher", "slurm", "local", "pbs", "--workers", "0", "2", "300", "--storage", "sqlite",
                      "journal", "--no-heldout", "hydra.launcher.partition=cpu", "hydra.launcher.timeout_min=abc",
