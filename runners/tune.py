@@ -4,6 +4,7 @@
     python -m runners.tune my_study.yaml --out studies/x --trials 40 --workers 2
     python -m runners.tune h_wait_margin --storage journal --workers 8   # Optuna's journal file for many workers
     python -m runners.tune h_wait_margin --no-heldout          # trials only (held-out evaluation later)
+    python -m runners.tune h_wait_margin --workers 8 --launcher slurm hydra.launcher.partition=cpu  # a job array
     python -m runners.tune --compare suite_v2         # conf/tune/compare/suite_v2.yaml: every study, one report
 
 The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
@@ -23,6 +24,7 @@ import sys
 import time
 from pathlib import Path
 
+from runners.tuning.slurm_workers import LAUNCHERS, OVERRIDE_PREFIXES
 from runners.tuning.storage import KINDS
 
 EXIT_INPUT = 2
@@ -38,14 +40,25 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                              "file) and one report (runners.tuning.comparison)")
     parser.add_argument("--out", help="the study folder (default: studies/<name>)")
     parser.add_argument("--trials", type=int, help="trials in all (default: the study file's)")
-    parser.add_argument("--workers", type=int, default=1, help="local worker processes sharing the study")
-    parser.add_argument("--storage", choices=KINDS, help="sqlite (default) or journal (many workers)")
+    parser.add_argument("--workers", type=int, default=1, help="worker processes (or Slurm tasks) sharing the study")
+    parser.add_argument("--storage", choices=KINDS, help="sqlite (default) or journal (many workers, Slurm)")
+    parser.add_argument("--launcher", choices=LAUNCHERS, default="local", help="where the workers run: local "
+                        "processes, or a Slurm job array (conf/hydra/launcher/slurm.yaml)")
+    parser.add_argument("launcher_options", nargs="*", metavar="hydra.launcher.KEY=VALUE",
+                        help="with --launcher slurm: options of the Slurm preset (partition, account, timeout_min ...)")
     parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
-    args = parser.parse_args(argv)
+    args = parser.parse_intermixed_args(argv)
+    if args.compare is not None and args.study is not None and args.study.startswith(OVERRIDE_PREFIXES):
+        args.study, args.launcher_options = None, [args.study, *args.launcher_options]  # no study: an option
     if (args.study is None) == (args.compare is None):
         parser.error("name a study, or a comparison with --compare (not both)")
     if args.compare is not None and args.no_heldout:
         parser.error("--no-heldout: a comparison compares held-out results")
+    if args.launcher_options and args.launcher != "slurm":
+        parser.error(f"{args.launcher_options[0][:80]!r}: launcher options need --launcher slurm")
+    if args.launcher == "slurm" and args.storage == "sqlite":
+        parser.error("--storage sqlite: Slurm workers share the study through the journal file (SQLite locks badly "
+                     "over a shared file system); leave --storage out")
     if args.out is not None and not args.out.strip():  # "" would be the current folder
         parser.error("--out: an empty path; name the study folder")
     args.out = Path(args.out) if args.out is not None else None
@@ -164,6 +177,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         spec = load_study_file(find_study_file(args.study))
         study_dir = args.out if args.out is not None else Path("studies") / spec.name
+        if args.launcher == "slurm":  # composed and checked before anything is written
+            from runners.tuning import slurm_workers
+
+            args.slurm = slurm_workers.prepare(args.launcher_options, study_dir, spec.name)
         try:
             lock.acquire(study_dir)
         except lock.SweepLockError:
@@ -171,11 +188,16 @@ def main(argv: list[str] | None = None) -> int:
             raise StorageError(f"{study_dir}: the study folder is in use by {holder} (lock {lock_file(study_dir)}): "
                                "wait for it to finish (or add workers to it with --workers) or choose another --out") \
                 from None
+        from runners.tuning.slurm_workers import refuse_live_array
+
+        refuse_live_array(study_dir)
         kind = existing_kind(study_dir)
         if kind is not None and args.storage not in (None, kind):
             raise StorageError(f"{study_dir}: the study is stored in {kind}; --storage {args.storage} would start "
                                "another one")
-        kind = kind or args.storage or "sqlite"
+        kind = kind or args.storage or ("journal" if args.launcher == "slurm" else "sqlite")
+        if args.launcher == "slurm":
+            slurm_workers.storage_kind(kind, study_dir)
         check_space(spec)
         study = create_or_load(spec, open_storage(study_dir, kind))
     except (StudyFileError, StorageError, ValueError) as err:
@@ -239,11 +261,16 @@ def study_command(args: argparse.Namespace, spec, study, study_dir: Path, kind: 
 
 
 def run_workers(args: argparse.Namespace, spec, study, study_dir: Path, kind: str, budget: int) -> int:
-    """Run the trials in this process (one worker) or in ``--workers`` processes sharing the study."""
+    """Run the trials in this process (one worker), in ``--workers`` processes sharing the study, or in a Slurm
+    job array of ``--workers`` tasks (:mod:`runners.tuning.slurm_workers`)."""
     from analysis.interrupts import Interrupted
     from runners.sweeping import stop
     from runners.tuning.study import run_trials
 
+    if args.launcher == "slurm":
+        from runners.tuning.slurm_workers import run_on_slurm
+
+        return run_on_slurm(args.slurm, spec, study, study_dir, kind, budget, args.workers, print_trial(spec))
     if args.workers == 1:
         restore = stop.install(None)
         try:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -70,6 +71,15 @@ def load_controller(name: str) -> ControllerSpec:
 
 def load_scenario(name: str) -> Scenario:
     return scenario_from_dict(load_yaml(CONF / "scenario" / f"{name}.yaml"))
+
+
+@pytest.fixture(scope="module")
+def slurm(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> Iterator[object]:
+    """A one-node Slurm cluster on this machine for the module's tests (:mod:`tests.slurm_cluster`), stopped at
+    the end of the module whatever happened; skipped without Slurm, munge or root (a failure in CI)."""
+    from tests.slurm_cluster import one_node_cluster
+
+    yield from one_node_cluster(tmp_path_factory, request)
 
 
 @pytest.fixture(scope="session")

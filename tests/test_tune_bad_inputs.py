@@ -155,7 +155,8 @@ def test_bad_command_line_is_one_line(tmp_path):
 
 
 ARGS = st.lists(st.one_of(st.sampled_from(["--trials", "--workers", "--storage", "--out", "--no-heldout", "--bogus",
-                                           "-h=1", "sqlite", "journal", "0", "-5", "1e9", "nan", ""]),
+                                           "-h=1", "sqlite", "journal", "0", "-5", "1e9", "nan", "", "--launcher",
+                                           "slurm", "local", "hydra.launcher.partition=x"]),
                           st.text(max_size=12)), max_size=5)
 
 
@@ -171,6 +172,70 @@ def test_fuzzed_command_line_is_one_line(tmp_path_factory, args):
     code, _, err = run_main(str(bad), *args)
     one_line_error(code, err)
     assert {p.name for p in tmp.iterdir()} <= {"bad.yaml"}
+
+
+def no_slurm(monkeypatch, tmp_path) -> None:
+    """This process as on a machine without Slurm: none of its commands on PATH."""
+    (tmp_path / "bin").mkdir(exist_ok=True)
+    monkeypatch.setenv("PATH", str(tmp_path / "bin"))
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["--launcher", "pbs"], ["--launcher", "invalid choice: 'pbs'"]),
+    (["--launcher", "slurm", "--workers", "0"], ["--workers: 0 is outside [1, 256]"]),
+    (["--launcher", "slurm", "--workers", "257"], ["--workers: 257 is outside [1, 256]"]),
+    (["hydra.launcher.partition=cpu"], ["'hydra.launcher.partition=cpu'", "need --launcher slurm"]),
+    (["--launcher", "slurm", "partition=cpu"], ["'partition=cpu'", "hydra.launcher.<key>=<value>"]),
+    (["--launcher", "slurm", "hydra.launcher.parttion=cpu"], ["launcher options", "hydra.launcher.parttion"]),
+    (["--launcher", "slurm", "hydra.launcher.timeout_min=soon"], ["launcher options", "timeout_min"]),
+    (["--launcher", "slurm", "hydra.launcher.tasks_per_node=4"], ["hydra.launcher.tasks_per_node=4", "--workers"]),
+    (["--launcher", "slurm", "--storage", "sqlite"], ["--storage sqlite", "journal"]),
+    (["--launcher", "slurm", "--workers", "4", "hydra.launcher.partition=cpu"],
+     ["--launcher slurm: Slurm's sbatch, srun, squeue not found on PATH", "--launcher local"]),
+])
+def test_bad_launcher_input_is_one_line_and_nothing_written(tmp_path, monkeypatch, args, words):
+    """Slurm workers asked for wrongly, or on a machine without Slurm: one line, exit 2, before any file."""
+    no_slurm(monkeypatch, tmp_path)
+    code, _, err = run_main(str(study_file(tmp_path)), "--out", str(tmp_path / "study"), *args)
+    one_line_error(code, err, *words)
+    assert code == 2
+    assert {p.name for p in tmp_path.iterdir()} == {"tiny.yaml", "bin"}
+
+
+def test_a_comparison_passes_the_launcher_and_its_options_to_its_studies(tmp_path, monkeypatch):
+    """``--compare`` with ``--launcher slurm`` and an option after the comparison's name: each study's command is
+    asked for Slurm workers with that option (here: no Slurm on the machine, one line, exit 2, no trial)."""
+    no_slurm(monkeypatch, tmp_path)
+    code, _, err = run_main("--compare", "suite_v2", "hydra.launcher.partition=cpu", "--out", str(tmp_path / "cmp"),
+                            "--launcher", "slurm")
+    one_line_error(code, err, "--launcher slurm: Slurm's sbatch, srun, squeue not found on PATH")
+    assert code == 2 and not list((tmp_path / "cmp").rglob("trials"))
+
+
+LAUNCHER_ARGS = st.lists(st.one_of(
+    st.sampled_from(["--launcher", "slurm", "local", "pbs", "--workers", "0", "2", "300", "--storage", "sqlite",
+                     "journal", "--no-heldout", "hydra.launcher.partition=cpu", "hydra.launcher.timeout_min=abc",
+                     "hydra.launcher.nodes=2", "+hydra.launcher.additional_parameters.constraint=c",
+                     "~hydra.launcher.qos", "hydra.x=1", "hydra.launcher.partition=", "hydra.launcher=1"]),
+    st.builds(lambda k, v: f"hydra.launcher.{k}={v}", st.sampled_from(["partition", "account", "qos", "mem_gb",
+                                                                       "timeout_min", "bogus"]),
+              st.text(max_size=8)),
+    st.text(max_size=12)), max_size=5)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(args=LAUNCHER_ARGS)
+def test_fuzzed_launcher_options_are_one_line(tmp_path_factory, monkeypatch, args):
+    """Any command line that asks for Slurm workers (last: --launcher slurm) on a machine without Slurm ends in
+    one line, exit 2, before the study folder is created."""
+    if any(a.startswith("-h") or (a.startswith("--h") and "--help".startswith(a)) for a in args):
+        return  # the help text is not an error
+    tmp = tmp_path_factory.mktemp("launcher")
+    no_slurm(monkeypatch, tmp)
+    code, _, err = run_main(str(study_file(tmp)), "--out", str(tmp / "study"), *args, "--launcher", "slurm")
+    one_line_error(code, err)
+    assert code == 2
+    assert {p.name for p in tmp.iterdir()} == {"tiny.yaml", "bin"}
 
 
 # ---- fuzzing -----------------------------------------------------------------------------------------------------

@@ -72,26 +72,28 @@ RUN_LOCALLY = ("run on this machine's cores with hydra/launcher=all_cores (the d
 SLURM_COMMANDS = ("sbatch", "srun", "squeue")  # submit, run the task, follow its state
 
 
-def slurm_problem(timeout_s: float = 30.0) -> str | None:
+def slurm_problem(timeout_s: float = 30.0, what: str = "hydra/launcher=slurm", instead: str = RUN_LOCALLY
+                  ) -> str | None:
     """Why ``hydra/launcher=slurm`` cannot submit from this machine, in one line, or None: a Slurm command is
     missing (not a Slurm node: Submitit said "Could not detect srun", reported as a lost worker), or the
     controller does not answer ``sinfo`` (Slurm installed, no cluster configured or reachable: four raw sbatch
-    errors, then the same line). Asked before any job is composed or submitted."""
+    errors, then the same line). Asked before any job is composed or submitted. ``what`` names the option that
+    asked for Slurm, ``instead`` says how to run without it (``runners.tune --launcher slurm`` has its own)."""
     missing = [c for c in SLURM_COMMANDS if shutil.which(c) is None]
     if missing:
-        return (f"hydra/launcher=slurm: Slurm's {', '.join(missing)} not found on PATH, so this machine cannot submit "
-                f"to a cluster; {RUN_LOCALLY}")
+        return (f"{what}: Slurm's {', '.join(missing)} not found on PATH, so this machine cannot submit "
+                f"to a cluster; {instead}")
     try:
         done = subprocess.run(["sinfo", "--noheader", "--format=%P"], capture_output=True, text=True,
                               timeout=timeout_s)
     except subprocess.TimeoutExpired:
-        return f"hydra/launcher=slurm: the Slurm controller did not answer sinfo in {timeout_s:g} s; {RUN_LOCALLY}"
+        return f"{what}: the Slurm controller did not answer sinfo in {timeout_s:g} s; {instead}"
     except OSError as err:
-        return f"hydra/launcher=slurm: sinfo could not run ({err.strerror or err}); {RUN_LOCALLY}"
+        return f"{what}: sinfo could not run ({err.strerror or err}); {instead}"
     if done.returncode != 0:
         first = next((line.strip() for line in done.stderr.splitlines() if line.strip()), f"exit {done.returncode}")
         first = first.removeprefix("sinfo: ")
-        return f"hydra/launcher=slurm: Slurm does not answer (sinfo: {first[:160]}); {RUN_LOCALLY}"
+        return f"{what}: Slurm does not answer (sinfo: {first[:160]}); {instead}"
     return None
 
 

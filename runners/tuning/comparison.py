@@ -108,7 +108,8 @@ def run_comparison(args: argparse.Namespace, comparison: Comparison, out: Path) 
     for i, spec in enumerate(comparison.studies, 1):
         print(f"== study {i} of {n}: {spec.name} ({spec.path})", flush=True)
         argv = [str(spec.path), "--out", str(out / spec.name), "--trials", str(spec.trials), "--workers",
-                str(args.workers), "--no-heldout", *(["--storage", args.storage] if args.storage else [])]
+                str(args.workers), "--no-heldout", *(["--storage", args.storage] if args.storage else []),
+                "--launcher", args.launcher, *args.launcher_options]
         code = tune.main(argv)
         if code:
             raise ComparisonStopped(code)

@@ -4,9 +4,10 @@
   as it changes, so a killed command loses only the trials in flight. SQLite serialises writers; a handful of
   local workers share it (each waits up to :data:`SQLITE_TIMEOUT_S` for the file). The database is in WAL mode
   with ``synchronous=NORMAL`` (:func:`sqlite_connection`): a commit is an append to ``study.db-wal`` without an
-  fsync, which cut the storage's share of a trial from ~150 ms to ~25 ms (six commits a trial). A killed
-  process loses nothing it committed; only a crash of the machine itself may lose the last commits. WAL needs
-  a local file system (its index is shared memory): on a shared file system use the journal.
+  fsync, which cut the storage's share of a trial from ~150 ms to ~25 ms (six commits a trial then; a seventh
+  now records the trial's worker). A killed process loses nothing it committed; only a crash of the machine
+  itself may lose the last commits. WAL needs a local file system (its index is shared memory): on a shared file
+  system use the journal (Slurm workers must: :mod:`runners.tuning.slurm_workers`).
 - ``journal``: ``<study>/study.journal``, Optuna's append-only journal file (file-lock based), meant for many
   workers at once (also on a shared file system).
 

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import functools
 import math
+import os
+import socket
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -36,6 +38,7 @@ FAIL_REASON = "fail_reason"
 INTERRUPTED = "interrupted"
 SURPLUS = "surplus"
 OVERRIDES = "overrides"
+WORKER = "worker"
 METRICS = "metrics"
 TRIALS_DIR = "trials"
 
@@ -182,6 +185,7 @@ def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int
     values = suggest(trial, all_parameters(spec))
     overrides = trial_overrides(spec, values)
     trial.set_user_attr(OVERRIDES, overrides)
+    trial.set_user_attr(WORKER, worker_identity())
     try:
         result = run_configuration(overrides, spec.scenarios, spec.train, trial_dir(study_dir, trial.number))
     except KeyboardInterrupt:
@@ -207,6 +211,13 @@ def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int
             return study.trials[trial.number]
     study.tell(trial, objective_values)
     return study.trials[trial.number]
+
+
+def worker_identity() -> dict[str, Any]:
+    """Where a trial runs: host, process id and, in a Slurm job array, the task (``<array job>_<task>``)."""
+    array, task = os.environ.get("SLURM_ARRAY_JOB_ID"), os.environ.get("SLURM_ARRAY_TASK_ID")
+    return {"host": socket.gethostname(), "pid": os.getpid(),
+            "slurm_task": f"{array}_{task}" if array and task else None}
 
 
 def run_trials(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int,
