@@ -1,0 +1,234 @@
+"""The ORCA kernel (fuzzynav/pedestrians/_orca.c) against its Python form where a regrouped sum or product in one
+form flips a branch the other does not (issue #36: the twin kept, its sameness proved on the boundary cases).
+
+``tests/test_kernel_boundaries.py`` puts inputs on each predicate's edge by bisection over one input and steps
+1-3 ulps either side. That misses a regrouping whenever one ulp of the input moves the compared quantities by
+more than the two groupings differ: both groupings then flip between the same two inputs. Here, for each
+predicate, a seeded and bounded search bisects to the edge as the C form computes it, from many base inputs,
+and keeps the inputs 0-3 ulps from it where a plausible regrouping of the compared quantities decides the other
+way (an alternative grouping of the same formula: a product reassociated, a sum distributed, a reciprocal
+multiplied). At those inputs the two forms must still give the same bits: the cases the search finds on this
+machine's IEEE doubles (the same on every CPU) are kept below as fixed cases, and the search runs as a test
+too. Units: cm, s, cm/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from fuzzynav.numerics.portable_math import hypot
+from fuzzynav.pedestrians import orca as pedestrian_orca
+from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
+from tests.conftest import require_compiled
+from tests.test_kernel_boundaries import WORLD, _orca_model, _substep, edge, ulps
+
+ME = (100.0, 100.0)  # the own pedestrian's position (cm) in the neighbour cases
+
+
+@pytest.fixture(autouse=True)
+def _orca_kernel() -> None:
+    require_compiled(pedestrian_orca._kernel, "_orca")
+
+
+def _disagree(reference: Callable[[float], bool], groupings: dict[str, Callable[[float], bool]], at: float
+              ) -> list[tuple[str, float]]:
+    """The (grouping, input) pairs among the inputs 0-3 ulps from ``at`` where a grouping decides otherwise than
+    ``reference``."""
+    return [(name, x) for x in ulps(at, 3) for name, grouping in groupings.items() if grouping(x) != reference(x)]
+
+
+def _first(found: list[tuple[str, tuple]], keep: int) -> list[tuple[str, tuple]]:
+    """The first ``keep`` cases of each grouping in ``found`` (the forms are compared on those: each comparison
+    runs a substep in both)."""
+    count: dict[str, int] = {}
+    kept = []
+    for name, case in found:
+        count[name] = count.get(name, 0) + 1
+        if count[name] <= keep:
+            kept.append((name, case))
+    return kept
+
+
+# -- the cut-off arc or a leg (orca_lp.orca_line): w·p < 0 and (w·p)² > r² |w|² ----------------------------------
+
+
+def _arc_groupings(p: tuple[float, float], rel_vel: tuple[float, float], r: float, inv_tau: float
+                   ) -> dict[str, bool]:
+    """orca_line's arc/leg decision for the relative position ``p`` (cm), relative velocity ``rel_vel`` (cm/s),
+    combined radius ``r`` (cm) and 1/τ ``inv_tau`` (1/s): ``"C"`` as both forms compute it, then regroupings."""
+    px, py = p
+    r_sq = r * r
+    w = (rel_vel[0] - inv_tau * px, rel_vel[1] - inv_tau * py)
+    w_sq = w[0] * w[0] + w[1] * w[1]
+    w_dot_p = w[0] * px + w[1] * py
+    w_dot_p2 = (rel_vel[0] * px + rel_vel[1] * py) - inv_tau * (px * px + py * py)
+    w_len = hypot(w[0], w[1])
+    return {
+        "C": w_dot_p < 0.0 and w_dot_p * w_dot_p > r_sq * w_sq,
+        "r·(r·|w|²)": w_dot_p < 0.0 and w_dot_p * w_dot_p > r * (r * w_sq),
+        "v·p − |p|²/τ": w_dot_p2 < 0.0 and w_dot_p2 * w_dot_p2 > r_sq * w_sq,
+        "(w·p)·(w·p / |w|²) > r²": w_dot_p < 0.0 and w_dot_p * (w_dot_p / w_sq) > r_sq,
+        "|w|² as hypot²": w_dot_p < 0.0 and w_dot_p * w_dot_p > r_sq * (w_len * w_len),
+        "(r·w)²": w_dot_p < 0.0 and w_dot_p * w_dot_p > (r * w[0]) * (r * w[0]) + (r * w[1]) * (r * w[1]),
+    }
+
+
+ARC_CONFIG = PedestrianOrcaConfig(time_horizon_s=2.0)
+
+
+def _arc_case(other: tuple[float, float], v: tuple[float, float], radii: tuple[float, float]) -> None:
+    """Both forms for the own pedestrian at ME moving at ``v`` (cm/s) by a standing other at ``other`` (cm),
+    preferring to head for it at more than its top speed: its ORCA line, through about ``v``, binds."""
+    pref = (2.0 * (other[0] - ME[0]), 2.0 * (other[1] - ME[1]))
+    _substep(ARC_CONFIG, [ME], [v], [pref], [radii[0]], [130.0], [(other, (0.0, 0.0), radii[1])])
+
+
+def _arc_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Arc/leg cases (grouping, (other, v, radii)) from ``n`` seeded base inputs. The relative velocity is the own
+    velocity v = λ·(a leg's direction): the decision flips where v passes the leg's tangent point on the cut-off
+    circle, where the arc's and the leg's lines meet through v itself (so the line binds the program); λ is
+    bisected to the C form's edge and the inputs 0-3 ulps from it kept where a regrouping decides otherwise."""
+    rng = np.random.default_rng(seed)
+    inv_tau = 1.0 / ARC_CONFIG.time_horizon_s
+    found = []
+    for _ in range(n):
+        radii = (float(rng.uniform(15.0, 35.0)), float(rng.uniform(15.0, 35.0)))
+        r = radii[0] + radii[1]
+        other = (ME[0] + float(rng.uniform(100.0, 300.0)), ME[1] + float(rng.uniform(-150.0, 150.0)))
+        p = (other[0] - ME[0], other[1] - ME[1])
+        dist_sq = p[0] * p[0] + p[1] * p[1]
+        leg = math.sqrt(dist_sq - r * r)
+        side = 1.0 if rng.uniform() < 0.5 else -1.0
+        d = ((p[0] * leg - side * p[1] * r) / dist_sq, (side * p[0] * r + p[1] * leg) / dist_sq)
+        tangent = leg * inv_tau  # |the tangent point| (cm/s)
+
+        def groupings(lam: float, p=p, d=d, r=r) -> dict[str, bool]:
+            v = (lam * d[0], lam * d[1])
+            return _arc_groupings(p, (v[0] - 0.0, v[1] - 0.0), r, inv_tau)
+
+        def arc(lam: float, groupings=groupings) -> bool:
+            return groupings(lam)["C"]
+
+        lo, hi = 0.5 * tangent, 1.5 * tangent
+        if arc(lo) == arc(hi):
+            continue
+        alternatives = {name: (lambda lam, name=name, g=groupings: g(lam)[name])
+                        for name in groupings(lo) if name != "C"}
+        found += [(name, (other, (lam * d[0], lam * d[1]), radii))
+                  for name, lam in _disagree(arc, alternatives, edge(arc, lo, hi))]
+    return found
+
+
+# found by _arc_search(400) (float.hex: the exact inputs), one or two per regrouping
+ARC_CASES = {
+}
+
+
+@pytest.mark.parametrize("name", ARC_CASES)
+def test_orca_arc_or_leg_where_a_regrouping_decides_otherwise(name):
+    for case in ARC_CASES[name]:
+        _arc_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_arc_or_leg_search():
+    """The search finds inputs where each regrouping decides otherwise, and the two forms agree on all of them."""
+    found = _first(_arc_search(1000), 4)
+    names = {name for name, _ in found}
+    assert names == set(_arc_groupings((1.0, 0.0), (0.0, 0.0), 0.5, 0.5)) - {"C"}, names
+    for _, case in found:
+        _arc_case(*case)
+
+
+# -- an edge within reach (PedestrianOrcaModel._edges_within_reach): |x − foot|² < reach² ----------------------
+
+OBLIQUE_WORLD = SimpleNamespace(bounds=WORLD.bounds,
+                                polygons=(np.array([[400.0, 300.0], [700.0, 350.0], [450.0, 500.0]]),),
+                                circles=np.zeros((0, 3)))
+OBLIQUE = ((400.0, 300.0), (700.0, 350.0))  # the edge's ends (cm); the obstacle is on its left
+REACH_CONFIG = PedestrianOrcaConfig()
+
+
+def _reach_groupings(x: tuple[float, float], top: float, r: float) -> dict[str, bool]:
+    """Whether the pedestrian at ``x`` (cm, its foot on the edge between its ends) of radius ``r`` (cm) and top
+    speed ``top`` (cm/s) has OBLIQUE within reach: ``"C"`` as both forms compute it, then regroupings."""
+    (a0, a1), (b0, b1) = OBLIQUE
+    ex, ey = b0 - a0, b1 - a1
+    fax, fay = x[0] - a0, x[1] - a1
+    length_sq = ex * ex + ey * ey
+    dot = fax * ex + fay * ey
+    along = dot / length_sq
+    reach = REACH_CONFIG.time_horizon_obst_s * top + r
+    reach_sq = reach * reach
+
+    def foot_sq(along: float) -> float:
+        fx, fy = x[0] - (a0 + along * ex), x[1] - (a1 + along * ey)
+        return fx * fx + fy * fy
+
+    fx, fy = fax - along * ex, fay - along * ey
+    foot_len = math.sqrt(foot_sq(along))
+    return {
+        "C": foot_sq(along) < reach_sq,
+        "(x − a) − along·e": fx * fx + fy * fy < reach_sq,
+        "|x − a|² − along²·|e|²": (fax * fax + fay * fay) - along * along * length_sq < reach_sq,
+        "|x − foot|² as hypot²": foot_len * foot_len < reach_sq,
+        "along = (x − a)·e · (1/|e|²)": foot_sq(dot * (1.0 / length_sq)) < reach_sq,
+    }
+
+
+def _reach_case(place: tuple[float, float], top: tuple[float]) -> None:
+    """Both forms for the pedestrian at ``place`` below OBLIQUE, moving along it, preferring to walk at it: the
+    edge's line (a leg's) binds."""
+    _substep(REACH_CONFIG, [place], [(100.0, 0.0)], [(-30.0, 80.0)], [25.0], [top[0]], world=OBLIQUE_WORLD)
+
+
+def _reach_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Reach cases (grouping, (place, (top,))) from ``n`` seeded places at 30-200 cm below OBLIQUE: the top speed
+    bisected to the C form's edge (checked against _edges_within_reach itself), the inputs 0-3 ulps from it kept
+    where a regrouping decides otherwise."""
+    rng = np.random.default_rng(seed)
+    (a0, a1), (b0, b1) = OBLIQUE
+    normal = (b1 - a1, -(b0 - a0))
+    scale = 1.0 / math.hypot(*normal)
+    model = _orca_model(REACH_CONFIG, [25.0])
+    obstacles = model._obstacles_of(OBLIQUE_WORLD)
+    (k,) = [k for k, p in enumerate(obstacles.points.tolist()) if p == list(OBLIQUE[0])]
+    found = []
+    for _ in range(n):
+        t, dist = float(rng.uniform(0.05, 0.95)), float(rng.uniform(30.0, 200.0)) * scale
+        place = (a0 + t * (b0 - a0) + dist * normal[0], a1 + t * (b1 - a1) + dist * normal[1])
+
+        def within(top: float, place=place) -> bool:
+            return _reach_groupings(place, top, 25.0)["C"]
+
+        at = edge(within, 0.0, 1e4)
+        for top in ulps(at, 3):
+            listed = k in model._edges_within_reach(obstacles, np.array([place]), np.array([top]))[0]
+            assert listed == within(top), (place, top)
+        alternatives = {name: (lambda top, name=name, place=place: _reach_groupings(place, top, 25.0)[name])
+                        for name in _reach_groupings(place, 1.0, 25.0) if name != "C"}
+        found += [(name, (place, (top,))) for name, top in _disagree(within, alternatives, at)]
+    return found
+
+
+REACH_CASES = {
+}
+
+
+@pytest.mark.parametrize("name", REACH_CASES)
+def test_orca_edge_within_reach_where_a_regrouping_decides_otherwise(name):
+    for case in REACH_CASES[name]:
+        _reach_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_edge_within_reach_search():
+    """The search finds inputs where each regrouping decides otherwise, and the two forms agree on all of them."""
+    found = _first(_reach_search(300), 4)
+    names = {name for name, _ in found}
+    assert names == set(_reach_groupings((0.0, 0.0), 1.0, 25.0)) - {"C"}, names
+    for _, case in found:
+        _reach_case(*case)
