@@ -70,11 +70,11 @@ def _arc_groupings(p: tuple[float, float], rel_vel: tuple[float, float], r: floa
     w_len = hypot(w[0], w[1])
     return {
         "C": w_dot_p < 0.0 and w_dot_p * w_dot_p > r_sq * w_sq,
-        "r·(r·|w|²)": w_dot_p < 0.0 and w_dot_p * w_dot_p > r * (r * w_sq),
-        "v·p − |p|²/τ": w_dot_p2 < 0.0 and w_dot_p2 * w_dot_p2 > r_sq * w_sq,
-        "(w·p)·(w·p / |w|²) > r²": w_dot_p < 0.0 and w_dot_p * (w_dot_p / w_sq) > r_sq,
-        "|w|² as hypot²": w_dot_p < 0.0 and w_dot_p * w_dot_p > r_sq * (w_len * w_len),
-        "(r·w)²": w_dot_p < 0.0 and w_dot_p * w_dot_p > (r * w[0]) * (r * w[0]) + (r * w[1]) * (r * w[1]),
+        "r*(r*|w|^2)": w_dot_p < 0.0 and w_dot_p * w_dot_p > r * (r * w_sq),
+        "v.p - |p|^2/tau": w_dot_p2 < 0.0 and w_dot_p2 * w_dot_p2 > r_sq * w_sq,
+        "(w.p)*(w.p/|w|^2) > r^2": w_dot_p < 0.0 and w_dot_p * (w_dot_p / w_sq) > r_sq,
+        "|w|^2 as hypot^2": w_dot_p < 0.0 and w_dot_p * w_dot_p > r_sq * (w_len * w_len),
+        "(r*w)^2": w_dot_p < 0.0 and w_dot_p * w_dot_p > (r * w[0]) * (r * w[0]) + (r * w[1]) * (r * w[1]),
     }
 
 
@@ -124,8 +124,78 @@ def _arc_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
     return found
 
 
-# found by _arc_search(400) (float.hex: the exact inputs), one or two per regrouping
+# found by _first(_arc_search(1000), 4) (float.hex: the exact inputs (other, v, radii))
 ARC_CASES = {
+    "v.p - |p|^2/tau": [
+        (("0x1.7ac438147f8a4p+8", "0x1.1c102e775767bp+6"),
+         ("0x1.0c6123b7341e5p+7", "-0x1.14f910e9177e8p+5"),
+         ("0x1.29cd767c3a9f2p+4", "0x1.6f6f8e3147e53p+4")),
+        (("0x1.1d0440428381bp+8", "-0x1.a5f003033be00p-2"),
+         ("0x1.8ad4534fa29b9p+6", "-0x1.d6098ac094185p+4"),
+         ("0x1.47c0b277ff649p+4", "0x1.6fa89e3fc0520p+4")),
+        (("0x1.8198a136c7ad4p+8", "0x1.9e18f1289229ep+5"),
+         ("0x1.19975a86e14d7p+7", "0x1.13a218483cd62p+3"),
+         ("0x1.04f3d3753f158p+5", "0x1.07bef0d73a33cp+5")),
+        (("0x1.206b96b5d6b1ap+8", "0x1.4d34fbb0e2ab3p+7"),
+         ("0x1.4945a542360cep+6", "0x1.a0bfb2e08bc16p+5"),
+         ("0x1.9df1e4d58e790p+4", "0x1.29b0f38fe2077p+4")),
+    ],
+    "(r*w)^2": [
+        (("0x1.968905d85d757p+7", "0x1.16cefb7066a5ap+6"),
+         ("0x1.ec1a89355dcf1p+4", "-0x1.102d9728bc987p+5"),
+         ("0x1.f72420275caa8p+4", "0x1.8d74b84a2652fp+4")),
+        (("0x1.5c524739e67c6p+8", "0x1.743c91cddac1ap+7"),
+         ("0x1.b38310269cdb3p+6", "0x1.0e9dd04e70993p+6"),
+         ("0x1.a8466e8eb9571p+4", "0x1.f6547342fe5aap+4")),
+        (("0x1.6a7da2166f8d3p+8", "0x1.619768076251dp+7"),
+         ("0x1.d500305bc26dcp+6", "0x1.001b70cf079f5p+6"),
+         ("0x1.0bf2171dc1be7p+5", "0x1.8e8bc10d2181cp+4")),
+        (("0x1.c9a4251cd0bd2p+7", "-0x1.7c8d64d8aedf8p+3"),
+         ("0x1.2a7d4b1438531p+6", "-0x1.7739620abcc83p+4"),
+         ("0x1.0f6bd9340ef1ap+5", "0x1.119019617e0edp+5")),
+    ],
+    "|w|^2 as hypot^2": [
+        (("0x1.f6371fce5a7c6p+7", "0x1.0364fb0a204e0p+4"),
+         ("0x1.43e3f13df768ap+6", "-0x1.5018db469b9a3p+4"),
+         ("0x1.2177962b14e5cp+4", "0x1.9111e9828bbd0p+4")),
+        (("0x1.6179c1ce30cdap+8", "0x1.ef3f0db343ccep+6"),
+         ("0x1.efc3a9515f624p+6", "-0x1.b2ff0ff512263p+3"),
+         ("0x1.08e5733a95fd2p+5", "0x1.2315077e68c5cp+4")),
+        (("0x1.5c524739e67c6p+8", "0x1.743c91cddac1ap+7"),
+         ("0x1.b38310269cdb3p+6", "0x1.0e9dd04e70993p+6"),
+         ("0x1.a8466e8eb9571p+4", "0x1.f6547342fe5aap+4")),
+        (("0x1.6a7da2166f8d3p+8", "0x1.619768076251dp+7"),
+         ("0x1.d500305bc26dcp+6", "0x1.001b70cf079f5p+6"),
+         ("0x1.0bf2171dc1be7p+5", "0x1.8e8bc10d2181cp+4")),
+    ],
+    "(w.p)*(w.p/|w|^2) > r^2": [
+        (("0x1.e147b47120000p+7", "0x1.f1712901dc07cp+4"),
+         ("0x1.28841125b3233p+6", "-0x1.adb61c73347d8p+3"),
+         ("0x1.79540adb437f6p+4", "0x1.3278144d63bfap+4")),
+        (("0x1.21e21b09ba0a6p+8", "0x1.7f6d6cacd22e2p+6"),
+         ("0x1.65a17208c3bbcp+6", "-0x1.74db132cec816p+4"),
+         ("0x1.68cd9ea7ad18dp+4", "0x1.55512bb10bf1ap+4")),
+        (("0x1.942973dc472c6p+7", "0x1.37127164d530bp+6"),
+         ("0x1.3fb33a4bde388p+5", "0x1.03448c077867fp+4"),
+         ("0x1.cdcbe2204596fp+4", "0x1.e196a8137d9abp+4")),
+        (("0x1.282eceb640932p+8", "0x1.260033732a30ep+6"),
+         ("0x1.5aabba2464ef0p+6", "-0x1.363dc41384363p+5"),
+         ("0x1.719e4527a7b9bp+4", "0x1.06b41dd2b324bp+5")),
+    ],
+    "r*(r*|w|^2)": [
+        (("0x1.0b952dd8e5ae6p+8", "0x1.96c7e8d11cd80p+6"),
+         ("0x1.2f5e41cea6378p+6", "-0x1.8223b8929a34ep+4"),
+         ("0x1.68da8c675177ep+4", "0x1.de0bcc123aec4p+4")),
+        (("0x1.6a7da2166f8d3p+8", "0x1.619768076251dp+7"),
+         ("0x1.d500305bc26dcp+6", "0x1.001b70cf079f5p+6"),
+         ("0x1.0bf2171dc1be7p+5", "0x1.8e8bc10d2181cp+4")),
+        (("0x1.c9a4251cd0bd2p+7", "-0x1.7c8d64d8aedf8p+3"),
+         ("0x1.2a7d4b1438531p+6", "-0x1.7739620abcc83p+4"),
+         ("0x1.0f6bd9340ef1ap+5", "0x1.119019617e0edp+5")),
+        (("0x1.21e21b09ba0a6p+8", "0x1.7f6d6cacd22e2p+6"),
+         ("0x1.65a17208c3bbcp+6", "-0x1.74db132cec816p+4"),
+         ("0x1.68cd9ea7ad18dp+4", "0x1.55512bb10bf1ap+4")),
+    ],
 }
 
 
@@ -173,10 +243,10 @@ def _reach_groupings(x: tuple[float, float], top: float, r: float) -> dict[str, 
     foot_len = math.sqrt(foot_sq(along))
     return {
         "C": foot_sq(along) < reach_sq,
-        "(x − a) − along·e": fx * fx + fy * fy < reach_sq,
-        "|x − a|² − along²·|e|²": (fax * fax + fay * fay) - along * along * length_sq < reach_sq,
-        "|x − foot|² as hypot²": foot_len * foot_len < reach_sq,
-        "along = (x − a)·e · (1/|e|²)": foot_sq(dot * (1.0 / length_sq)) < reach_sq,
+        "(x-a) - along*e": fx * fx + fy * fy < reach_sq,
+        "|x-a|^2 - along^2*|e|^2": (fax * fax + fay * fay) - along * along * length_sq < reach_sq,
+        "|x-foot|^2 as hypot^2": foot_len * foot_len < reach_sq,
+        "along = (x-a).e * (1/|e|^2)": foot_sq(dot * (1.0 / length_sq)) < reach_sq,
     }
 
 
@@ -215,7 +285,32 @@ def _reach_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
     return found
 
 
+# found by _first(_reach_search(300), 4) (float.hex: the exact inputs (place, (top,)))
 REACH_CASES = {
+    "|x-foot|^2 as hypot^2": [
+        (("0x1.50452e7d8bdccp+9", "0x1.eaf9e3902ed85p+7"), ("0x1.d6e24c433e2e5p+3",)),
+        (("0x1.e704a5365170bp+8", "0x1.9142f2972f2a8p+7"), ("0x1.176eee0fe4351p+4",)),
+        (("0x1.216ff9d425e76p+9", "0x1.f84621aecea2bp+7"), ("0x1.4a5bf864cabc5p+3",)),
+        (("0x1.1d3ff55bb8e46p+9", "0x1.427065b7123c3p+7"), ("0x1.bfc0421b4eaf6p+4",)),
+    ],
+    "|x-a|^2 - along^2*|e|^2": [
+        (("0x1.35503b9d211dcp+9", "0x1.b3e231370f4afp+7"), ("0x1.26072c2df5f68p+4",)),
+        (("0x1.0409bfd7b691dp+9", "0x1.b664ca26631b3p+7"), ("0x1.dc7143f3a2fd3p+3",)),
+        (("0x1.0409bfd7b691dp+9", "0x1.b664ca26631b3p+7"), ("0x1.dc7143f3a2fd4p+3",)),
+        (("0x1.0409bfd7b691dp+9", "0x1.b664ca26631b3p+7"), ("0x1.dc7143f3a2fd5p+3",)),
+    ],
+    "(x-a) - along*e": [
+        (("0x1.35503b9d211dcp+9", "0x1.b3e231370f4afp+7"), ("0x1.26072c2df5f69p+4",)),
+        (("0x1.ea56b52d59b0dp+8", "0x1.0424ef3d7e523p+8"), ("0x1.754ffd169f363p+2",)),
+        (("0x1.ea56b52d59b0dp+8", "0x1.0424ef3d7e523p+8"), ("0x1.754ffd169f364p+2",)),
+        (("0x1.ea56b52d59b0dp+8", "0x1.0424ef3d7e523p+8"), ("0x1.754ffd169f365p+2",)),
+    ],
+    "along = (x-a).e * (1/|e|^2)": [
+        (("0x1.37ef288ffd6ebp+9", "0x1.f6e0a762c13c4p+7"), ("0x1.7e1b6c499f379p+3",)),
+        (("0x1.37ef288ffd6ebp+9", "0x1.f6e0a762c13c4p+7"), ("0x1.7e1b6c499f37ap+3",)),
+        (("0x1.04a59cc64529bp+9", "0x1.ba7c3634f0715p+7"), ("0x1.d0cf1a401d3f9p+3",)),
+        (("0x1.04a59cc64529bp+9", "0x1.ba7c3634f0715p+7"), ("0x1.d0cf1a401d3fap+3",)),
+    ],
 }
 
 
