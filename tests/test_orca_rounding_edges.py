@@ -327,3 +327,94 @@ def test_orca_edge_within_reach_search():
     assert names == set(_reach_groupings((0.0, 0.0), 1.0, 25.0)) - {"C"}, names
     for _, case in found:
         _reach_case(*case)
+
+
+# -- touching discs (orca_lp.orca_line): |p|² > (r1 + r2)², the time horizon's program or the overlap's ----------
+
+
+def _touch_groupings(p: tuple[float, float], r1: float, r2: float) -> dict[str, bool]:
+    """Whether orca_line takes the time horizon's branch (not the overlap's) for the other at ``p`` (cm) and the
+    radii ``r1``, ``r2`` (cm): ``"C"`` as both forms compute it, then regroupings."""
+    px, py = p
+    r = r1 + r2
+    return {
+        "C": px * px + py * py > r * r,
+        "px^2 > r^2 - py^2": px * px > r * r - py * py,
+        "hypot(p) > r": hypot(px, py) > r,
+        "r1^2 + 2 r1 r2 + r2^2": px * px + py * py > r1 * r1 + 2.0 * r1 * r2 + r2 * r2,
+        "(px - r)(px + r) + py^2 > 0": (px - r) * (px + r) + py * py > 0.0,
+    }
+
+
+def _touch_case(other: tuple[float, float], radii: tuple[float, float]) -> None:
+    """Both forms for the own pedestrian at ME walking at the standing other at ``other`` (cm), preferring to go on:
+    the line (of the overlap or of the time horizon) binds."""
+    pref = (2.0 * (other[0] - ME[0]), 2.0 * (other[1] - ME[1]))
+    _substep(PedestrianOrcaConfig(), [ME], [(0.25 * pref[0], 0.25 * pref[1])], [pref], [radii[0]], [130.0],
+             [(other, (0.0, 0.0), radii[1])])
+
+
+def _touch_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Touching cases (grouping, (other, radii)) from ``n`` seeded radii and offsets across: the other's x
+    bisected to the C form's edge, the inputs 0-3 ulps from it kept where a regrouping decides otherwise."""
+    rng = np.random.default_rng(seed)
+    found = []
+    for _ in range(n):
+        r1, r2 = float(rng.uniform(15.0, 35.0)), float(rng.uniform(15.0, 35.0))
+        oy = ME[1] + float(rng.uniform(-0.9, 0.9)) * (r1 + r2)
+
+        def groupings(ox: float, oy=oy, r1=r1, r2=r2) -> dict[str, bool]:
+            return _touch_groupings((ox - ME[0], oy - ME[1]), r1, r2)
+
+        def apart(ox: float, groupings=groupings) -> bool:
+            return groupings(ox)["C"]
+
+        alternatives = {name: (lambda ox, name=name, g=groupings: g(ox)[name])
+                        for name in groupings(ME[0]) if name != "C"}
+        found += [(name, ((ox, oy), (r1, r2)))
+                  for name, ox in _disagree(apart, alternatives, edge(apart, ME[0], ME[0] + 2.0 * (r1 + r2)))]
+    return found
+
+
+# found by _first(_touch_search(300), 4) (float.hex: the exact inputs (other, radii))
+TOUCH_CASES = {
+    "r1^2 + 2 r1 r2 + r2^2": [
+        (("0x1.2f6f5f112ba7ap+7", "0x1.942081af72577p+6"), ("0x1.711561b96ca43p+4", "0x1.ca8fbd1ca705ep+4")),
+        (("0x1.0a4488bcee1aap+7", "0x1.14827c6e614d6p+7"), ("0x1.46299811ece84p+4", "0x1.e3957f2f90ccbp+4")),
+        (("0x1.1a05e0b02d59bp+7", "0x1.6bb8e193ced75p+6"), ("0x1.ac46acf8ebd7fp+4", "0x1.e785ce404d334p+3")),
+        (("0x1.1f3f08c8e3cc9p+7", "0x1.0625544981936p+7"), ("0x1.02d23697a0feep+5", "0x1.534ac2da91731p+4")),
+    ],
+    "(px - r)(px + r) + py^2 > 0": [
+        (("0x1.0a4488bcee1aap+7", "0x1.14827c6e614d6p+7"), ("0x1.46299811ece84p+4", "0x1.e3957f2f90ccbp+4")),
+        (("0x1.27db672fe7a37p+7", "0x1.838adc784e637p+6"), ("0x1.b45dd4d30fbfcp+4", "0x1.4c1b6ab8ce9bdp+4")),
+        (("0x1.f199276b25c7ap+6", "0x1.8d39a3f3a932ep+5"), ("0x1.52df498e86716p+4", "0x1.16253c59d303ep+5")),
+        (("0x1.0ab6bfe19bf78p+7", "0x1.8ab49e9b7e037p+6"), ("0x1.19713002665f0p+4", "0x1.f960a91d3cf74p+3")),
+    ],
+    "hypot(p) > r": [
+        (("0x1.10f70c009e4f8p+7", "0x1.863bf20e5d923p+6"), ("0x1.00d39c8e20884p+4", "0x1.483300fa81323p+4")),
+        (("0x1.3ffbb89b8f998p+7", "0x1.763dceaf6382fp+6"), ("0x1.f6fe40e98ac72p+4", "0x1.ce6321e8cc6aep+4")),
+        (("0x1.204645427b995p+7", "0x1.93e78de2e6644p+5"), ("0x1.15015471f4344p+5", "0x1.fb40aee638041p+4")),
+        (("0x1.f504d9c0b0b7bp+6", "0x1.f17c0614b2ec6p+6"), ("0x1.3869db198dcdap+4", "0x1.f241814fe88dcp+3")),
+    ],
+    "px^2 > r^2 - py^2": [
+        (("0x1.f199276b25c7ap+6", "0x1.8d39a3f3a932ep+5"), ("0x1.52df498e86716p+4", "0x1.16253c59d303ep+5")),
+        (("0x1.18fd03df78a85p+7", "0x1.1afa30c05bf92p+7"), ("0x1.a33e4b888a7c6p+4", "0x1.fc5acb4567d67p+4")),
+        (("0x1.00a5a3ffc49c6p+7", "0x1.eb9dbd4d092f2p+6"), ("0x1.198c2b6ef233ap+4", "0x1.2d42a990ac6cdp+4")),
+        (("0x1.e92aee1b9c53cp+6", "0x1.1252f320fc381p+6"), ("0x1.2a31ecfff4ccdp+4", "0x1.3e2f8df7a87e1p+4")),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", TOUCH_CASES)
+def test_orca_touching_discs_where_a_regrouping_decides_otherwise(name):
+    for case in TOUCH_CASES[name]:
+        _touch_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_touching_discs_search():
+    """The search finds inputs where each regrouping decides otherwise, and the two forms agree on all of them."""
+    found = _first(_touch_search(300), 4)
+    names = {name for name, _ in found}
+    assert names == set(_touch_groupings((1.0, 0.0), 1.0, 1.0)) - {"C"}, names
+    for _, case in found:
+        _touch_case(*case)
