@@ -21,6 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from fuzzynav.numerics import geometry as geo
 from fuzzynav.numerics.portable_math import hypot
 from fuzzynav.pedestrians import orca as pedestrian_orca
 from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
@@ -418,3 +419,92 @@ def test_orca_touching_discs_search():
     assert names == set(_touch_groupings((1.0, 0.0), 1.0, 1.0)) - {"C"}, names
     for _, case in found:
         _touch_case(*case)
+
+
+# -- a static circle within reach (PedestrianOrcaModel._substep_python's ``close``): gap − r < reach ---------------
+
+CIRCLE = (500.0, 500.0, 20.3)  # a static circle (x, y, radius; cm) far from the walls
+CIRCLE_WORLD = SimpleNamespace(bounds=WORLD.bounds, polygons=(), circles=np.array([CIRCLE]))
+
+
+def _circle_groupings(x: tuple[float, float], top: float, r: float) -> dict[str, bool]:
+    """Whether the static circle CIRCLE is within reach of the pedestrian at ``x`` (cm) of radius ``r`` (cm) and top
+    speed ``top`` (cm/s): ``"C"`` as both forms compute it (geometry.away_from_static's gap), then regroupings."""
+    fx, fy = x[0] - CIRCLE[0], x[1] - CIRCLE[1]
+    d = math.sqrt(fx * fx + fy * fy)
+    gap = d - CIRCLE[2]
+    tau = REACH_CONFIG.time_horizon_obst_s
+    reach = tau * top + r
+    return {
+        "C": gap - r < reach,
+        "gap < reach + r": gap < reach + r,
+        "d - (R + r) < reach": d - (CIRCLE[2] + r) < reach,
+        "gap - r - r < tau*top": gap - r - r < tau * top,
+    }
+
+
+def _circle_case(place: tuple[float, float], top: tuple[float]) -> None:
+    """Both forms for the pedestrian at ``place`` walking past CIRCLE, preferring to walk at it: the circle's line (a
+    leg's) binds."""
+    to = (CIRCLE[0] - place[0], CIRCLE[1] - place[1])
+    _substep(REACH_CONFIG, [place], [(-to[1], to[0])], [to], [25.0], [top[0]], world=CIRCLE_WORLD)
+
+
+def _circle_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Circle-reach cases (grouping, (place, (top,))) from ``n`` seeded places 60-220 cm from CIRCLE's rim: the top
+    speed bisected to the C form's edge (the gap checked against geometry.away_from_static's), the inputs 0-3 ulps
+    from it kept where a regrouping decides otherwise."""
+    rng = np.random.default_rng(seed)
+    found = []
+    for _ in range(n):
+        angle, dist = float(rng.uniform(0.0, 2.0 * math.pi)), float(rng.uniform(80.0, 240.0))
+        place = (CIRCLE[0] + dist * math.cos(angle), CIRCLE[1] + dist * math.sin(angle))
+        gaps, _ = geo.away_from_static(np.array([place]), np.zeros((0, 4)), np.array([CIRCLE]))
+        fx, fy = place[0] - CIRCLE[0], place[1] - CIRCLE[1]
+        assert float(gaps[0, 0]) == math.sqrt(fx * fx + fy * fy) - CIRCLE[2]
+
+        def within(top: float, place=place) -> bool:
+            return _circle_groupings(place, top, 25.0)["C"]
+
+        alternatives = {name: (lambda top, name=name, place=place: _circle_groupings(place, top, 25.0)[name])
+                        for name in _circle_groupings(place, 1.0, 25.0) if name != "C"}
+        found += [(name, (place, (top,))) for name, top in _disagree(within, alternatives, edge(within, 0.0, 1e4))]
+    return found
+
+
+# found by _first(_circle_search(300), 4) (float.hex: the exact inputs (place, (top,)))
+CIRCLE_CASES = {
+    "d - (R + r) < reach": [
+        (("0x1.1d5f5515e8306p+8", "0x1.c36bb402ab1d9p+8"), ("0x1.df38b3098abf9p+4",)),
+        (("0x1.1d5f5515e8306p+8", "0x1.c36bb402ab1d9p+8"), ("0x1.df38b3098abfap+4",)),
+        (("0x1.131c5d31a0b81p+9", "0x1.44a0fca931e5dp+9"), ("0x1.16fa2c8ea7ccfp+4",)),
+        (("0x1.dba4892afdd7dp+8", "0x1.5e288561dc41fp+9"), ("0x1.a4c63c23251e9p+4",)),
+    ],
+    "gap - r - r < tau*top": [
+        (("0x1.06e80a8204e89p+9", "0x1.370586a1974a7p+9"), ("0x1.5c6f8d0a72927p+3",)),
+        (("0x1.11c2e3e5f924fp+9", "0x1.2258fb9c4d9bfp+9"), ("0x1.2add847d75ef1p+2",)),
+        (("0x1.cf35e2231ebd5p+8", "0x1.513d669c8c47cp+9"), ("0x1.59a6ca71c0d01p+4",)),
+        (("0x1.fb2d19c365d8dp+8", "0x1.2235942278c3ep+9"), ("0x1.0b3757fdb8e94p+1",)),
+    ],
+    "gap < reach + r": [
+        (("0x1.0afd774a6f9d9p+9", "0x1.2c193422dba5ap+9"), ("0x1.c66d1da53df28p+2",)),
+        (("0x1.19f7ce16a502cp+9", "0x1.3e40a1b6588a3p+9"), ("0x1.016558dbbf377p+4",)),
+        (("0x1.88152196f1808p+8", "0x1.e4ce5d8459be5p+8"), ("0x1.ef208101a8a9bp+2",)),
+        (("0x1.9a7c4f74b6f0ap+8", "0x1.118cdda595fc9p+9"), ("0x1.8ae0baab3091bp+2",)),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", CIRCLE_CASES)
+def test_orca_circle_within_reach_where_a_regrouping_decides_otherwise(name):
+    for case in CIRCLE_CASES[name]:
+        _circle_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_circle_within_reach_search():
+    """The search finds inputs where each regrouping decides otherwise, and the two forms agree on all of them."""
+    found = _first(_circle_search(300), 4)
+    names = {name for name, _ in found}
+    assert names == set(_circle_groupings((0.0, 0.0), 1.0, 25.0)) - {"C"}, names
+    for _, case in found:
+        _circle_case(*case)
