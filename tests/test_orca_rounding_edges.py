@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from fuzzynav.numerics import geometry as geo
+from fuzzynav.numerics import orca_lp
 from fuzzynav.numerics.portable_math import hypot
 from fuzzynav.pedestrians import orca as pedestrian_orca
 from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
@@ -508,3 +509,49 @@ def test_orca_circle_within_reach_search():
     assert names == set(_circle_groupings((0.0, 0.0), 1.0, 25.0)) - {"C"}, names
     for _, case in found:
         _circle_case(*case)
+
+
+# -- nearly parallel constraints in the linear program (orca_lp._lp1): |d × d_other| <= _PARALLEL ---------------
+
+PARALLEL_CONFIG = PedestrianOrcaConfig()
+AT_WALL = (500.0, 20.0)  # overlapping the bottom wall (radius 25 cm): its hard line is y >= 0, along +x exactly
+
+
+def _parallel_den(eps: float, gap: float) -> float:
+    """_lp1's ``denominator`` (the sine of the angle, 1) of the neighbour's line against the bottom wall's: the
+    pedestrian at AT_WALL, standing, the other (radius 25 cm) standing ``gap`` (cm) beyond touching straight above it
+    but moving at (``eps``, 0) cm/s. The neighbour's line (the time horizon's arc) runs ~``gap``/τ from the origin at
+    an angle ~``eps``/|w| to the wall's line, whose direction (1, -0) makes the denominator the neighbour direction's
+    y exactly (any float near _PARALLEL, not a difference of rounded products). The lines by orca_lp itself."""
+    p = (AT_WALL[0] - AT_WALL[0], (AT_WALL[1] + 50.0 + gap) - AT_WALL[1])
+    line = orca_lp.orca_line(p, (0.0 - eps, 0.0 - 0.0), 25.0 + 25.0, PARALLEL_CONFIG.time_horizon_s, 0.25, 1.0,
+                             (0.0, 0.0))
+    return orca_lp._det(line.direction, (1.0, -0.0))
+
+
+def _parallel_case(gap: tuple[float], eps: tuple[float]) -> None:
+    """Both forms for the pedestrian at AT_WALL preferring (50, 100) cm/s: the neighbour's line binds, and where it
+    meets the wall's line (non-parallel) or not (parallel) moves the velocity along it."""
+    _substep(PARALLEL_CONFIG, [AT_WALL], [(0.0, 0.0)], [(50.0, 100.0)], [25.0], [60.0],
+             [((AT_WALL[0], AT_WALL[1] + 50.0 + gap[0]), (eps[0], 0.0), 25.0)])
+
+
+def test_orca_nearly_parallel_lines_meeting_in_the_speed_disc():
+    """The neighbour's line at |sin| = _PARALLEL from a hard line (0-3 ulps either side: parallel, or meeting it
+    ~1e-8/1e-9 cm/s along, inside the speed disc — the velocity then differs), for seeded gaps of 0.5-2 · 1e-7 cm.
+    Regroupings of the comparison itself cannot part the forms here: the determinant of a unit direction with an
+    axis is one coordinate exactly (its two products are exact), and |d| <= P, d² <= P², |d|/P <= 1 and |d|·1e9 <= 1
+    decide alike on every float near P (rounding is monotone, and adjacent floats keep distinct squares and
+    quotients); the edge itself (<= against <) is what this pins."""
+    rng = np.random.default_rng(36)
+    for gap in rng.uniform(0.5e-7, 2e-7, 8).tolist():
+        at = edge(lambda eps, gap=gap: abs(_parallel_den(eps, gap)) <= orca_lp._PARALLEL, 0.0, 1e-3)
+        for eps in ulps(at, 3):
+            _parallel_case((gap,), (eps,))
+    # the regroupings of the comparison decide alike on the 2 · 4096 floats round _PARALLEL
+    limit = orca_lp._PARALLEL
+    below = above = limit
+    for _ in range(4096):
+        below, above = math.nextafter(below, 0.0), math.nextafter(above, 1.0)
+        for den in (below, above):
+            assert (den <= limit) == (den * den <= limit * limit) == (den / limit <= 1.0) == (den * 1e9 <= 1.0)
