@@ -555,3 +555,153 @@ def test_orca_nearly_parallel_lines_meeting_in_the_speed_disc():
         below, above = math.nextafter(below, 0.0), math.nextafter(above, 1.0)
         for den in (below, above):
             assert (den <= limit) == (den * den <= limit * limit) == (den / limit <= 1.0) == (den * 1e9 <= 1.0)
+
+
+# -- an edge already covered by an earlier edge's line (orca_lp._covered): det(c − point, d) − r/τ >= −_COVERED ----
+
+# a polygon's bottom: two oblique collinear edges A-B and B-C (cm; counter-clockwise, the obstacle above), one end
+# bent: the later edge's discs then lie on either side of the earlier edge's line
+BENT = ((300.0, 290.0), (500.0, 300.0), (700.0, 310.0))
+
+
+def _bent_world(end_y: float, near: float) -> SimpleNamespace:
+    """The polygon with C (``near`` = 0) or A (``near`` = 1) moved to y = ``end_y`` (cm)."""
+    a, b, c = BENT
+    a, c = ((a[0], end_y), c) if near else (a, (c[0], end_y))
+    polygon = np.array([a, b, c, (700.0, 500.0), (300.0, 500.0)])
+    return SimpleNamespace(bounds=WORLD.bounds, polygons=(polygon,), circles=np.zeros((0, 3)))
+
+
+def _covered_groupings(place: tuple[float, float], end_y: float, near: float, v: tuple[float, float]
+                       ) -> dict[str, bool]:
+    """Whether the nearer edge's line covers the other edge, its bent end's disc ``c1`` (``near``: A bent, the
+    pedestrian under B-C) or ``c2`` (C bent, under A-B), for the pedestrian (radius 25 cm) at ``place`` moving at
+    ``v`` (cm/s); the earlier line by orca_lp.edge_lines itself. ``"C"`` as both forms compute _covered, then
+    regroupings."""
+    vertices = orca_lp.obstacle_vertices(orca_lp.world_chains(WORLD.bounds, _bent_world(end_y, near).polygons))
+    kb = vertices.points.index(BENT[1])
+    first, later = (kb, vertices.previous[kb]) if near else (vertices.previous[kb], kb)
+    lines = orca_lp.edge_lines(vertices, [first], place, v, 25.0, REACH_CONFIG.time_horizon_obst_s)
+    names = ("C", "det >= margin - COVERED", "det + COVERED >= margin")
+    if not lines:
+        return dict.fromkeys(names, False)  # the nearer edge adds no line (a foreign leg): nothing covers
+    (line,) = lines
+    inv_tau = 1.0 / REACH_CONFIG.time_horizon_obst_s
+    margin = inv_tau * 25.0
+    (px, py), (dx, dy) = line.point, line.direction
+    ends = [(vertices.points[k][0] - place[0], vertices.points[k][1] - place[1])
+            for k in (later, vertices.next[later])]
+
+    def each(test: Callable[[float], bool]) -> bool:
+        return all(test((inv_tau * rel[0] - px) * dy - (inv_tau * rel[1] - py) * dx) for rel in ends)
+
+    cov = orca_lp._COVERED
+    return dict(zip(names, (each(lambda det: det - margin >= -cov), each(lambda det: det >= margin - cov),
+                            each(lambda det: det + cov >= margin)), strict=True))
+
+
+def _covered_case(place: tuple[float, float], bent: tuple[float, float], v: tuple[float, float]) -> None:
+    """Both forms for the pedestrian at ``place`` below the polygon bent as ``bent`` = (end_y, near), moving at ``v``
+    (cm/s), preferring to walk at the bent end."""
+    end_y, near = bent
+    end = (300.0 if near else 700.0, end_y)
+    _substep(REACH_CONFIG, [place], [v], [(end[0] - place[0], end[1] - place[1])], [25.0], [60.0],
+             world=_bent_world(end_y, near))
+
+
+def _covered_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Covered cases (grouping, (place, (end_y, near), v)) from ``n`` seeded places and velocities under either edge:
+    the bent end's y bisected to the C form's edge (its disc 1e-9 cm/s past the nearer edge's line), the inputs 0-3
+    ulps from it kept where a regrouping decides otherwise."""
+    rng = np.random.default_rng(seed)
+    found = []
+    for i in range(n):
+        near = float(i % 2)
+        place = (float(rng.uniform(520.0, 680.0) if near else rng.uniform(320.0, 480.0)),
+                 float(rng.uniform(230.0, 270.0)))
+        v = (float(rng.uniform(-80.0, 80.0)), float(rng.uniform(0.0, 60.0)))
+        straight = BENT[0][1] if near else BENT[2][1]
+
+        def covered(end_y: float, place=place, near=near, v=v) -> bool:
+            return _covered_groupings(place, end_y, near, v)["C"]
+
+        if covered(straight - 1.0) == covered(straight + 1.0):
+            continue  # the nearer edge's line is a leg's, or none: it covers the other edge however bent, or never
+        alternatives = {name: (lambda end_y, name=name, place=place, near=near, v=v:
+                               _covered_groupings(place, end_y, near, v)[name])
+                        for name in _covered_groupings(place, straight, near, v) if name != "C"}
+        at = edge(covered, straight - 1.0, straight + 1.0)
+        found += [(f"{name}, {'A' if near else 'C'} bent", (place, (end_y, near), v))
+                  for name, end_y in _disagree(covered, alternatives, at)]
+    return found
+
+
+# found by _first(_covered_search(300), 4) (float.hex: the exact inputs (place, (end_y, near), v))
+COVERED_CASES = {
+    "det >= margin - COVERED, A bent": [
+        (("0x1.1139344410d9ep+9", "0x1.d2d30d934d01cp+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("-0x1.f5a2d3c93bd80p+1", "0x1.7cf4ef0909316p+5")),
+        (("0x1.0e5c4c009997cp+9", "0x1.cf2c1523a79eep+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("-0x1.c31e6bfe82300p+1", "0x1.0e03ed09f68acp+5")),
+        (("0x1.3f544e9f8d7bep+9", "0x1.d3fc8ffafad16p+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("-0x1.abeac853ccae8p+3", "0x1.b4d7146ecaab8p+5")),
+        (("0x1.356bc182af6bep+9", "0x1.d196358219c55p+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("0x1.f9f12051bf600p-1", "0x1.8949e8b55e4eep+4")),
+    ],
+    "det + COVERED >= margin, A bent": [
+        (("0x1.1139344410d9ep+9", "0x1.d2d30d934d01cp+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("-0x1.f5a2d3c93bd80p+1", "0x1.7cf4ef0909316p+5")),
+        (("0x1.0e5c4c009997cp+9", "0x1.cf2c1523a79eep+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("-0x1.c31e6bfe82300p+1", "0x1.0e03ed09f68acp+5")),
+        (("0x1.3f544e9f8d7bep+9", "0x1.d3fc8ffafad16p+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("-0x1.abeac853ccae8p+3", "0x1.b4d7146ecaab8p+5")),
+        (("0x1.356bc182af6bep+9", "0x1.d196358219c55p+7"),
+         ("0x1.21ffffffea7f9p+8", "0x1.0000000000000p+0"),
+         ("0x1.f9f12051bf600p-1", "0x1.8949e8b55e4eep+4")),
+    ],
+    "det >= margin - COVERED, C bent": [
+        (("0x1.9b93b8747ed17p+8", "0x1.ec5d6fd1ff218p+7"),
+         ("0x1.35ffffffea7f9p+8", "0x0.0p+0"),
+         ("0x1.e5039ca99cc38p+3", "0x1.9e4f1af6e67fap+5")),
+        (("0x1.c3212c9991aa4p+8", "0x1.fd546db96e6fep+7"),
+         ("0x1.35ffffffea7f9p+8", "0x0.0p+0"),
+         ("-0x1.77e7213354542p+4", "0x1.7fce0ac89cc39p+5")),
+        (("0x1.b91228ee392e0p+8", "0x1.e47f07cee1a89p+7"),
+         ("0x1.35ffffffea7f9p+8", "0x0.0p+0"),
+         ("-0x1.54f1f739488ccp+4", "0x1.bae8aba8ec05ep+5")),
+    ],
+    "det + COVERED >= margin, C bent": [
+        (("0x1.9b93b8747ed17p+8", "0x1.ec5d6fd1ff218p+7"),
+         ("0x1.35ffffffea7f9p+8", "0x0.0p+0"),
+         ("0x1.e5039ca99cc38p+3", "0x1.9e4f1af6e67fap+5")),
+        (("0x1.c3212c9991aa4p+8", "0x1.fd546db96e6fep+7"),
+         ("0x1.35ffffffea7f9p+8", "0x0.0p+0"),
+         ("-0x1.77e7213354542p+4", "0x1.7fce0ac89cc39p+5")),
+        (("0x1.b91228ee392e0p+8", "0x1.e47f07cee1a89p+7"),
+         ("0x1.35ffffffea7f9p+8", "0x0.0p+0"),
+         ("-0x1.54f1f739488ccp+4", "0x1.bae8aba8ec05ep+5")),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", COVERED_CASES)
+def test_orca_edge_covered_where_a_regrouping_decides_otherwise(name):
+    for case in COVERED_CASES[name]:
+        _covered_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_edge_covered_search():
+    """The search finds inputs where each regrouping decides otherwise (for either end's disc), and the two forms
+    agree on all of them."""
+    found = _first(_covered_search(300), 4)
+    assert {name for name, _ in found} == {f"{name}, {end} bent" for end in "AC"
+                                           for name in ("det >= margin - COVERED", "det + COVERED >= margin")}
+    for _, case in found:
+        _covered_case(*case)
