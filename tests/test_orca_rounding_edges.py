@@ -705,3 +705,88 @@ def test_orca_edge_covered_search():
                                            for name in ("det >= margin - COVERED", "det + COVERED >= margin")}
     for _, case in found:
         _covered_case(*case)
+
+
+# -- the cut-off disc or a leg of an edge's velocity obstacle (orca_lp.edge_lines): t_left = (v − c_left)·left < 0 ---
+
+
+def _left_groupings(place: tuple[float, float], v: tuple[float, float]) -> dict[str, bool]:
+    """Whether the velocity ``v`` (cm/s) of the pedestrian (radius 25 cm) at ``place`` (cm) below OBLIQUE projects
+    before the start of the left leg of OBLIQUE's velocity obstacle (t_left < 0; at 0 edge_lines takes the cut-off
+    disc's line or the leg's): ``"C"`` as both forms compute it, then regroupings."""
+    inv_tau = 1.0 / REACH_CONFIG.time_horizon_obst_s
+    rel1 = (OBLIQUE[0][0] - place[0], OBLIQUE[0][1] - place[1])
+    left = orca_lp._leg_left(rel1, rel1[0] * rel1[0] + rel1[1] * rel1[1], 25.0)
+    left_cut = (inv_tau * rel1[0], inv_tau * rel1[1])
+    from_left = (v[0] - left_cut[0], v[1] - left_cut[1])
+    return {
+        "C": from_left[0] * left[0] + from_left[1] * left[1] < 0.0,
+        "v.left - c_left.left": (v[0] * left[0] + v[1] * left[1]) - (left_cut[0] * left[0] + left_cut[1] * left[1])
+        < 0.0,
+        "c_left = rel / tau": (v[0] - rel1[0] / REACH_CONFIG.time_horizon_obst_s) * left[0]
+        + (v[1] - rel1[1] / REACH_CONFIG.time_horizon_obst_s) * left[1] < 0.0,
+    }
+
+
+def _left_case(place: tuple[float, float], v: tuple[float, float]) -> None:
+    """Both forms for the pedestrian at ``place`` moving at ``v`` (cm/s) and preferring to walk at OBLIQUE's first
+    end: the line at the velocity obstacle's left end binds."""
+    to = (OBLIQUE[0][0] - place[0], OBLIQUE[0][1] - place[1])
+    _substep(REACH_CONFIG, [place], [v], [to], [25.0], [60.0], world=OBLIQUE_WORLD)
+
+
+def _left_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Left-end cases (grouping, (place, v)) from ``n`` seeded places 40-150 cm below OBLIQUE and velocities: the
+    velocity's x bisected to the C form's edge, the inputs 0-3 ulps from it kept where a regrouping decides
+    otherwise."""
+    rng = np.random.default_rng(seed)
+    (a0, a1), (b0, b1) = OBLIQUE
+    normal = (b1 - a1, -(b0 - a0))
+    scale = 1.0 / math.hypot(*normal)
+    found = []
+    for _ in range(n):
+        t, dist = float(rng.uniform(0.05, 0.95)), float(rng.uniform(40.0, 150.0)) * scale
+        place = (a0 + t * (b0 - a0) + dist * normal[0], a1 + t * (b1 - a1) + dist * normal[1])
+        vy = float(rng.uniform(-40.0, 40.0))
+
+        def before(vx: float, place=place, vy=vy) -> bool:
+            return _left_groupings(place, (vx, vy))["C"]
+
+        if before(-300.0) == before(300.0):
+            continue
+        alternatives = {name: (lambda vx, name=name, place=place, vy=vy: _left_groupings(place, (vx, vy))[name])
+                        for name in _left_groupings(place, (0.0, vy)) if name != "C"}
+        at = edge(before, -300.0, 300.0)
+        found += [(name, (place, (vx, vy))) for name, vx in _disagree(before, alternatives, at)]
+    return found
+
+
+# found by _first(_left_search(300), 4) (float.hex: the exact inputs (place, v))
+LEFT_CASES = {
+    "v.left - c_left.left": [
+        (("0x1.dd8c6ea5ac8cbp+8", "0x1.c7ece938ab6f4p+7"), ("-0x1.7c501e5549116p+2", "0x1.f81b008330414p+4")),
+        (("0x1.dd8c6ea5ac8cbp+8", "0x1.c7ece938ab6f4p+7"), ("-0x1.7c501e5549115p+2", "0x1.f81b008330414p+4")),
+        (("0x1.22fc47ce0ae31p+9", "0x1.8051b23e86be1p+7"), ("-0x1.b7634a0b2c39ep+5", "-0x1.450db2e3ddd12p+4")),
+        (("0x1.22fc47ce0ae31p+9", "0x1.8051b23e86be1p+7"), ("-0x1.b7634a0b2c39dp+5", "-0x1.450db2e3ddd12p+4")),
+    ],
+    "c_left = rel / tau": [
+        (("0x1.22fc47ce0ae31p+9", "0x1.8051b23e86be1p+7"), ("-0x1.b7634a0b2c39ep+5", "-0x1.450db2e3ddd12p+4")),
+        (("0x1.f4aaadafe9203p+8", "0x1.fc37044ff2795p+7"), ("-0x1.63f42ba64d2afp+4", "-0x1.4282a34f619a0p+0")),
+        (("0x1.fc0a7f3613169p+8", "0x1.8122dff1a442ap+7"), ("-0x1.a02822f5cf2bbp+3", "0x1.0cc29ce792a62p+5")),
+        (("0x1.f0cafbd9c6f87p+8", "0x1.a896329b39014p+7"), ("-0x1.2712d17164280p+3", "0x1.1286e1b380ac6p+5")),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", LEFT_CASES)
+def test_orca_edge_cut_off_or_leg_where_a_regrouping_decides_otherwise(name):
+    for case in LEFT_CASES[name]:
+        _left_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_edge_cut_off_or_leg_search():
+    """The search finds inputs where each regrouping decides otherwise, and the two forms agree on all of them."""
+    found = _first(_left_search(300), 4)
+    assert {name for name, _ in found} == set(_left_groupings((500.0, 200.0), (0.0, 0.0))) - {"C"}
+    for _, case in found:
+        _left_case(*case)
