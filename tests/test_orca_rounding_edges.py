@@ -518,7 +518,7 @@ AT_WALL = (500.0, 20.0)  # overlapping the bottom wall (radius 25 cm): its hard 
 
 
 def _parallel_den(eps: float, gap: float) -> float:
-    """_lp1's ``denominator`` (the sine of the angle, 1) of the neighbour's line against the bottom wall's: the
+    """_lp1's ``denominator`` (the sine of the angle; no unit) of the neighbour's line against the bottom wall's: the
     pedestrian at AT_WALL, standing, the other (radius 25 cm) standing ``gap`` (cm) beyond touching straight above it
     but moving at (``eps``, 0) cm/s. The neighbour's line (the time horizon's arc) runs ~``gap``/τ from the origin at
     an angle ~``eps``/|w| to the wall's line, whose direction (1, -0) makes the denominator the neighbour direction's
@@ -537,8 +537,8 @@ def _parallel_case(gap: tuple[float], eps: tuple[float]) -> None:
 
 
 def test_orca_nearly_parallel_lines_meeting_in_the_speed_disc():
-    """The neighbour's line at |sin| = _PARALLEL from a hard line (0-3 ulps either side: parallel, or meeting it
-    ~1e-8/1e-9 cm/s along, inside the speed disc — the velocity then differs), for seeded gaps of 0.5-2 · 1e-7 cm.
+    """The neighbour's line at |sin| = _PARALLEL from a hard line, 0-3 ulps either side (parallel, or meeting it
+    inside the speed disc, which moves the velocity), for seeded gaps of 0.5-2 · 1e-7 cm.
     Regroupings of the comparison itself cannot part the forms here: the determinant of a unit direction with an
     axis is one coordinate exactly (its two products are exact), and |d| <= P, d² <= P², |d|/P <= 1 and |d|·1e9 <= 1
     decide alike on every float near P (rounding is monotone, and adjacent floats keep distinct squares and
