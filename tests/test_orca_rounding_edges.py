@@ -790,3 +790,78 @@ def test_orca_edge_cut_off_or_leg_search():
     assert {name for name, _ in found} == set(_left_groupings((500.0, 200.0), (0.0, 0.0))) - {"C"}
     for _, case in found:
         _left_case(*case)
+
+
+# -- a static circle's rim touching (orca_lp.static_point_line): |rim − x|² > r², its ORCA line or the contact line --
+
+
+def _rim_groupings(place: tuple[float, float]) -> dict[str, bool]:
+    """Whether the pedestrian (radius 25 cm) at ``place`` (cm) is clear of CIRCLE's nearest rim point (rel =
+    −away · gap, geometry.away_from_static's, as both forms compute it): ``"C"``, then regroupings. (hypot(p) > r
+    is no regrouping here: for r = 25 the square root of the float after r² rounds above r.)"""
+    fx, fy = place[0] - CIRCLE[0], place[1] - CIRCLE[1]
+    d = math.sqrt(fx * fx + fy * fy)
+    away, gap = (fx / d, fy / d), d - CIRCLE[2]
+    px, py = -away[0] * gap, -away[1] * gap
+    r = 25.0
+    return {
+        "C": px * px + py * py > r * r,
+        "px^2 > r^2 - py^2": px * px > r * r - py * py,
+        "(px - r)(px + r) + py^2 > 0": (px - r) * (px + r) + py * py > 0.0,
+    }
+
+
+def _rim_case(place: tuple[float, float]) -> None:
+    """Both forms for the pedestrian at ``place`` walking at CIRCLE's centre."""
+    to = (CIRCLE[0] - place[0], CIRCLE[1] - place[1])
+    _substep(REACH_CONFIG, [place], [(0.5 * to[0], 0.5 * to[1])], [to], [25.0], [60.0], world=CIRCLE_WORLD)
+
+
+def _rim_search(n: int, seed: int = 36) -> list[tuple[str, tuple]]:
+    """Rim cases (grouping, (place,)) from ``n`` seeded directions from CIRCLE: the distance along each bisected
+    (through the place's x) to the C form's edge, the inputs 0-3 ulps from it kept where a regrouping decides
+    otherwise."""
+    rng = np.random.default_rng(seed)
+    found = []
+    for _ in range(n):
+        dy = float(rng.uniform(-40.0, 40.0))
+
+        def clear(x: float, dy=dy) -> bool:
+            return _rim_groupings((x, CIRCLE[1] + dy))["C"]
+
+        alternatives = {name: (lambda x, name=name, dy=dy: _rim_groupings((x, CIRCLE[1] + dy))[name])
+                        for name in _rim_groupings((CIRCLE[0] + 100.0, CIRCLE[1] + dy)) if name != "C"}
+        at = edge(clear, CIRCLE[0] + 1.0, CIRCLE[0] + 100.0)
+        found += [(name, ((x, CIRCLE[1] + dy),)) for name, x in _disagree(clear, alternatives, at)]
+    return found
+
+
+# found by _first(_rim_search(2000), 4) (float.hex: the exact inputs (place,))
+RIM_CASES = {
+    "px^2 > r^2 - py^2": [
+        (("0x1.09181be509dfap+9", "0x1.d23996dcae4f2p+8"),),
+        (("0x1.05eefe2f301e8p+9", "0x1.0d40551c7d0d1p+9"),),
+        (("0x1.0857305bee476p+9", "0x1.d0efa0b5927f6p+8"),),
+        (("0x1.082458f3014f3p+9", "0x1.0bb14be7d9443p+9"),),
+    ],
+    "(px - r)(px + r) + py^2 > 0": [
+        (("0x1.0eddbc00beb1dp+9", "0x1.02cf820bd0a97p+9"),),
+        (("0x1.0857305bee476p+9", "0x1.d0efa0b5927f6p+8"),),
+        (("0x1.0b2b447675e1bp+9", "0x1.08c5f086514b0p+9"),),
+        (("0x1.0bf6132646bf9p+9", "0x1.07cc9589d7edep+9"),),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", RIM_CASES)
+def test_orca_circle_rim_touching_where_a_regrouping_decides_otherwise(name):
+    for case in RIM_CASES[name]:
+        _rim_case(*(tuple(float.fromhex(c) for c in pair) for pair in case))
+
+
+def test_orca_circle_rim_touching_search():
+    """The search finds inputs where each regrouping decides otherwise, and the two forms agree on all of them."""
+    found = _first(_rim_search(2000), 4)
+    assert {name for name, _ in found} == set(_rim_groupings((600.0, 500.0))) - {"C"}
+    for _, case in found:
+        _rim_case(*case)
