@@ -26,6 +26,7 @@ from pathlib import Path
 
 from runners.tuning.slurm_workers import LAUNCHERS, OVERRIDE_PREFIXES
 from runners.tuning.storage import KINDS
+from runners.tuning.worker import print_trial, worker
 
 EXIT_INPUT = 2
 
@@ -115,59 +116,12 @@ def check_space(spec) -> None:
                     raise StudyFileError(f"{spec.path}: space[{i}] ({p.key}={format_value(value)}): {err}") from None
 
 
-def worker(study_file: str, study_dir: str, kind: str, budget: int, index: int) -> None:
-    """One worker process: open the study and run trials until the budget is reached (a Ctrl-C or SIGTERM ends
-    the trial in flight as interrupted)."""
-    from analysis.interrupts import Interrupted
-    from runners.sweeping import process_tree, stop
-    from runners.tuning.storage import FILES, open_storage, storage_problem
-    from runners.tuning.study import create_or_load, run_trials
-    from runners.tuning.study_file import load_study_file
-
-    process_tree.exit_with_parent()
-    stop.install(None)
-    spec = load_study_file(Path(study_file))
-    study = create_or_load(spec, open_storage(Path(study_dir), kind), index)
-    try:
-        run_trials(study, spec, Path(study_dir), budget, print_trial(spec))
-    except (KeyboardInterrupt, Interrupted):
-        sys.exit(130)
-    except Exception as err:
-        if not storage_problem(err):
-            raise
-        print(f"error: worker {index}: {Path(study_dir) / FILES[kind]}: the study storage failed: "
-              f"{' '.join(str(err).split())[:300]}", file=sys.stderr)
-        sys.exit(1)
-
-
-def print_trial(spec):
-    from optuna.trial import TrialState
-
-    from runners.tuning.controller_space import PREFIX
-    from runners.tuning.rule_space import PREFIX as RULE_PREFIX
-    from runners.tuning.study import FAIL_REASON, OVERRIDES
-
-    def show(t) -> None:
-        shown = t.user_attrs.get(OVERRIDES, [])[len(spec.base):len(spec.base) + len(spec.space)]
-        partition = sum(k.startswith(PREFIX) for k in t.params)
-        outputs = sum(k.startswith(RULE_PREFIX) for k in t.params)
-        params = " ".join([*shown, *([f"+ {partition} controller partition coordinates"] if partition else []),
-                           *([f"+ {outputs} rule outputs"] if outputs else [])])
-        seconds = (t.datetime_complete - t.datetime_start).total_seconds() if t.datetime_complete else 0.0
-        if t.state == TrialState.COMPLETE:
-            values = " ".join(f"{o.name}={v:.4g}" for o, v in zip(spec.objectives, t.values, strict=True))
-            print(f"trial {t.number}: {values}  ({params}) [{seconds:.1f} s]", flush=True)
-        else:
-            print(f"trial {t.number} failed: {t.user_attrs.get(FAIL_REASON, 'interrupted')}  ({params})", flush=True)
-    return show
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.compare is not None:
         from runners.tuning.comparison import compare_command
 
-        return compare_command(args)
+        return compare_command(args, main, check_space)
     from runners.sweeping import lock
     from runners.sweeping.paths import lock_file
     from runners.tuning.storage import StorageError, existing_kind, open_storage

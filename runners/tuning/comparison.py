@@ -41,7 +41,7 @@ def _error(text: str) -> int:
     return EXIT_INPUT
 
 
-def compare_command(args: argparse.Namespace) -> int:
+def compare_command(args: argparse.Namespace, main: Any, check_space: Any) -> int:
     """The comparison command (``args`` as :func:`runners.tune.parse_args` parses them, ``args.compare`` set)."""
     from runners.sweeping import lock
 
@@ -58,7 +58,7 @@ def compare_command(args: argparse.Namespace) -> int:
     except OSError as err:
         return _error(f"{err.filename or out}: {err.strerror or err}")
     try:
-        return run_comparison(args, comparison, out)
+        return run_comparison(args, comparison, out, main, check_space)
     except KeyboardInterrupt as err:  # Ctrl-C (or SIGTERM: analysis.interrupts.Interrupted) between two steps
         signum = getattr(err, "signum", signal.SIGINT)
         print(f"interrupted: comparison {comparison.name} stopped; re-run the command to resume", file=sys.stderr)
@@ -69,11 +69,10 @@ def compare_command(args: argparse.Namespace) -> int:
         lock.release(out)
 
 
-def check_before_trials(comparison: Comparison, out: Path, storage: str | None) -> None:
+def check_before_trials(comparison: Comparison, out: Path, storage: str | None, check_space: Any) -> None:
     """What :func:`runners.tune.main` checks for one study, for every study before the first runs: each space
     composes and validates, and a study folder that exists already holds a study of this name, directions and
     space in storage of the kind asked for."""
-    from runners.tune import check_space
     from runners.tuning.storage import StorageError, existing_kind, open_storage
     from runners.tuning.study import create_or_load
 
@@ -91,13 +90,12 @@ def check_before_trials(comparison: Comparison, out: Path, storage: str | None) 
             raise ComparisonFileError(f"{err} (comparison {comparison.path})") from None
 
 
-def run_comparison(args: argparse.Namespace, comparison: Comparison, out: Path) -> int:
-    from runners import tune
+def run_comparison(args: argparse.Namespace, comparison: Comparison, out: Path, main: Any, check_space: Any) -> int:
     from runners.tuning.comparison_report import write_comparison_report
     from runners.tuning.storage import StorageError
 
     try:
-        check_before_trials(comparison, out, args.storage)
+        check_before_trials(comparison, out, args.storage, check_space)
     except ComparisonFileError as err:
         return _error(str(err))
     n = len(comparison.studies)
@@ -110,7 +108,7 @@ def run_comparison(args: argparse.Namespace, comparison: Comparison, out: Path) 
         argv = [str(spec.path), "--out", str(out / spec.name), "--trials", str(spec.trials), "--workers",
                 str(args.workers), "--no-heldout", *(["--storage", args.storage] if args.storage else []),
                 "--launcher", args.launcher, *args.launcher_options]
-        code = tune.main(argv)
+        code = main(argv)
         if code:
             raise ComparisonStopped(code)
         try:

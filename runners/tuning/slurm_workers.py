@@ -3,8 +3,9 @@
 The array's resources come from the sweep's Submitit preset, ``conf/hydra/launcher/slurm.yaml``, composed by Hydra
 (so an edited preset applies) with the command's ``hydra.launcher.*`` overrides (``hydra.launcher.partition=cpu``,
 ``+hydra.launcher.additional_parameters.constraint=skylake``) and submitted with Submitit's public API, as Hydra's
-Submitit launcher submits a sweep. Each array task runs :func:`runners.tune.worker` against the study's storage,
-which must be the journal file (:func:`storage_kind`): SQLite's locking over a shared file system is unreliable.
+Submitit launcher submits a sweep. Each array task runs :func:`runners.tuning.worker.worker` against the study's
+storage, which must be the journal file (:func:`storage_kind`): SQLite's locking over a shared file system is
+unreliable.
 The command waits for the tasks, prints each trial as it ends (read from the storage), and reports the tasks that
 failed in one line with their Submitit logs. Ctrl-C or SIGTERM cancels the array (``scancel``); a task's SIGTERM
 ends its trial in flight as interrupted (and a trial a task left running is marked interrupted on resume).
@@ -119,7 +120,7 @@ class TaskEnd:
 def run_task(study_file: str, study_dir: str, kind: str, budget: int, index: int) -> TaskEnd:
     """One array task (on a node of the cluster): a worker of the study until the budget is reached. The worker's
     exit status is returned, so that Submitit stores it as the task's result."""
-    from runners.tune import worker
+    from runners.tuning.worker import worker
 
     try:
         worker(study_file, study_dir, kind, budget, index)
