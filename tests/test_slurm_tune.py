@@ -84,8 +84,9 @@ def test_two_slurm_workers_share_one_study_and_keep_the_budget(slurm: Cluster, t
     print(f"2 Slurm workers: tasks {sorted(tasks)} ran {[w['slurm_task'] for w in workers]}")
 
 
-def test_scancel_of_one_task_loses_only_its_trial_and_a_rerun_completes_the_budget(slurm: Cluster,
-                                                                                    tmp_path: Path) -> None:
+def two_workers_with_a_trial_running(slurm: Cluster, tmp_path: Path) -> tuple[Path, Path, subprocess.Popen]:
+    """A study of long trials started on two Slurm workers, returned once one of its trials is running (the
+    command still running)."""
     out = tmp_path / "study"
     path = long_trials(tmp_path)
     proc = subprocess.Popen(tune_args(out, path, "--workers", "2", "--no-heldout"), cwd=ROOT, env=slurm.env,
@@ -93,6 +94,17 @@ def test_scancel_of_one_task_loses_only_its_trial_and_a_rerun_completes_the_budg
     try:
         assert wait_for(lambda: running_task(out) is not None or proc.poll() is not None, 180), "no trial ran"
         assert proc.poll() is None, proc.communicate()
+    except BaseException:
+        proc.kill()
+        proc.wait()
+        raise
+    return out, path, proc
+
+
+def test_scancel_of_one_task_loses_only_its_trial_and_a_rerun_completes_the_budget(slurm: Cluster,
+                                                                                    tmp_path: Path) -> None:
+    out, path, proc = two_workers_with_a_trial_running(slurm, tmp_path)
+    try:
         task = running_task(out)
         assert task is not None
         slurm.run("scancel", task)  # SIGTERM to the task, as Slurm ends a job
@@ -124,13 +136,8 @@ def test_scancel_of_one_task_loses_only_its_trial_and_a_rerun_completes_the_budg
 
 
 def test_ctrl_c_cancels_the_array_and_a_rerun_completes(slurm: Cluster, tmp_path: Path) -> None:
-    out = tmp_path / "study"
-    path = long_trials(tmp_path)
-    proc = subprocess.Popen(tune_args(out, path, "--workers", "2", "--no-heldout"), cwd=ROOT, env=slurm.env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    out, path, proc = two_workers_with_a_trial_running(slurm, tmp_path)
     try:
-        assert wait_for(lambda: running_task(out) is not None or proc.poll() is not None, 180), "no trial ran"
-        assert proc.poll() is None, proc.communicate()
         tic = time.monotonic()
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=200)
