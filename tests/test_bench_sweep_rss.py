@@ -24,6 +24,15 @@ def test_the_summary_reads_workers_and_the_sweep_apart_by_episodes_logged():
     assert out["sweep_rss_mb_peak_after"] == 160
 
 
+def test_a_worker_that_exited_before_a_mark_counts_with_its_last_rss():
+    # two workers (2, 3); worker 3 ends its job and exits before all the episodes have their logs
+    samples = [Sample(0, 0, {1: 60}), Sample(1, 2, {1: 61, 2: 50, 3: 52}), Sample(2, 10, {1: 62, 2: 55, 3: 57}),
+               Sample(3, 12, {1: 62, 2: 60}), Sample(4, 20, {1: 63, 2: 61})]
+    out = summary(samples, 1, 20, jobs=2)
+    assert out["marks"][-1]["workers_rss_mb"] == [61, 57]
+    assert out["worker_growth_10_to_100"] == [pytest.approx(61 / 50 - 1), pytest.approx(57 / 52 - 1)]
+
+
 def test_the_command_runs_a_small_sweep_and_reports_every_worker(tmp_path):
     out = tmp_path / "rss.json"
     res = subprocess.run([sys.executable, "-m", "runners.benchmarks.sweep_rss", "--episodes", "20", "--jobs", "2",

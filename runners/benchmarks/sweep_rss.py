@@ -125,25 +125,30 @@ MARKS = (0.1, 0.5, 1.0)  # fractions of the episodes at which the RSS is reporte
 def summary(samples: list[Sample], root: int, episodes: int, **facts) -> dict:
     """RSS of the sweep's process and of each worker when 10 %, 50 % and all of the ``episodes`` had their logs,
     and the sweep's peak after that (summary and report). A worker: a process below the sweep that reached
-    ``WORKER_MIN_MB`` while episodes ran."""
+    ``WORKER_MIN_MB`` while episodes ran; one that finished its job (and may have exited) before a mark is reported
+    with the last RSS it was seen with."""
     out: dict = {"episodes": episodes, **facts}
-    marks = {}
+    marks: dict[float, int] = {}
     for fraction in MARKS:
-        at = next((s for s in samples if s.episodes_done >= fraction * episodes), None)
+        at = next((i for i, s in enumerate(samples) if s.episodes_done >= fraction * episodes), None)
         if at is not None:
             marks[fraction] = at
     running = [s for s in samples if s.episodes_done < episodes]
     workers = sorted({pid for s in running for pid, mb in s.rss_mb.items() if pid != root and mb >= WORKER_MIN_MB})
-    out["marks"] = [{"fraction": f, "seconds": s.seconds, "sweep_rss_mb": s.rss_mb.get(root),
-                     "workers_rss_mb": [s.rss_mb.get(pid) for pid in workers]} for f, s in marks.items()]
+
+    def last_seen(pid: int, upto: int) -> float | None:
+        # A worker whose job ended before the mark (its process may be gone) counts with its last RSS seen.
+        return next((samples[i].rss_mb[pid] for i in range(upto, -1, -1) if pid in samples[i].rss_mb), None)
+
+    out["marks"] = [{"fraction": f, "seconds": samples[i].seconds, "sweep_rss_mb": samples[i].rss_mb.get(root),
+                     "workers_rss_mb": [last_seen(pid, i) for pid in workers]} for f, i in marks.items()]
     done = marks.get(1.0)
-    after = [s.rss_mb[root] for s in samples if done is not None and s.seconds > done.seconds and root in s.rss_mb]
+    after = [s.rss_mb[root] for s in samples[done + 1:] if root in s.rss_mb] if done is not None else []
     out["sweep_rss_mb_peak_after"] = max(after, default=None)
-    first, last = marks.get(MARKS[0]), done
-    if first is not None and last is not None:
-        growth = [(last.rss_mb[pid] / first.rss_mb[pid] - 1.0) for pid in workers
-                  if pid in first.rss_mb and pid in last.rss_mb]
-        out["worker_growth_10_to_100"] = growth
+    first = marks.get(MARKS[0])
+    if first is not None and done is not None:
+        pairs = [(last_seen(pid, first), last_seen(pid, done)) for pid in workers]
+        out["worker_growth_10_to_100"] = [b / a - 1.0 for a, b in pairs if a and b]
     return out
 
 
