@@ -38,7 +38,7 @@ from runners.sweeping import control as sweep_control
 from runners.sweeping import end as sweep_end
 from runners.sweeping import resume as sweep_resume
 from runners.sweeping import shm_leftovers
-from runners.sweeping.paths import job_logs
+from runners.sweeping.paths import LogScan, job_logs
 from runners.sweeping.size import count_episodes, count_jobs
 
 # a job's own directory: Hydra's job number or id, or the overrides that make the job (``${hydra.job.num}``,
@@ -140,16 +140,20 @@ _PLANS: dict[str, sweep_resume.ResumePlan] = {}  # what a resume set aside, per 
 def _watch(sweep_dir: Path, total: int | None, stop: threading.Event) -> None:
     """Count the logs the jobs finish (a log appears under its name only when complete; a kept one is moved back
     into its job's directory) until ``stop`` is set. Logs already there at the start count when replaced."""
-    before = {p: p.stat().st_mtime_ns for p in job_logs(sweep_dir) if p.exists()}
+    logs = LogScan(sweep_dir)
+    before = {}
+    for path in logs.scan():
+        with contextlib.suppress(OSError):
+            before[path] = os.stat(path).st_mtime_ns
     with EpisodeProgress(total, "sweep") as progress:
-        done: set[Path] = set()
+        done: set[str] = set()
         while True:
             stopping = stop.wait(0.5)
-            for path in job_logs(sweep_dir):
+            for path in logs.scan():
                 if path in done:
                     continue
                 with contextlib.suppress(OSError):
-                    if before.get(path) != path.stat().st_mtime_ns and is_complete(path):
+                    if before.get(path) != os.stat(path).st_mtime_ns and is_complete(Path(path)):
                         done.add(path)
                         progress.update(1)
             progress.tick()
