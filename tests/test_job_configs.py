@@ -91,6 +91,26 @@ def test_configs_the_sweepers_check_composed_are_not_composed_again(hydra_loader
     assert calls == [] and configs.assembled == 2
 
 
+def test_configs_composed_in_workers_travel_as_bytes_and_are_unpickled_only_where_used(hydra_loader):
+    # the sweeper's check composes in the workers and hands the launching process pickled configs: the launching
+    # process sets the reference and pickles the launch's state without unpickling any; a worker assembles from them
+    import pickle
+
+    import cloudpickle
+
+    master, composed = hydra_loader
+    jobs = [[f"scenario={s}", f"planner={p}"] for s in ("head_on", "corridor") for p in ("wait", "detour", "none")]
+    calls: list[tuple[str, ...]] = []
+    parent = JobConfigs(master, lambda overrides: calls.append(tuple(overrides)) or composed(overrides))
+    for job in (jobs[0], jobs[1], jobs[2], jobs[3]):
+        parent.add_composed(job, cloudpickle.dumps(composed(job)))
+    parent.config(jobs[0])  # the launcher's reference
+    assert parent._composed == {}  # nothing unpickled in the launching process
+    worker = pickle.loads(cloudpickle.dumps(parent))
+    assert [_yaml(worker.config(job)) for job in jobs] == [_yaml(composed(job)) for job in jobs]
+    assert calls == [] and worker.assembled == 2 and worker.composed == 0
+
+
 def test_seeds_and_numbers_are_applied_without_composing(hydra_loader):
     master, composed = hydra_loader
     jobs = [[f"seed={s}", f"planner.safety_margin_cm={m}", "episodes=3"] for s in range(0, 100, 10)

@@ -44,21 +44,38 @@ class JobConfigs:
         self._parser = OverridesParser.create()
         self._composed: dict[tuple[str, ...], DictConfig] = {}
         self._pickled: dict[tuple[str, ...], bytes] = {}  # composed configs' bytes, for new copies (_fresh)
-        self._reference: tuple[tuple[str, ...], list[Override], DictConfig] | None = None
+        self._reference: tuple[tuple[str, ...], list[Override]] | None = None  # its config: _full(key)
         self._deltas: dict[tuple[str, str], dict[str, Any] | None] = {}  # (group, option) -> delta or not separable
         self.composed = 0  # how many configs Hydra composed (for the log and the tests)
         self.assembled = 0
 
-    def add_composed(self, overrides: Sequence[str], config: DictConfig) -> None:
-        """A config Hydra has composed elsewhere in this process (the sweeper's check of each swept value)."""
-        self._composed.setdefault(tuple(overrides), config)
+    def add_composed(self, overrides: Sequence[str], config: DictConfig | bytes) -> None:
+        """A config Hydra has composed elsewhere (the sweeper's check of each swept value): the object, or its
+        pickled bytes when a worker process composed it. Bytes are unpickled only where a config is needed (the
+        launching process needs none: unpickling the default sweep's ten configs there, to pickle them again for
+        the workers, held back the sweep's first job by ~0.5 s)."""
+        key = tuple(overrides)
+        if key in self._composed or key in self._pickled:
+            return
+        if isinstance(config, bytes):
+            self._pickled[key] = config
+        else:
+            self._composed[key] = config
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Sent to the workers (the launch's state) without the configs that travel as bytes anyway."""
+        state = self.__dict__.copy()
+        state["_composed"] = {k: v for k, v in self._composed.items() if k not in self._pickled}
+        return state
 
     def config(self, overrides: Sequence[str]) -> DictConfig:
         """The job's config, a new object the caller may change (its ``hydra.job.num`` and ``id``)."""
         key = tuple(overrides)
         if self._reference is None:  # the sweep's first job (composed by the sweeper's check, usually)
-            self._reference = (key, self._parse(key), self._full(key))
-        if key in self._composed:
+            self._reference = (key, self._parse(key))
+        if key == self._reference[0] and key not in self._pickled:
+            self._full(key)
+        if key in self._composed or key in self._pickled:
             return self._fresh(key)
         try:
             assembled = self._assemble(key)
@@ -85,6 +102,8 @@ class JobConfigs:
 
     def _full(self, key: tuple[str, ...]) -> DictConfig:
         config = self._composed.get(key)
+        if config is None and key in self._pickled:
+            config = self._composed[key] = pickle.loads(self._pickled[key])  # this sweep's own bytes
         if config is None:
             config = self._compose(list(key))
             self.composed += 1
@@ -96,7 +115,8 @@ class JobConfigs:
 
     def _assemble(self, key: tuple[str, ...]) -> DictConfig | None:
         assert self._reference is not None
-        ref_key, ref_parsed, reference = self._reference
+        ref_key, ref_parsed = self._reference
+        reference = self._full(ref_key)
         parsed = self._parse(key)
         if [o.get_key_element() for o in parsed] != [o.get_key_element() for o in ref_parsed]:
             return None
@@ -139,7 +159,7 @@ class JobConfigs:
         """``hydra.job.override_dirname`` as Hydra's documentation defines it: the job's overrides but the excluded
         keys, sorted, joined by ``item_sep``, each ``=`` written as ``kv_sep``."""
         assert self._reference is not None
-        od = self._reference[2].hydra.job.config.override_dirname
+        od = self._full(self._reference[0]).hydra.job.config.override_dirname
         excluded = set(od.exclude_keys)
         lines = sorted(o.input_line or "" for o in self._parse(key) if o.key_or_group not in excluded)
         return str(od.item_sep).join(lines).replace("=", str(od.kv_sep))
@@ -151,7 +171,7 @@ class JobConfigs:
         if (group, option) in self._deltas:
             return self._deltas[(group, option)]
         assert self._reference is not None
-        reference = self._reference[2]
+        reference = self._full(self._reference[0])
         varied_key = list(ref_key)
         varied_key[index] = override.input_line or f"{group}={option}"
         varied = self._full(tuple(varied_key))

@@ -16,6 +16,7 @@ three differences, each there because a job of a few episodes cost more than its
 from __future__ import annotations
 
 import logging
+import pickle
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -86,10 +87,11 @@ class FuzzynavLauncher(Launcher):
         return runs
 
 
-    def compose_in_workers(self, jobs: Sequence[Sequence[str]]) -> list[DictConfig] | None:
+    def compose_in_workers(self, jobs: Sequence[Sequence[str]]) -> list[bytes] | None:
         """Hydra's configs of ``jobs`` (the sweeper's check of each swept value), composed in the worker pool, in
-        parallel (each ~0.1 s; the workers are idle then). None where that did not work out (a bad value among
-        them, a worker lost): the caller composes them itself and Hydra says what is wrong in its own words."""
+        parallel (each ~0.1 s; the workers are idle then), pickled (:meth:`JobConfigs.add_composed` takes them as
+        they are). None where that did not work out (a bad value among them, a worker lost): the caller composes
+        them itself and Hydra says what is wrong in its own words."""
         from joblib import Parallel, delayed
 
         assert self.config is not None and self.hydra_context is not None and self.task_function is not None
@@ -110,10 +112,14 @@ class FuzzynavLauncher(Launcher):
         return configs if isinstance(configs, list) and len(configs) == len(jobs) else None
 
 
-def compose_job(ref: launch_state.LaunchStateFile, overrides: list[str]) -> DictConfig:
-    """Hydra's config of one job, composed in a worker process (``load_sweep_config``, as the sweeper would)."""
+def compose_job(ref: launch_state.LaunchStateFile, overrides: list[str]) -> bytes:
+    """Hydra's config of one job, composed in a worker process (``load_sweep_config``, as the sweeper would),
+    pickled with cloudpickle (the schema's dataclasses are made at run time)."""
+    import cloudpickle
+
     state = launch_state.worker_state(ref)
-    return state.hydra_context.config_loader.load_sweep_config(state.master, overrides)
+    config = state.hydra_context.config_loader.load_sweep_config(state.master, overrides)
+    return cloudpickle.dumps(config, protocol=pickle.HIGHEST_PROTOCOL)
 
 
 def execute_job(ref: launch_state.LaunchStateFile, overrides: list[str], idx: int) -> JobReturn:
