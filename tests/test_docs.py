@@ -101,8 +101,48 @@ def _results() -> dict:
         "targets": [{"name": "analysis, one process", "value": 207.0, "threshold": 200.0, "higher_is_better": True,
                      "unit": "episodes/s", "met": True, "note": ""},
                     {"name": "single decision ours / ferrifuzz (table1)", "value": None, "threshold": 1.0,
-                     "higher_is_better": False, "unit": "", "met": False, "note": "ferrifuzz not installed"}],
+                     "higher_is_better": False, "unit": "", "met": None, "note": "ferrifuzz not installed"}],
+        **_main_job_results(),
     }
+
+
+def _main_job_results() -> dict:
+    """Issue #36's sections of a full run's bench.json (made-up numbers) and the targets the bench reads off them."""
+    from runners.benchmarks.targets import main_job_targets
+
+    results = {
+        "machine": {"kernels_built": {"_raycast": True, "_orca": True}},
+        "main_job": {"cores": 2, "episodes": 105, "rounds": 3, "sweep_wall_s": 30.0, "sweep_first_log_s": 3.0,
+                     "sweep_last_log_s": 27.0, "plain_s": 2.8, "first_step_s": 0.41, "report_s": 3.5,
+                     "metrics_s": 0.5, "metrics_command_s": 2.0, "sim_wall_s": 6.0, "sim_phase_s": 3.1,
+                     "plain_episodes_per_s": 37.5, "sweep_episodes_per_s": 3.5, "sweep_efficiency": 0.0467,
+                     "sweep_efficiency_to_last_log": 0.0519, "episodes_phase_efficiency": 0.0583,
+                     "simulated_cores": 16, "simulated_sweep_efficiency": 0.0292,
+                     "simulated_episodes_phase_efficiency": 0.0565, "report_episodes_per_s": 30.0,
+                     "metrics_episodes_per_s": 210.0, "metrics_command_episodes_per_s": 52.5,
+                     "report_over_metrics": 0.1429, "report_over_metrics_command": 0.5714},
+        "large_sweep": {"cores": 2, "episodes": 1008, "rounds": 2, "overrides": ["episodes=8", "seed=range(0,48,8)"],
+                        "wall_s": 120.0, "first_log_s": 4.0, "last_log_s": 110.0, "plain_s": 27.0,
+                        "sim_wall_s": 14.0, "sim_phase_s": 9.5, "plain_episodes_per_s": 37.33,
+                        "sweep_efficiency": 0.1125, "episodes_phase_efficiency": 0.1273, "simulated_cores": 16,
+                        "simulated_sweep_efficiency": 0.1206, "simulated_episodes_phase_efficiency": 0.1777},
+        "kernels": {"rounds": 2,
+                    "medians_s": {"default sweep": {"all on": 30.0, "_raycast": 33.0, "_orca": 30.3, "all off": 34.0},
+                                  "orca crowd run (docs/crowds.md)": {"all on": 2.0, "_raycast": 2.5, "_orca": 7.4,
+                                                                      "all off": 8.0}},
+                    "gain": {"default sweep": {"_raycast": 1.1, "_orca": 1.01, "all off": 1.13},
+                             "orca crowd run (docs/crowds.md)": {"_raycast": 1.25, "_orca": 3.7, "all off": 4.0}}},
+        "recorded": {"people": 300, "steps": 600, "repetitions": 3, "present_per_step": 13.8,
+                     "in_laser_range_per_step": 0.42, "replay_us_per_step": 51.0, "sensing_extra_us_per_step": 61.0,
+                     "mixed_us_per_step": 1800.0, "share_of_mixed_step": 0.062},
+        "tuning": {"trials": 20, "episodes_per_trial": 10, "episodes": 200, "scenario": "head_on", "study_s": 12.0,
+                   "plain_episodes_s": 8.0, "trials_per_minute": 100.0, "overhead": 0.5, "overhead_s_per_trial": 0.2,
+                   "episodes_in_study_s": 8.5, "metrics_s": 1.5, "sampler_storage_compose_s": 2.0,
+                   "study_setup_s": 0.6},
+    }
+    results["main_job_targets"] = [t.as_dict() for t in main_job_targets(results)]
+    del results["machine"]
+    return results
 
 
 def test_the_performance_page_is_generated_from_bench_json(tmp_path: Path):
