@@ -163,6 +163,65 @@ def test_the_performance_page_is_generated_from_bench_json(tmp_path: Path):
     for missing in ("Report", "Crowds", "Side by side with the targets' starting point"):
         assert f"## {missing}\n\nNot measured in this run.\n" in text
     assert "## What each number measures" in text
+    # issue #36's sections, as the bench's own printers print them, and its targets with their verdicts
+    assert "sweep efficiency: 0.05  (the whole command, 30.0 s" in text
+    assert "time to first step of runners.run: 0.41 s" in text and "report / metrics = 0.14" in text
+    assert "sweep efficiency (1,000 episodes): 0.11 on 2 cores" in text
+    assert "_orca                                     1.01                      3.70    3.70" in text
+    assert "Recorded people: 300 people over 600 steps" in text and "100.0 trials/min" in text
+    assert "2 of 9 targets met in this run." in text
+    assert "| time to the first step of runners.run | 0.41 s | < 0.5 s | met |  |" in text
+    assert "| kernel _raycast, best end-to-end gain | 1.25 x | >= 1.3 x | **not met** | orca crowd run" in text
+    assert "| sweep efficiency, a 1,000-episode sweep as a whole command | 0.113 | >= 0.8 | **not met** | 2 cores |" \
+        in text
+    measures = text[text.index("## What each number measures"):]
+    for entry in ("Recorded people", "The main job", "A 1,000-episode sweep", "Kernels end to end",
+                  "Tuning studies", "Targets"):
+        assert f"- **{entry}**" in measures, entry
+    assert "Not shown" not in text and "about 6 minutes" not in text
+
+
+def test_the_performance_page_of_a_quick_run_says_what_it_did_not_measure(tmp_path: Path):
+    from runners.benchmarks.targets import main_job_targets
+
+    results = _results()
+    del results["large_sweep"], results["kernels"]
+    results["machine"]["kernels_built"] = {"_raycast": True, "_orca": True}
+    results["main_job_targets"] = [t.as_dict() for t in main_job_targets(results)]
+    text = bench_page.render(results)
+    for title in ("A 1,000-episode sweep", "Kernels end to end"):
+        assert f"## {title}\n\nNot measured in this run (`--quick` leaves it out: the full run measures it).\n" in text
+    assert ("| sweep efficiency, a 1,000-episode sweep as a whole command | not measured | >= 0.8 | not measured | "
+            "no large_sweep in a --quick run: the full run measures it |") in text
+    assert "| kernel _orca, best end-to-end gain | not measured | >= 1.3 x | not measured | no kernels in a" in text
+    assert "1 of 8 targets met in this run." in text  # the not measured ones are not met
+    results["quick"] = False  # a full run that lacks them (it failed): not measured, no reason invented
+    assert "## Kernels end to end\n\nNot measured in this run.\n" in bench_page.render(results)
+
+
+@pytest.mark.parametrize(("edit", "section", "why"), [
+    (lambda r: r["main_job_targets"][3].update(met=False), "Targets of issue #36 (the main job)",
+     "met False is not the verdict of its value and threshold"),
+    (lambda r: r["main_job_targets"][0].update(value=0.9), "Targets of issue #36 (the main job)",
+     "met False is not the verdict"),
+    (lambda r: r["main_job_targets"][3].update(sign=">"), "Targets of issue #36 (the main job)",
+     "does not match higher_is_better"),
+    (lambda r: r["main_job_targets"][0].update(value="0.9"), "Targets of issue #36 (the main job)",
+     "is not a finite number"),
+    (lambda r: r["main_job"].update(sweep_efficiency=float("nan")), "The main job",
+     "`main_job.sweep_efficiency` in this run's results is not a finite number"),
+    (lambda r: r["kernels"]["gain"]["default sweep"].update(_orca=float("inf")), "Kernels end to end",
+     "`kernels.gain.default sweep._orca`"),
+    (lambda r: r["large_sweep"].pop("wall_s"), "A 1,000-episode sweep", "KeyError: 'wall_s'"),
+])
+def test_the_performance_page_shows_no_figure_it_cannot_trust(edit, section, why):
+    """An edited verdict, a NaN or a missing field: that section says why it is not shown; the others are shown."""
+    results = _results()
+    edit(results)
+    text = bench_page.render(results)
+    body = text.split(f"## {section}\n\n")[1].split("\n## ")[0]
+    assert body.startswith("Not shown: ") and why in body, body
+    assert text.count("Not shown") == 1 and "nan" not in text.lower() and "| 0.9 |" not in text
 
 
 def test_the_performance_page_refuses_what_is_not_bench_output(tmp_path: Path, capsys):

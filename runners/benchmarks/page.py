@@ -181,23 +181,32 @@ def _section(title: str, results: dict[str, Any], key: str, render: Callable[[An
     return f"## {title}\n\n{body}"
 
 
+_SIZES = {True: "reduced (`--quick`)", False: "full"}  # bench.json's "quick"
+
+
 def _machine(results: dict[str, Any]) -> str:
     m = results.get("machine", {})
     if not isinstance(m, dict):
         m = {}
+
+    def text(field: str) -> str:  # a field that is not a string (an edited bench.json) shows as "–"
+        value = m.get(field)
+        return value if isinstance(value, str) and value else "–"
+
     kernels = m.get("compiled_kernels", {})
     if not isinstance(kernels, dict):
         kernels = {}
-    used = [name for name, on in kernels.items() if on]
+    used = [name for name, on in kernels.items() if on is True]
     lines = ["| | |", "|---|---|",
-             f"| Python | {m.get('python', '–')} |",
-             f"| processor | {m.get('processor', '–')} |",
-             f"| system | {str(m.get('system', '–')).split('-')[0]} |",  # the OS's name, not the host's build
+             f"| Python | {text('python')} |",
+             f"| processor | {text('processor')} |",
+             f"| system | {text('system').split('-')[0]} |",  # the OS's name, not the host's build
              f"| compiled kernels in use | {len(used)} of {len(kernels)}"
-             + (f" ({', '.join(str(name).rpartition('.')[2].lstrip('_') for name in used)})" if used else "") + " |",
-             f"| forms the logs record | {m.get('kernels', '–')} |",
-             f"| bytecode cache | {str(m.get('bytecode', '–')).removeprefix('bytecode cache: ')} |",
-             f"| sizes | {'reduced (`--quick`)' if results.get('quick') else 'full'} |"]
+             + (f" ({', '.join(name.rpartition('.')[2].lstrip('_') for name in used)})" if used else "") + " |",
+             f"| compiled kernels built at install | {_count(m.get('kernels_built'))} |",
+             f"| forms the logs record | {text('kernels')} |",
+             f"| bytecode cache | {text('bytecode').removeprefix('bytecode cache: ')} |",
+             f"| sizes | {_SIZES.get(results.get('quick'), '–')} |"]
     return "## The run\n\n" + "\n".join(lines) + "\n"
 
 
@@ -218,6 +227,13 @@ def _target(row: dict[str, Any]) -> Target:
     if row.get("met") != target.met:
         raise ValueError(f"{target.name[:60]}: met {row.get('met')!r} is not the verdict of its value and threshold")
     return target
+
+
+def _count(flags: Any) -> str:
+    """``n of m`` for a JSON object of booleans (kernel: built?), "–" for anything else."""
+    if not isinstance(flags, dict):
+        return "–"
+    return f"{sum(1 for on in flags.values() if on is True)} of {len(flags)}"
 
 
 def _targets(rows: list[dict[str, Any]]) -> str:
@@ -323,24 +339,30 @@ def _tuning(result: dict[str, Any]) -> str:
     return _text_block(tuning_line(result))
 
 
+#: the page's sections in order: (title, the key of bench.json it shows, how); "machine" and "quick" make the table
+#: of the run above them
+SECTIONS: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
+    ("Targets of issue #19", "targets", _targets),
+    ("Targets of issue #36 (the main job)", "main_job_targets", _targets),
+    ("Fuzzy decision", "fuzzy", _fuzzy),
+    ("Simulation", "simulation", _simulation),
+    ("Sweeps", "sweep", _sweep),
+    ("Analysis", "analysis", _analysis),
+    ("Memory", "memory", _memory),
+    ("Report", "report", _report),
+    ("Crowds", "crowd", _crowd),
+    ("Recorded people", "recorded", _recorded),
+    ("The main job", "main_job", _main_job),
+    ("A 1,000-episode sweep", "large_sweep", _large_sweep),
+    ("Kernels end to end", "kernels", _kernels),
+    ("Tuning studies", "tuning", _tuning),
+    ("Side by side with the targets' starting point", "baseline", _baseline),
+)
+
+
 def render(results: dict[str, Any]) -> str:
     """The page for one run's results (the content of ``bench.json``)."""
-    parts = [INTRO, _machine(results),
-             _section("Targets of issue #19", results, "targets", _targets),
-             _section("Targets of issue #36 (the main job)", results, "main_job_targets", _targets),
-             _section("Fuzzy decision", results, "fuzzy", _fuzzy),
-             _section("Simulation", results, "simulation", _simulation),
-             _section("Sweeps", results, "sweep", _sweep),
-             _section("Analysis", results, "analysis", _analysis),
-             _section("Memory", results, "memory", _memory),
-             _section("Report", results, "report", _report),
-             _section("Crowds", results, "crowd", _crowd),
-             _section("Recorded people", results, "recorded", _recorded),
-             _section("The main job", results, "main_job", _main_job),
-             _section("A 1,000-episode sweep", results, "large_sweep", _large_sweep),
-             _section("Kernels end to end", results, "kernels", _kernels),
-             _section("Tuning studies", results, "tuning", _tuning),
-             _section("Side by side with the targets' starting point", results, "baseline", _baseline),
+    parts = [INTRO, _machine(results), *(_section(title, results, key, how) for title, key, how in SECTIONS),
              MEASURES]
     return "\n".join(parts)
 
