@@ -28,6 +28,16 @@ def by_name(rows: list[Target]) -> dict[str, Target]:
     return {t.name: t for t in rows}
 
 
+def _with(results: dict, path: tuple, value: object) -> dict:
+    """A copy of ``results`` with the figure at ``path`` (keys and indices) set to ``value``."""
+    results = copy.deepcopy(results)
+    node = results
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    return results
+
+
 def test_every_target_of_a_good_run_is_met():
     rows = targets(RESULTS)
     assert len(rows) == 9 and all(t.met for t in rows), [t.line() for t in rows if not t.met]
@@ -44,12 +54,7 @@ def test_every_target_of_a_good_run_is_met():
     (("memory", "growth"), 0.06, "4 RSS growth over 1000 episodes"),
 ])
 def test_a_missed_target_is_reported_not_met(path, value, name):
-    results = copy.deepcopy(RESULTS)
-    node = results
-    for key in path[:-1]:
-        node = node[key]
-    node[path[-1]] = value
-    target = by_name(targets(results))[name]
+    target = by_name(targets(_with(RESULTS, path, value)))[name]
     assert target.met is False and "NOT met" in target.line()
 
 
@@ -179,12 +184,7 @@ def test_issue_36_targets_of_a_good_run_are_met_with_their_thresholds():
                                                              "default sweep")),  # its best: 1.1 on the other
 ])
 def test_an_issue_36_target_missed_is_not_met(path, value, key):
-    results = copy.deepcopy(MAIN_JOB)
-    node = results
-    for k in path[:-1]:
-        node = node[k]
-    node[path[-1]] = value
-    target = by_key(main_job_targets(results))[key]
+    target = by_key(main_job_targets(_with(MAIN_JOB, path, value)))[key]
     assert target.met is False and "NOT met" in target.line() and target.value == value
 
 
@@ -197,12 +197,7 @@ def test_an_issue_36_target_missed_is_not_met(path, value, key):
                                                             "default sweep")),
 ])
 def test_an_issue_36_target_at_its_threshold(path, value, key):
-    results = copy.deepcopy(MAIN_JOB)
-    node = results
-    for k in path[:-1]:
-        node = node[k]
-    node[path[-1]] = value
-    assert by_key(main_job_targets(results))[key].met is True
+    assert by_key(main_job_targets(_with(MAIN_JOB, path, value)))[key].met is True
 
 
 def test_a_quick_run_has_issue_36_targets_not_measured_never_met(capsys):

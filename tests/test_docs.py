@@ -224,6 +224,17 @@ def test_the_performance_page_shows_no_figure_it_cannot_trust(edit, section, why
     assert text.count("Not shown") == 1 and "nan" not in text.lower() and "| 0.9 |" not in text
 
 
+def test_what_each_number_measures_is_one_list_item_per_section():
+    """The fixed text's entries stay separate items of one list as Markdown reads it (a lazy continuation line or a
+    nested list would swallow the next entry)."""
+    import markdown
+
+    html = markdown.markdown(bench_page.MEASURES)
+    entries = re.findall(r"^- \*\*([^*]+)\*\*", bench_page.MEASURES, re.M)
+    assert re.findall(r"<li><strong>([^<]+)</strong>", html) == entries and html.count("<ul>") == 1
+    assert len(entries) == len(bench_page.SECTIONS) - 1  # the two target tables share the entry "Targets"
+
+
 def test_the_performance_page_refuses_what_is_not_bench_output(tmp_path: Path, capsys):
     bad = tmp_path / "bench.json"
     bad.write_text("[1, 2]")

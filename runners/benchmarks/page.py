@@ -20,6 +20,7 @@ import io
 import json
 import math
 import sys
+import textwrap
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -60,8 +61,10 @@ that need it read "not measured".
 """
 
 _CONFIGURATIONS = len(DEFAULT_SCENARIOS) * len(DEFAULT_PLANNERS)  # the default sweep's scenario x planner groups
-_WORKLOADS = "\n".join(f"    - {name}: `python -m {' '.join(a for a in args if '{t}' not in a)}`"
-                       for name, args in KERNEL_WORKLOADS)  # without the temporary output folder the bench adds
+_WORKLOADS = textwrap.fill(  # each without the temporary output folder the bench adds
+    "The workloads: " + "; ".join(f"{name}, `python -m {' '.join(a for a in args if '{t}' not in a)}`"
+                                  for name, args in KERNEL_WORKLOADS) + ".",
+    width=118, initial_indent="  ", subsequent_indent="  ", break_on_hyphens=False)
 
 MEASURES = f"""\
 ## What each number measures
@@ -118,9 +121,7 @@ MEASURES = f"""\
   on, with each kernel off in turn (`FUZZYNAV_KERNELS_OFF`) and with all off, the order of the settings
   alternating between rounds. A cell is the median wall time with that kernel off ÷ with all on: the
   factor the kernel saves end to end on that workload; *best* is the largest over the workloads, which issue #36
-  asks to be at least 1.3 for a kernel to stay. The last row is each workload's time with all kernels on. The
-  workloads:
-
+  asks to be at least 1.3 for a kernel to stay. The last row is each workload's time with all kernels on.
 {_WORKLOADS}
 - **Tuning studies** (issue #39): a TPE study of `planner.h_wait` and `planner.safety_margin_cm` on `head_on`,
   run by `runners.tune`'s trial loop in one process with SQLite storage (Optuna's ask and tell, each trial's
