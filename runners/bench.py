@@ -1,7 +1,8 @@
 """Benchmarks (speed is measured here, never asserted in unit tests).
 
-    python -m runners.bench            # full run (a few minutes)
-    python -m runners.bench --quick    # reduced sizes (under a minute; CI runs it, no thresholds)
+    python -m runners.bench            # full run (over half an hour on 2 cores; the kernels' table ~20 minutes of it)
+    python -m runners.bench --quick    # reduced sizes, without the 1,000-episode sweep and the kernels' table
+                                       # (a few minutes; CI runs it, no thresholds)
 
 1. Fuzzy decision: our evaluator, the peer engines ferrifuzz and pyfuzzylite (when installed:
    ``pip install -e '.[bench]'``; runners/benchmarks/peers.py builds them from the same definition) and
@@ -249,7 +250,8 @@ def bytecode_line() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="reduced sizes (under a minute)")
+    parser.add_argument("--quick", action="store_true",
+                        help="reduced sizes, without the 1,000-episode sweep and the kernels' table (a few minutes)")
     parser.add_argument("--out", default="bench.json", help="where to write the results (JSON)")
     args = parser.parse_args(argv)
     problem = out_problem(Path(args.out))
@@ -265,10 +267,11 @@ def main(argv: list[str] | None = None) -> int:
     # first, before any timing: which forms the numbers below are of (an install without a C compiler builds no
     # kernel and says so nowhere else)
     print(kernels_line(kernels, compiled.built(), compiled.switched_off()), flush=True)
-    print(bytecode_line(), flush=True)
+    bytecode = bytecode_line()
+    print(bytecode, flush=True)
     results = {"machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine(),
                            "system": platform.platform(), "compiled_kernels": kernels,
-                           "kernels_built": compiled.built(), "kernels": compiled.in_use()},
+                           "kernels_built": compiled.built(), "kernels": compiled.in_use(), "bytecode": bytecode},
                "quick": args.quick, "fuzzy": [bench_fuzzy(n, n_single, n_ref, 2_000 if args.quick else 10_000, reps)
                                               for n in ("table1", "listing")]}
     results["simulation"] = bench_simulation(3, 1) if args.quick else bench_simulation(20, 7)
@@ -325,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
 
     results["main_job"] = bench_main_job(rounds=1 if args.quick else 3)  # issue #36: the job a user runs
     print_main_job(results["main_job"])
-    if not args.quick:  # the 1,000-episode sweep and its plain twin: about 2 minutes
+    if not args.quick:  # the 1,000-episode sweep and its plain twin: about 2 minutes (main_job.FULL_RUN_ONLY)
         results["large_sweep"] = bench_large_sweep()
         print_large_sweep(results["large_sweep"])
     if not args.quick:  # each kernel off in turn on every documented workload: about 20 minutes
@@ -340,11 +343,8 @@ def main(argv: list[str] | None = None) -> int:
 
     results["baseline"] = bench_baseline(rounds=1, episodes=3, passes=1) if args.quick else bench_baseline()
     print_baseline(results["baseline"])
-    results["targets"] = [{"name": t.name, "value": t.value, "threshold": t.threshold, "higher_is_better": t.higher,
-                           "unit": t.unit, "met": t.met, "note": t.note} for t in targets(results)]
-    results["main_job_targets"] = [{"name": t.name, "value": t.value, "threshold": t.threshold,
-                                    "higher_is_better": t.higher, "unit": t.unit, "met": t.met, "note": t.note}
-                                   for t in main_job_targets(results)]
+    results["targets"] = [t.as_dict() for t in targets(results)]
+    results["main_job_targets"] = [t.as_dict() for t in main_job_targets(results)]
     print()
     print_targets(results)
     written, problem = write_results(Path(args.out), json.dumps(results, indent=2))

@@ -1,5 +1,5 @@
-"""runners.benchmarks.targets (issue #19's targets from one bench run) and runners.benchmarks.baseline's refusal
-paths."""
+"""runners.benchmarks.targets (issue #19's and issue #36's targets from one bench run) and
+runners.benchmarks.baseline's refusal paths."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import copy
 import pytest
 
 from runners.benchmarks import baseline as bench_baseline
-from runners.benchmarks.targets import Target, targets
+from runners.benchmarks.targets import Target, main_job_targets, print_targets, targets
 
 RESULTS = {
     "fuzzy": [{"controller": "table1", "peers": [{"engine": "ferrifuzz", "installed": True},
@@ -28,6 +28,16 @@ def by_name(rows: list[Target]) -> dict[str, Target]:
     return {t.name: t for t in rows}
 
 
+def _with(results: dict, path: tuple, value: object) -> dict:
+    """A copy of ``results`` with the figure at ``path`` (keys and indices) set to ``value``."""
+    results = copy.deepcopy(results)
+    node = results
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    return results
+
+
 def test_every_target_of_a_good_run_is_met():
     rows = targets(RESULTS)
     assert len(rows) == 9 and all(t.met for t in rows), [t.line() for t in rows if not t.met]
@@ -44,12 +54,7 @@ def test_every_target_of_a_good_run_is_met():
     (("memory", "growth"), 0.06, "4 RSS growth over 1000 episodes"),
 ])
 def test_a_missed_target_is_reported_not_met(path, value, name):
-    results = copy.deepcopy(RESULTS)
-    node = results
-    for key in path[:-1]:
-        node = node[key]
-    node[path[-1]] = value
-    target = by_name(targets(results))[name]
+    target = by_name(targets(_with(RESULTS, path, value)))[name]
     assert target.met is False and "NOT met" in target.line()
 
 
@@ -131,3 +136,104 @@ def test_baseline_of_a_commit_with_kernels_builds_and_runs_them():
         assert earlier == []
     else:
         assert earlier == this
+
+
+# issue #36's targets (runners.benchmarks.targets.main_job_targets), read off the main job's sections
+
+JOB = {"cores": 2, "sweep_efficiency": 0.85, "episodes_phase_efficiency": 0.9, "simulated_cores": 16,
+       "simulated_sweep_efficiency": 0.82, "first_step_s": 0.3, "report_over_metrics": 0.6}
+LARGE = {"cores": 2, "sweep_efficiency": 0.88, "simulated_cores": 16, "simulated_sweep_efficiency": 0.81}
+KERNELS = {"rounds": 2, "gain": {"default sweep": {"_raycast": 1.35, "_orca": 1.0, "all off": 1.4},
+                                 "orca crowd run (docs/crowds.md)": {"_raycast": 1.1, "_orca": 3.7, "all off": 4.1}}}
+MAIN_JOB = {"machine": {"kernels_built": {"_raycast": True, "_orca": True}}, "main_job": JOB, "large_sweep": LARGE,
+            "kernels": KERNELS}
+DEFAULT_SWEEP = "sweep efficiency, the default sweep as a whole command"
+LARGE_SWEEP = "sweep efficiency, a 1,000-episode sweep as a whole command"
+FIRST_STEP = "time to the first step of runners.run"
+REPORT = "analysis.report / the metrics alone (episodes/s)"
+
+
+def by_key(rows: list[Target]) -> dict[tuple[str, str], Target]:
+    return {(t.name, t.note): t for t in rows}
+
+
+def test_issue_36_targets_of_a_good_run_are_met_with_their_thresholds():
+    rows = main_job_targets(MAIN_JOB)
+    assert all(t.met for t in rows), [t.line() for t in rows if not t.met]
+    got = by_key(rows)
+    assert got[(DEFAULT_SWEEP, "2 cores")].threshold == 0.8 and got[(DEFAULT_SWEEP, "2 cores")].higher
+    assert got[(LARGE_SWEEP, "2 cores")].value == 0.88 and got[(LARGE_SWEEP, "2 cores")].threshold == 0.8
+    assert got[(FIRST_STEP, "")].threshold == 0.5 and got[(FIRST_STEP, "")].sign == "<"
+    assert got[(REPORT, "")].threshold == 0.5
+    # a kernel's best gain is over the workloads, and names the workload; "all off" is not a kernel
+    assert got[("kernel _raycast, best end-to-end gain", "default sweep")].value == 1.35
+    assert got[("kernel _orca, best end-to-end gain", "orca crowd run (docs/crowds.md)")].value == 3.7
+    assert [t.name for t in rows if t.name.startswith("kernel ")] == ["kernel _raycast, best end-to-end gain",
+                                                                      "kernel _orca, best end-to-end gain"]
+    assert "(target < 0.5: 0.6 of it) — met" in got[(FIRST_STEP, "")].line()
+
+
+@pytest.mark.parametrize(("path", "value", "key"), [
+    (("main_job", "sweep_efficiency"), 0.79, (DEFAULT_SWEEP, "2 cores")),
+    (("main_job", "simulated_sweep_efficiency"), 0.5, (DEFAULT_SWEEP, "16 cores, simulated schedule")),
+    (("large_sweep", "sweep_efficiency"), 0.799, (LARGE_SWEEP, "2 cores")),
+    (("main_job", "first_step_s"), 0.5, (FIRST_STEP, "")),  # "under 0.5 s": 0.5 itself misses it
+    (("main_job", "first_step_s"), 1.2, (FIRST_STEP, "")),
+    (("main_job", "report_over_metrics"), 0.49, (REPORT, "")),
+    (("kernels", "gain", "default sweep", "_raycast"), 1.29, ("kernel _raycast, best end-to-end gain",
+                                                             "default sweep")),  # its best: 1.1 on the other
+])
+def test_an_issue_36_target_missed_is_not_met(path, value, key):
+    target = by_key(main_job_targets(_with(MAIN_JOB, path, value)))[key]
+    assert target.met is False and "NOT met" in target.line() and target.value == value
+
+
+@pytest.mark.parametrize(("path", "value", "key"), [
+    (("main_job", "sweep_efficiency"), 0.8, (DEFAULT_SWEEP, "2 cores")),  # ">= 0.8"
+    (("large_sweep", "sweep_efficiency"), 0.8, (LARGE_SWEEP, "2 cores")),
+    (("main_job", "first_step_s"), 0.4999, (FIRST_STEP, "")),
+    (("main_job", "report_over_metrics"), 0.5, (REPORT, "")),
+    (("kernels", "gain", "default sweep", "_raycast"), 1.3, ("kernel _raycast, best end-to-end gain",
+                                                            "default sweep")),
+])
+def test_an_issue_36_target_at_its_threshold(path, value, key):
+    assert by_key(main_job_targets(_with(MAIN_JOB, path, value)))[key].met is True
+
+
+def test_a_quick_run_has_issue_36_targets_not_measured_never_met(capsys):
+    results = {**copy.deepcopy(MAIN_JOB), "quick": True}
+    del results["large_sweep"], results["kernels"]
+    rows = main_job_targets(results)
+    absent = [t for t in rows if t.value is None]
+    assert {t.name for t in absent} == {LARGE_SWEEP, "kernel _raycast, best end-to-end gain",
+                                        "kernel _orca, best end-to-end gain"}
+    assert all(t.met is None and "--quick" in t.note and "not measured" in t.line() for t in absent)
+    assert all(t.met for t in rows if t.value is not None)
+    print_targets(results)
+    out = capsys.readouterr().out
+    assert "issue #36 targets (the main job): 5 of 8 met in this run" in out
+    assert f"  {LARGE_SWEEP}: not measured (no large_sweep in a --quick run: the full run measures it)" in out
+
+
+def test_issue_36_targets_without_the_main_job_are_rows_not_measured():
+    rows = main_job_targets({})
+    assert [t.name for t in rows] == [DEFAULT_SWEEP, FIRST_STEP, REPORT, LARGE_SWEEP,
+                                      "each kernel's best end-to-end gain"]
+    assert all(t.value is None and t.met is None and "this run's results" in t.note for t in rows)
+
+
+def test_a_kernel_not_built_is_not_measured_and_says_why():
+    results = copy.deepcopy(MAIN_JOB)
+    results["machine"]["kernels_built"]["_tracking"] = False  # no C compiler for it: the kernels' table lacks it
+    target = by_key(main_job_targets(results))[("kernel _tracking, best end-to-end gain",
+                                                "not built at install (no C compiler?)")]
+    assert target.met is None and target.value is None
+
+
+def test_a_target_as_bench_json_holds_it():
+    strict = Target(FIRST_STEP, 0.5, 0.5, False, "s", strict=True)
+    assert strict.as_dict() == {"name": FIRST_STEP, "value": 0.5, "threshold": 0.5, "higher_is_better": False,
+                                "sign": "<", "unit": "s", "met": False, "note": ""}
+    assert Target("x", None, 2.0, True, "").as_dict()["met"] is None
+    assert [Target("x", 1.0, 1.0, h, "", strict=s).sign for h in (True, False) for s in (False, True)] == [
+        ">=", ">", "<=", "<"]

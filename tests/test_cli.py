@@ -90,6 +90,21 @@ def test_bench_quick_writes_results(tmp_path):
     assert "issue #19 targets:" in res.stdout
     assert {t["name"][:1] for t in data["targets"]} == {"1", "2", "3", "4"}
     assert all(t["met"] in (True, False, None) for t in data["targets"])
+    # the performance page shows every section of this run, through the bench's own printers
+    from runners.benchmarks import page
+    from runners.benchmarks.main_job import FULL_RUN_ONLY
+
+    text = page.render(data)
+    shown = {key: title for title, key, _ in page.SECTIONS}
+    assert set(data) - {"machine", "quick"} <= set(shown) and set(FULL_RUN_ONLY) <= set(shown)
+    assert "Not shown" not in text and f"sweep efficiency: {job['sweep_efficiency']:.2f}" in text
+    for key, title in shown.items():
+        measured = not text.split(f"## {title}\n\n")[1].startswith("Not measured")
+        assert measured == (key in data), key
+    assert all(f"## {shown[key]}\n\nNot measured in this run (`--quick` leaves it out" in text for key in FULL_RUN_ONLY)
+    targets_36 = {t["name"]: t for t in data["main_job_targets"]}
+    assert targets_36["sweep efficiency, a 1,000-episode sweep as a whole command"]["met"] is None
+    assert all(t["met"] is None for name, t in targets_36.items() if name.startswith("kernel "))
 
 
 def test_bench_refuses_an_unwritable_out_before_measuring(tmp_path):

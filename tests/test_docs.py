@@ -101,8 +101,48 @@ def _results() -> dict:
         "targets": [{"name": "analysis, one process", "value": 207.0, "threshold": 200.0, "higher_is_better": True,
                      "unit": "episodes/s", "met": True, "note": ""},
                     {"name": "single decision ours / ferrifuzz (table1)", "value": None, "threshold": 1.0,
-                     "higher_is_better": False, "unit": "", "met": False, "note": "ferrifuzz not installed"}],
+                     "higher_is_better": False, "unit": "", "met": None, "note": "ferrifuzz not installed"}],
+        **_main_job_results(),
     }
+
+
+def _main_job_results() -> dict:
+    """Issue #36's sections of a full run's bench.json (made-up numbers) and the targets the bench reads off them."""
+    from runners.benchmarks.targets import main_job_targets
+
+    results = {
+        "machine": {"kernels_built": {"_raycast": True, "_orca": True}},
+        "main_job": {"cores": 2, "episodes": 105, "rounds": 3, "sweep_wall_s": 30.0, "sweep_first_log_s": 3.0,
+                     "sweep_last_log_s": 27.0, "plain_s": 2.8, "first_step_s": 0.41, "report_s": 3.5,
+                     "metrics_s": 0.5, "metrics_command_s": 2.0, "sim_wall_s": 6.0, "sim_phase_s": 3.1,
+                     "plain_episodes_per_s": 37.5, "sweep_episodes_per_s": 3.5, "sweep_efficiency": 0.0467,
+                     "sweep_efficiency_to_last_log": 0.0519, "episodes_phase_efficiency": 0.0583,
+                     "simulated_cores": 16, "simulated_sweep_efficiency": 0.0292,
+                     "simulated_episodes_phase_efficiency": 0.0565, "report_episodes_per_s": 30.0,
+                     "metrics_episodes_per_s": 210.0, "metrics_command_episodes_per_s": 52.5,
+                     "report_over_metrics": 0.1429, "report_over_metrics_command": 0.5714},
+        "large_sweep": {"cores": 2, "episodes": 1008, "rounds": 2, "overrides": ["episodes=8", "seed=range(0,48,8)"],
+                        "wall_s": 120.0, "first_log_s": 4.0, "last_log_s": 110.0, "plain_s": 27.0,
+                        "sim_wall_s": 14.0, "sim_phase_s": 9.5, "plain_episodes_per_s": 37.33,
+                        "sweep_efficiency": 0.1125, "episodes_phase_efficiency": 0.1273, "simulated_cores": 16,
+                        "simulated_sweep_efficiency": 0.1206, "simulated_episodes_phase_efficiency": 0.1777},
+        "kernels": {"rounds": 2,
+                    "medians_s": {"default sweep": {"all on": 30.0, "_raycast": 33.0, "_orca": 30.3, "all off": 34.0},
+                                  "orca crowd run (docs/crowds.md)": {"all on": 2.0, "_raycast": 2.5, "_orca": 7.4,
+                                                                      "all off": 8.0}},
+                    "gain": {"default sweep": {"_raycast": 1.1, "_orca": 1.01, "all off": 1.13},
+                             "orca crowd run (docs/crowds.md)": {"_raycast": 1.25, "_orca": 3.7, "all off": 4.0}}},
+        "recorded": {"people": 300, "steps": 600, "repetitions": 3, "present_per_step": 13.8,
+                     "in_laser_range_per_step": 0.42, "replay_us_per_step": 51.0, "sensing_extra_us_per_step": 61.0,
+                     "mixed_us_per_step": 1800.0, "share_of_mixed_step": 0.062},
+        "tuning": {"trials": 20, "episodes_per_trial": 10, "episodes": 200, "scenario": "head_on", "study_s": 12.0,
+                   "plain_episodes_s": 8.0, "trials_per_minute": 100.0, "overhead": 0.5, "overhead_s_per_trial": 0.2,
+                   "episodes_in_study_s": 8.5, "metrics_s": 1.5, "sampler_storage_compose_s": 2.0,
+                   "study_setup_s": 0.6},
+    }
+    results["main_job_targets"] = [t.as_dict() for t in main_job_targets(results)]
+    del results["machine"]
+    return results
 
 
 def test_the_performance_page_is_generated_from_bench_json(tmp_path: Path):
@@ -123,6 +163,76 @@ def test_the_performance_page_is_generated_from_bench_json(tmp_path: Path):
     for missing in ("Report", "Crowds", "Side by side with the targets' starting point"):
         assert f"## {missing}\n\nNot measured in this run.\n" in text
     assert "## What each number measures" in text
+    # issue #36's sections, as the bench's own printers print them, and its targets with their verdicts
+    assert "sweep efficiency: 0.05  (the whole command, 30.0 s" in text
+    assert "time to first step of runners.run: 0.41 s" in text and "report / metrics = 0.14" in text
+    assert "sweep efficiency (1,000 episodes): 0.11 on 2 cores" in text
+    assert "_orca                                     1.01                      3.70    3.70" in text
+    assert "Recorded people: 300 people over 600 steps" in text and "100.0 trials/min" in text
+    assert "2 of 9 targets met in this run." in text
+    assert "| time to the first step of runners.run | 0.41 s | < 0.5 s | met |  |" in text
+    assert "| kernel _raycast, best end-to-end gain | 1.25 x | >= 1.3 x | **not met** | orca crowd run" in text
+    assert "| sweep efficiency, a 1,000-episode sweep as a whole command | 0.113 | >= 0.8 | **not met** | 2 cores |" \
+        in text
+    measures = text[text.index("## What each number measures"):]
+    for entry in ("Recorded people", "The main job", "A 1,000-episode sweep", "Kernels end to end",
+                  "Tuning studies", "Targets"):
+        assert f"- **{entry}**" in measures, entry
+    assert "Not shown" not in text and "about 6 minutes" not in text
+
+
+def test_the_performance_page_of_a_quick_run_says_what_it_did_not_measure(tmp_path: Path):
+    from runners.benchmarks.targets import main_job_targets
+
+    results = _results()
+    del results["large_sweep"], results["kernels"]
+    results["machine"]["kernels_built"] = {"_raycast": True, "_orca": True}
+    results["main_job_targets"] = [t.as_dict() for t in main_job_targets(results)]
+    text = bench_page.render(results)
+    for title in ("A 1,000-episode sweep", "Kernels end to end"):
+        assert f"## {title}\n\nNot measured in this run (`--quick` leaves it out: the full run measures it).\n" in text
+    assert ("| sweep efficiency, a 1,000-episode sweep as a whole command | not measured | >= 0.8 | not measured | "
+            "no large_sweep in a --quick run: the full run measures it |") in text
+    assert "| kernel _orca, best end-to-end gain | not measured | >= 1.3 x | not measured | no kernels in a" in text
+    assert "1 of 8 targets met in this run." in text  # the not measured ones are not met
+    results["quick"] = False  # a full run that lacks them (it failed): not measured, no reason invented
+    assert "## Kernels end to end\n\nNot measured in this run.\n" in bench_page.render(results)
+
+
+@pytest.mark.parametrize(("edit", "section", "why"), [
+    (lambda r: r["main_job_targets"][3].update(met=False), "Targets of issue #36 (the main job)",
+     "met False is not the verdict of its value and threshold"),
+    (lambda r: r["main_job_targets"][0].update(value=0.9), "Targets of issue #36 (the main job)",
+     "met False is not the verdict"),
+    (lambda r: r["main_job_targets"][3].update(sign=">"), "Targets of issue #36 (the main job)",
+     "does not match higher_is_better"),
+    (lambda r: r["main_job_targets"][0].update(value="0.9"), "Targets of issue #36 (the main job)",
+     "is not a finite number"),
+    (lambda r: r["main_job"].update(sweep_efficiency=float("nan")), "The main job",
+     "`main_job.sweep_efficiency` in this run's results is not a finite number"),
+    (lambda r: r["kernels"]["gain"]["default sweep"].update(_orca=float("inf")), "Kernels end to end",
+     "`kernels.gain.default sweep._orca`"),
+    (lambda r: r["large_sweep"].pop("wall_s"), "A 1,000-episode sweep", "KeyError: 'wall_s'"),
+])
+def test_the_performance_page_shows_no_figure_it_cannot_trust(edit, section, why):
+    """An edited verdict, a NaN or a missing field: that section says why it is not shown; the others are shown."""
+    results = _results()
+    edit(results)
+    text = bench_page.render(results)
+    body = text.split(f"## {section}\n\n")[1].split("\n## ")[0]
+    assert body.startswith("Not shown: ") and why in body, body
+    assert text.count("Not shown") == 1 and "nan" not in text.lower() and "| 0.9 |" not in text
+
+
+def test_what_each_number_measures_is_one_list_item_per_section():
+    """The fixed text's entries stay separate items of one list as Markdown reads it (a lazy continuation line or a
+    nested list would swallow the next entry)."""
+    import markdown
+
+    html = markdown.markdown(bench_page.MEASURES)
+    entries = re.findall(r"^- \*\*([^*]+)\*\*", bench_page.MEASURES, re.M)
+    assert re.findall(r"<li><strong>([^<]+)</strong>", html) == entries and html.count("<ul>") == 1
+    assert len(entries) == len(bench_page.SECTIONS) - 1  # the two target tables share the entry "Targets"
 
 
 def test_the_performance_page_refuses_what_is_not_bench_output(tmp_path: Path, capsys):

@@ -221,6 +221,8 @@ def bench_main_job(rounds: int = 3) -> dict[str, Any]:
 LARGE_SWEEP = ("episodes=8", "seed=range(0,48,8)")
 LARGE_SEEDS = range(48)
 SIMULATED_CORES = 16
+#: the sections of bench.json only the full run measures (``runners.bench --quick`` leaves them out: minutes each)
+FULL_RUN_ONLY = ("large_sweep", "kernels")
 
 
 def bench_large_sweep(rounds: int = 2) -> dict[str, Any]:
