@@ -124,3 +124,25 @@ def test_a_study_of_another_name_is_not_converted(tmp_path):
     one_line_error(code, err, str(out / "study.db"), "no study named 'renamed'", "'tiny'")
     assert code == 2 and digest(out / "study.db") == database and not (out / "study.journal").exists()
     lock.release(out)
+
+
+def test_a_copy_that_differs_is_one_line_and_the_folder_is_as_it_was(tmp_path, monkeypatch):
+    """The check after the copy (here made to see a trial differ) refuses the conversion: no journal file, no kept
+    copy, the database as it was."""
+    from runners.tuning import storage_copy
+
+    out, path = sqlite_study(tmp_path, trials=1)
+    names = {p.name for p in out.iterdir()}
+    real, calls = storage_copy._study_record, []
+
+    def differing(storage, name):
+        record = real(storage, name)
+        calls.append(1)
+        return record if len(calls) != 1 else (*record[:3], [])  # the copy's record, read first, lacks its trials
+
+    monkeypatch.setattr(storage_copy, "_study_record", differing)
+    database = digest(out / "study.db")
+    code, _, err = run_main(str(path), "--out", str(out), "--to-journal")
+    one_line_error(code, err, str(out / "study.db"), "differs from the database", "nothing converted")
+    assert code == 2 and digest(out / "study.db") == database and {p.name for p in out.iterdir()} == names
+    lock.release(out)
