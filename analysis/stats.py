@@ -1,10 +1,12 @@
-"""Interval estimates for the reports: Wilson score interval, percentile bootstrap, paired differences."""
+"""Interval estimates for the reports: Wilson score interval, percentile bootstrap (plain, and stratified for a
+mean of strata's means), paired differences."""
 
 from __future__ import annotations
 
 import hashlib
 import math
 from collections import OrderedDict
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -97,6 +99,47 @@ def _bootstrap_mean(x: np.ndarray, n_boot: int, seed: int, level: float) -> tupl
     # an infinite value (min_ttc_s: never on a collision course) makes resampled means infinite; interpolating
     # between two of them is inf - inf (NaN, and a warning): take order statistics instead, e.g. [1.2, inf]
     method = "linear" if np.isfinite(means).all() else "inverted_cdf"
+    low, high = np.quantile(means, [alpha, 1 - alpha], method=method)
+    return mean, float(low), float(high)
+
+
+def stratum_seed(seed: int, stratum: int) -> int:
+    """The seed of stratum ``stratum``'s resampling in :func:`stratified_bootstrap_mean`: ``seed`` itself for the
+    first (one stratum is the plain bootstrap of :func:`bootstrap_mean`), an independent stream for the others
+    (the same indices for two strata of one size would resample them together, not independently)."""
+    if stratum == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, stratum]).generate_state(1, dtype=np.uint64)[0])
+
+
+def stratified_bootstrap_mean(strata: Sequence, n_boot: int = 2000, seed: int = 0, level: float = 0.95
+                              ) -> tuple[float, float, float]:
+    """Mean over strata of each stratum's mean, and its percentile-bootstrap interval from resampling the values
+    within each stratum (each stratum keeps its size and its weight: one stratum per scenario, its held-out seeds
+    as values, so that every scenario weighs the same however many of its episodes count).
+
+    NaNs are dropped per stratum. NaN mean when there is no stratum or a stratum has no value; NaN interval when a
+    stratum has fewer than 2 values (as :func:`bootstrap_mean`). Seeded (stratum ``k`` resamples with
+    :func:`stratum_seed`), so a report is reproducible; one stratum gives :func:`bootstrap_mean`'s numbers."""
+    xs = [np.asarray(values, dtype=float) for values in strata]
+    xs = [x[~np.isnan(x)] for x in xs]
+    if not xs or any(len(x) == 0 for x in xs):
+        return math.nan, math.nan, math.nan
+    if len(xs) == 1:
+        return bootstrap_mean(xs[0], n_boot, seed, level)
+    if any(np.isposinf(x).any() for x in xs) and any(np.isneginf(x).any() for x in xs):
+        return math.nan, math.nan, math.nan
+    mean = math.fsum(float(x.mean()) for x in xs) / len(xs)
+    if any(len(x) < 2 for x in xs):
+        return mean, math.nan, math.nan
+    if all(np.all(x == x[0]) for x in xs):
+        return mean, mean, mean
+    means = np.zeros(n_boot)
+    for k, x in enumerate(xs):  # a constant stratum resamples to its own mean
+        means += x[0] if np.all(x == x[0]) else _resampled_means(x, n_boot, stratum_seed(seed, k))
+    means /= len(xs)
+    alpha = (1 - level) / 2
+    method = "linear" if np.isfinite(means).all() else "inverted_cdf"  # as in _bootstrap_mean: no inf - inf
     low, high = np.quantile(means, [alpha, 1 - alpha], method=method)
     return mean, float(low), float(high)
 

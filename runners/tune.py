@@ -6,6 +6,7 @@
     python -m runners.tune h_wait_margin --no-heldout          # trials only (held-out evaluation later)
     python -m runners.tune h_wait_margin --workers 8 --launcher slurm hydra.launcher.partition=cpu  # a job array
     python -m runners.tune --compare suite_v2         # conf/tune/compare/suite_v2.yaml: every study, one report
+    python -m runners.tune h_wait_margin --to-journal  # its SQLite study moved to the journal file (for Slurm)
 
 The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
 the scenarios and the training and held-out seeds (:mod:`runners.tuning.study_file`). The study lives in Optuna's
@@ -48,6 +49,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("launcher_options", nargs="*", metavar="hydra.launcher.KEY=VALUE",
                         help="with --launcher slurm: options of the Slurm preset (partition, account, timeout_min ...)")
     parser.add_argument("--no-heldout", action="store_true", help="no held-out evaluation and report")
+    parser.add_argument("--to-journal", action="store_true",
+                        help="only move the study folder's SQLite study (study.db) to the journal file that Slurm "
+                             "workers share, checked trial by trial; the database is kept as study.db.converted "
+                             "(runners.tuning.storage_copy)")
     args = parser.parse_intermixed_args(argv)
     if args.compare is not None and args.study is not None and args.study.startswith(OVERRIDE_PREFIXES):
         args.study, args.launcher_options = None, [args.study, *args.launcher_options]  # no study: an option
@@ -57,6 +62,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         parser.error("--no-heldout: a comparison compares held-out results")
     if args.launcher_options and args.launcher != "slurm":
         parser.error(f"{args.launcher_options[0][:80]!r}: launcher options need --launcher slurm")
+    if args.to_journal:
+        given = [flag for flag, on in (("--compare", args.compare is not None), ("--trials", args.trials is not None),
+                                       ("--workers", args.workers != 1), ("--storage", args.storage is not None),
+                                       ("--launcher", args.launcher != "local"), ("--no-heldout", args.no_heldout))
+                 if on]
+        if given or args.launcher_options:
+            parser.error(f"--to-journal only converts the study's storage: leave out "
+                         f"{given[0] if given else args.launcher_options[0][:80]!r}, then run the study again")
     if args.launcher == "slurm" and args.storage == "sqlite":
         parser.error("--storage sqlite: Slurm workers share the study through the journal file (SQLite locks badly "
                      "over a shared file system); leave --storage out")
@@ -142,6 +155,11 @@ def main(argv: list[str] | None = None) -> int:
             raise StorageError(f"{study_dir}: the study folder is in use by {holder} (lock {lock_file(study_dir)}): "
                                "wait for it to finish (or add workers to it with --workers) or choose another --out") \
                 from None
+        if args.to_journal:
+            try:
+                return convert_to_journal(spec, study_dir)
+            finally:
+                lock.release(study_dir)
         from runners.tuning.slurm_workers import refuse_live_array
 
         refuse_live_array(study_dir)
@@ -151,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
                                "another one")
         kind = kind or args.storage or ("journal" if args.launcher == "slurm" else "sqlite")
         if args.launcher == "slurm":
-            slurm_workers.storage_kind(kind, study_dir)
+            slurm_workers.storage_kind(kind, study_dir, args.study)
         check_space(spec)
         study = create_or_load(spec, open_storage(study_dir, kind))
     except (StudyFileError, StorageError, ValueError) as err:
@@ -164,6 +182,17 @@ def main(argv: list[str] | None = None) -> int:
         return study_command(args, spec, study, study_dir, kind)
     finally:
         lock.release(study_dir)  # the kernel releases it at exit too; a caller in the same process may go on
+
+
+def convert_to_journal(spec, study_dir: Path) -> int:
+    """``--to-journal``: the study folder's SQLite study copied to its journal file (the folder locked)."""
+    from runners.tuning.storage_copy import converted_path, to_journal
+
+    trials, journal = to_journal(study_dir, spec.name)
+    print(f"study {spec.name}: {trials} trials copied to {journal} and checked; the SQLite database is kept as "
+          f"{converted_path(study_dir)}. Resume it with: python -m runners.tune {spec.path} --out {study_dir} "
+          "[--launcher slurm]", flush=True)
+    return 0
 
 
 def study_command(args: argparse.Namespace, spec, study, study_dir: Path, kind: str) -> int:

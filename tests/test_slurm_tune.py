@@ -7,7 +7,9 @@ Slurm cluster started on this machine (the ``slurm`` fixture, :mod:`tests.slurm_
   task and its Submitit log in one line; re-running resumes and completes the budget exactly;
 - Ctrl-C of the command cancels the array: no task is left, the trials in flight are interrupted, re-run completes;
 - a killed command leaves its array running: a re-run is refused in one line until the array has ended;
-- a study stored in SQLite, and a partition the cluster does not have, are refused in one line.
+- a study stored in SQLite, and a partition the cluster does not have, are refused in one line; the SQLite study,
+  moved to the journal file with ``--to-journal`` as that line says, then completes its budget on Slurm;
+- a comparison (``--compare``) runs each study as a job array of its own and writes the comparison report.
 
 Tiny studies: head_on (~42 steps an episode), the training seeds set how long a trial runs.
 """
@@ -24,6 +26,7 @@ from pathlib import Path
 import optuna
 import pytest
 
+from runners.tuning.storage import open_storage
 from runners.tuning.study import INTERRUPTED, SURPLUS, WORKER, counted
 from tests.conftest import ROOT
 from tests.slurm_cluster import PARTITION, Cluster, wait_for
@@ -197,7 +200,19 @@ def test_a_sqlite_study_is_refused_for_slurm_workers(slurm: Cluster, tmp_path: P
     assert res.returncode == 2 and len(lines) == 1, res.stderr
     assert lines[0].startswith(f"error: {out / 'study.db'}: a study stored in SQLite cannot be shared by Slurm "
                                "workers"), lines[0]
+    convert = f"python -m runners.tune {path} --out {out} --to-journal"
+    assert convert in lines[0], lines[0]  # the line names the conversion
     assert (out / "study.db").read_bytes() == before and not (out / ".submitit").exists() and slurm.idle()
+    # converted as the line says, the study goes on on Slurm from its one trial to the budget of two
+    res = subprocess.run([sys.executable, "-m", *convert.split()[2:]], cwd=ROOT, env=slurm.env, capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0 and (out / "study.journal").exists() and not (out / "study.db").exists(), res.stderr
+    first = trials_of(out, "journal")[0]
+    res = tune_on(slurm, out, path, "--workers", "2", "--trials", "2", "--no-heldout")
+    assert res.returncode == 0, f"{res.stderr[-3000:]}\n{slurm.logs()}"
+    trials = trials_of(out, "journal")
+    assert sum(map(counted, trials)) == 2 and trials[0] == first  # the converted trial is kept, not run again
+    assert WORKER in trials[1].user_attrs and trials[1].user_attrs[WORKER].get("slurm_task")
     res = tune_on(slurm, tmp_path / "other", path, "--storage", "sqlite")  # asked for explicitly: refused too
     assert res.returncode == 2 and "--storage sqlite: Slurm workers share the study through the journal file" \
         in res.stderr and not (tmp_path / "other").exists(), res.stderr
@@ -213,3 +228,27 @@ def test_a_partition_the_cluster_does_not_have_is_one_line(slurm: Cluster, tmp_p
     assert re.fullmatch(r"error: Slurm did not accept the workers' job array: sbatch: error: .*partition.*",
                         lines[0]), lines[0]
     assert {t.state.name for t in trials_of(out, "journal")} == {"WAITING"} and slurm.idle()  # the default, not run
+
+
+def test_a_comparison_runs_its_studies_as_slurm_arrays_and_reports(slurm: Cluster, tmp_path: Path) -> None:
+    """``--compare`` with ``--launcher slurm``: each study of a tiny comparison (two methods, two trials of two
+    episodes) runs as a job array of its own, in the journal file; the held-out evaluation and the comparison
+    report are written by the command."""
+    from tests.test_tune_compare import write
+
+    out = tmp_path / "out"
+    res = subprocess.run([sys.executable, "-m", "runners.tune", "--compare", str(write(tmp_path)), "--out", str(out),
+                          "--launcher", "slurm", f"hydra.launcher.partition={PARTITION}"], cwd=ROOT, env=slurm.env,
+                         capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL)
+    assert res.returncode == 0, f"{res.stderr[-3000:]}\n{slurm.logs()}"
+    assert len(re.findall(r"submitted 1 Slurm worker task\(s\) as job array \d+", res.stdout)) == 2, res.stdout
+    for name in ("tiny", "tiny_dwa"):
+        assert (out / name / "study.journal").exists() and not (out / name / "study.db").exists()
+        trials = optuna.load_study(study_name=name, storage=open_storage(out / name, "journal")).get_trials()
+        assert sum(map(counted, trials)) == 2
+        assert all(re.fullmatch(r"\d+", t.user_attrs[WORKER]["slurm_task"] or "") for t in ran(trials))  # one job
+        assert (out / name / "report" / "study.md").exists()
+    report = out / "report"
+    assert "## Held-out results per scenario" in (report / "comparison.md").read_text()
+    assert (report / "comparison.csv").stat().st_size > 0 and (report / "comparison_overall.csv").stat().st_size > 0
+    assert slurm.idle()

@@ -155,8 +155,8 @@ def test_bad_command_line_is_one_line(tmp_path):
 
 
 ARGS = st.lists(st.one_of(st.sampled_from(["--trials", "--workers", "--storage", "--out", "--no-heldout", "--bogus",
-                                           "-h=1", "sqlite", "journal", "0", "-5", "1e9", "nan", "", "--launcher",
-                                           "slurm", "local", "hydra.launcher.partition=x"]),
+                                           "-h=1", "sqlite", "journal", "--to-journal", "0", "-5", "1e9", "nan", "",
+                                           "--launcher", "slurm", "local", "hydra.launcher.partition=x"]),
                           st.text(max_size=12)), max_size=5)
 
 
@@ -214,7 +214,8 @@ def test_a_comparison_passes_the_launcher_and_its_options_to_its_studies(tmp_pat
 
 LAUNCHER_ARGS = st.lists(st.one_of(
     st.sampled_from(["--launcher", "slurm", "local", "pbs", "--workers", "0", "2", "300", "--storage", "sqlite",
-                     "journal", "--no-heldout", "hydra.launcher.partition=cpu", "hydra.launcher.timeout_min=abc",
+                     "journal", "--to-journal", "--no-heldout", "hydra.launcher.partition=cpu",
+                     "hydra.launcher.timeout_min=abc",
                      "hydra.launcher.nodes=2", "+hydra.launcher.additional_parameters.constraint=c",
                      "~hydra.launcher.qos", "hydra.x=1", "hydra.launcher.partition=", "hydra.launcher=1"]),
     st.builds(lambda k, v: f"hydra.launcher.{k}={v}", st.sampled_from(["partition", "account", "qos", "mem_gb",

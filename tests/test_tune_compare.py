@@ -7,6 +7,7 @@ Tiny studies: one short scenario (head_on), two training seeds, two held-out see
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import signal
 import subprocess
@@ -14,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import optuna
 import pandas as pd
 import pytest
@@ -23,8 +25,11 @@ from hypothesis import strategies as st
 
 from analysis.log_inputs import find_logs
 from analysis.logs import episode_summary
+from analysis.objectives import objective_value
 from runners.tuning import study_file as study_file_module
 from runners.tuning.comparison_file import FIELDS, ComparisonFileError, load_comparison
+from runners.tuning.episodes import EpisodeResults
+from runners.tuning.heldout import Evaluated
 from runners.tuning.storage import open_storage
 from runners.tuning.study import counted
 from tests.conftest import ROOT
@@ -70,7 +75,7 @@ def test_comparison_runs_every_study_reports_and_resumes(tmp_path):
         assert sorted({int(episode_summary(p)["seed"]) for p in held}) == [100, 101]  # never a training seed
         assert (out / name / "report" / "study.md").exists()
     report = out / "report"
-    for name in ("comparison.md", "comparison.csv", "comparison.png"):
+    for name in ("comparison.md", "comparison.csv", "comparison_overall.csv", "comparison.png"):
         assert (report / name).stat().st_size > 0, name
     table = pd.read_csv(report / "comparison.csv")
     assert set(zip(table["study"], table["configuration"], strict=True)) == {
@@ -83,6 +88,11 @@ def test_comparison_runs_every_study_reports_and_resumes(tmp_path):
     assert reference["vs_reference"] == 0 and reference["pairs"] == 2
     for key, row in score.iterrows():  # every seed paired: the mean difference is the difference of the means
         assert math.isclose(row["vs_reference"], row["mean"] - reference["mean"], abs_tol=1e-9), key
+    # one scenario: the all-scenario score is that scenario's, and its interval that scenario's bootstrap
+    overall = pd.read_csv(report / "comparison_overall.csv").set_index(["study", "configuration"])
+    for key, row in score.iterrows():
+        for column in ("mean", "ci_low", "ci_high", "vs_reference", "vs_reference_ci_low", "vs_reference_ci_high"):
+            assert math.isclose(overall.loc[key, column], row[column], abs_tol=1e-12), (key, column)
     # the comparison's numbers are the studies' own held-out numbers (success, time to goal)
     for name in ("tiny", "tiny_dwa"):
         own = pd.read_csv(out / name / "report" / "heldout.csv").set_index(["metric", "configuration"])
@@ -157,7 +167,7 @@ MISMATCHES = [  # (change to the second study, words of the error)
     ({"trials": 3}, ["dwa.yaml: trials:", "3 x 2 episodes = 6 episodes differ", "tiny.yaml", "budget"]),
     ({"train_seeds": {"start": 0, "count": 3}}, ["dwa.yaml: train_seeds: 0..2 differ", "tiny.yaml's 0..1"]),
     ({"heldout_seeds": {"start": 200, "count": 2}}, ["dwa.yaml: heldout_seeds: 200..201 differ"]),
-    ({"scenarios": ["crossing_right"]}, ["dwa.yaml: scenarios: crossing_right differ", "tiny.yaml's head_on"]),
+    ({"scenarios": ["crossing_right"]}, ["dwa.yaml: scenarios: 'crossing_right' differ", "tiny.yaml's 'head_on'"]),
     ({"objectives": [{"metric": "spl", "direction": "maximize"}]}, ["dwa.yaml: objectives:", "differ"]),
     ({"train_seeds": {"start": 100, "count": 2}, "heldout_seeds": {"start": 0, "count": 2}},
      ["tiny.yaml: train_seeds: 0..1 overlap the held-out seeds 0..1 of", "dwa.yaml"]),
@@ -281,3 +291,77 @@ def test_fuzzed_budget_and_seeds_give_the_comparison_or_the_field_that_differs(t
         load_comparison(path)
     message = str(err.value)
     assert "\n" not in message and all(word in message for word in expected), message
+
+
+def _evaluated(label: str, trial: int | None, episodes: pd.DataFrame, objective) -> Evaluated:
+    return Evaluated(label, [], trial, EpisodeResults(episodes, pd.DataFrame(), []),
+                     {objective.name: objective_value(episodes, objective)})
+
+
+def test_all_scenario_score_has_a_stratified_interval_and_a_paired_difference(tmp_path):
+    """The methods table's all-scenario score from held-out episodes made by hand (two scenarios of unequal size):
+    its mean is the mean of the scenarios' means, its interval the scenario-stratified bootstrap; the difference
+    from the reference is paired by scenario and seed; an identical configuration differs by exactly 0."""
+    from analysis.objectives import episode_values
+    from analysis.stats import stratified_bootstrap_mean
+    from runners.tuning.comparison_report import overall_table, write_comparison_report
+
+    two = {**PAPER, "scenarios": ["head_on", "crossing_left"]}
+    comparison = load_comparison(write(tmp_path, two, {**DWA, "scenarios": two["scenarios"]}))
+    paper, dwa = comparison.studies
+    objective = paper.objectives[0]  # success - 0.005 x time to goal (120 s when not reached)
+    rng = np.random.default_rng(4)
+
+    def episodes(shift: float, nan_time: bool = False) -> pd.DataFrame:
+        rows = [{"scenario": scenario, "seed": 100 + i, "success": float(i % 2 == 0 or i % 3 == 0),
+                 "time_to_goal_s": 20.0 + 3 * i + shift} for scenario, n in (("head_on", 3), ("crossing_left", 6))
+                for i in range(n)]
+        frame = pd.DataFrame(rows)
+        frame["time_to_goal_s"] += rng.integers(0, 4, size=len(frame))
+        if nan_time:
+            frame.loc[1, "time_to_goal_s"] = math.nan
+        return frame
+
+    ref_eps = episodes(0.0)
+    tuned_eps = ref_eps.copy()
+    tuned_eps["time_to_goal_s"] -= 10.0  # 10 s faster on every episode: 0.05 better, paired
+    dwa_eps = episodes(5.0)
+    results = [(paper, optuna.create_study(), [_evaluated("default", None, ref_eps, objective),
+                                               _evaluated("tuned", 3, tuned_eps, objective)]),
+               (dwa, optuna.create_study(), [_evaluated("default", None, ref_eps.copy(), objective),
+                                             _evaluated("tuned", 1, dwa_eps, objective)])]
+    table = overall_table(comparison, results).set_index(["study", "configuration"])
+    assert len(table) == 4 and (table["scenarios"] == 2).all() and (table["n"] == 9).all()
+    for (study, configuration), row in table.iterrows():
+        assert row["ci_low"] <= row["mean"] <= row["ci_high"], (study, configuration)
+        assert row["pairs"] == 9
+    ref = table.loc[("tiny", "published")]
+    by_scenario = [episode_values(ref_eps[ref_eps["scenario"] == s], objective) for s in ("head_on", "crossing_left")]
+    assert math.isclose(ref["mean"], (by_scenario[0].mean() + by_scenario[1].mean()) / 2)
+    assert (ref["ci_low"], ref["ci_high"]) == stratified_bootstrap_mean([v.tolist() for v in by_scenario])[1:]
+    assert ref["ci_low"] < ref["mean"] < ref["ci_high"]
+    # the published DWA is here the same episodes as the reference: difference 0, degenerate interval
+    same = table.loc[("tiny_dwa", "published")]
+    assert (same["vs_reference"], same["vs_reference_ci_low"], same["vs_reference_ci_high"]) == (0.0, 0.0, 0.0)
+    tuned = table.loc[("tiny", "tuned")]
+    for key in ("vs_reference", "vs_reference_ci_low", "vs_reference_ci_high"):
+        assert math.isclose(tuned[key], 0.05, abs_tol=1e-12), key
+    assert math.isclose(tuned["mean"] - ref["mean"], 0.05, abs_tol=1e-12)
+    other = table.loc[("tiny_dwa", "tuned")]
+    assert other["vs_reference_ci_low"] <= other["vs_reference"] <= other["vs_reference_ci_high"]
+    assert math.isclose(other["vs_reference"], other["mean"] - ref["mean"], abs_tol=1e-12)  # every seed paired
+    # the report: the CSV is the table, the methods table shows each all-scenario score with its interval
+    report = write_comparison_report(comparison, tmp_path / "out", results)
+    written = pd.read_csv(report.parent / "comparison_overall.csv", keep_default_na=False, na_values=[""])
+    written["note"] = written["note"].astype(object).fillna("")
+    pd.testing.assert_frame_equal(written.set_index(["study", "configuration"]), table, check_dtype=False)
+    text = report.read_text()
+    assert f"| {ref['mean']:.4g} [{ref['ci_low']:.4g}, {ref['ci_high']:.4g}] | (reference) |" in text
+    assert f"| {0.05:.4g} [{0.05:.4g}, {0.05:.4g}] |" in text
+    # an undefined term (no fill) in some episode: the score is the study's, without an interval, and says why
+    unfilled = dataclasses.replace(objective, fill=())
+    gap = episodes(0.0, nan_time=True)
+    comparison_nofill = dataclasses.replace(comparison, reference=dataclasses.replace(paper, objectives=(unfilled,)))
+    results = [(comparison_nofill.reference, optuna.create_study(), [_evaluated("default", None, gap, unfilled)])]
+    row = overall_table(comparison_nofill, results).iloc[0]
+    assert math.isfinite(row["mean"]) and math.isnan(row["ci_low"]) and "undefined" in row["note"]

@@ -75,8 +75,9 @@ def _same_setup(spec: StudySpec, ref: StudySpec, comparison: str) -> None:
     """That ``spec`` is tuned and evaluated as ``ref`` is (one line naming ``spec``'s file and field if not)."""
     budget = f"every study of comparison {comparison} needs the same"
     if set(spec.scenarios) != set(ref.scenarios):
-        raise ComparisonFileError(f"{spec.path}: scenarios: {', '.join(spec.scenarios)} differ from {ref.path}'s "
-                                  f"{', '.join(ref.scenarios)}: {budget} scenarios")
+        names = [", ".join(map(repr, s.scenarios))[:150] for s in (spec, ref)]  # repr: a name may hold a newline
+        raise ComparisonFileError(f"{spec.path}: scenarios: {names[0]} differ from {ref.path}'s {names[1]}: {budget} "
+                                  "scenarios")
     for field, words, mine, theirs in (("train_seeds", "training seeds", spec.train, ref.train),
                                        ("heldout_seeds", "held-out seeds", spec.heldout, ref.heldout)):
         if mine != theirs:

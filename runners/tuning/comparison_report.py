@@ -1,4 +1,5 @@
-"""The comparison report, ``<out>/report/``: ``comparison.md``, ``comparison.csv`` and ``comparison.png``.
+"""The comparison report, ``<out>/report/``: ``comparison.md``, ``comparison.csv``, ``comparison_overall.csv`` and
+``comparison.png``.
 
 Per scenario (never pooled: scenarios differ), per method (study) and configuration (``published``: the study's
 default, the method as its paper gives it; ``tuned``: its best trial, or each evaluated Pareto trial), on the
@@ -10,6 +11,11 @@ seed (the same world) with its bootstrap interval.
 An objective's interval is that of the mean of each episode's objective (:func:`analysis.objectives.episode_values`),
 which is the scenario's objective when every term is defined for every episode (a ``fill`` value makes it so); a
 scenario where a term is undefined for some episode gets its objective without an interval, and says why.
+
+The all-scenario score (``comparison_overall.csv``, the methods table) is the study's own objective: the mean over
+scenarios of each scenario's mean. Its 95 % interval is a percentile bootstrap stratified by scenario (the held-out
+seeds resampled within each scenario: :func:`analysis.stats.stratified_bootstrap_mean`, seeded), and so is that of
+its difference from the common reference, paired by scenario and seed.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from typing import Any
 import pandas as pd
 
 from analysis.objectives import episode_values, objective_value
-from analysis.stats import bootstrap_mean
+from analysis.stats import bootstrap_mean, stratified_bootstrap_mean
 from runners.tuning.comparison_file import Comparison
 from runners.tuning.heldout import Evaluated, metric_interval
 from runners.tuning.report import REPORT_DIR
@@ -86,6 +92,39 @@ def comparison_table(comparison: Comparison, results: list[tuple[StudySpec, Any,
     return pd.DataFrame(rows)
 
 
+def overall_table(comparison: Comparison, results: list[tuple[StudySpec, Any, list[Evaluated]]]) -> pd.DataFrame:
+    """One row per objective, study and configuration: the all-scenario held-out objective (the study's own
+    number) with its scenario-stratified bootstrap interval, and its difference from the common reference paired by
+    scenario and seed with its interval (stratified likewise). No interval (and a note) when some episode's
+    objective is undefined (a term without fill): the all-scenario objective is then not a mean of episodes'."""
+    ref_spec = comparison.reference
+    ref = next(evaluated[0] for spec, _, evaluated in results if spec is ref_spec)
+    scenarios = list(ref_spec.scenarios)
+    rows = []
+    for objective in ref_spec.objectives:
+        reference = [_per_seed(ref.results.episodes, s, objective.name, objective) for s in scenarios]
+        for spec, _, evaluated in results:
+            for ev in evaluated:
+                values = [_per_seed(ev.results.episodes, s, objective.name, objective) for s in scenarios]
+                undefined = any(v.isna().any() for v in values)
+                lo = hi = math.nan
+                if not undefined:
+                    lo, hi = stratified_bootstrap_mean([v.tolist() for v in values])[1:]
+                diffs = []
+                for v, r in zip(values, reference, strict=True):
+                    common = v.index.intersection(r.index)
+                    diffs.append([d for d in (v[common] - r[common]).tolist() if not math.isnan(d)])
+                d_mean, d_lo, d_hi = stratified_bootstrap_mean(diffs)
+                rows.append({"quantity": objective.name, "study": spec.name, "configuration": configuration_name(ev),
+                             "trial": ev.trial, "same_as_published": ev.same_as_default, "scenarios": len(scenarios),
+                             "n": sum(len(v) for v in values), "mean": ev.objectives.get(objective.name, math.nan),
+                             "ci_low": lo, "ci_high": hi, "vs_reference": d_mean, "vs_reference_ci_low": d_lo,
+                             "vs_reference_ci_high": d_hi, "pairs": sum(map(len, diffs)),
+                             "note": "a term is undefined for some episodes (no fill): no interval" if undefined
+                             else ""})
+    return pd.DataFrame(rows)
+
+
 def _f(v: Any) -> str:
     return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.4g}"
 
@@ -138,6 +177,18 @@ def comparison_figure(comparison: Comparison, table: pd.DataFrame, path: Path) -
     return plots._save(fig, path)
 
 
+def _overall_cells(overall: pd.DataFrame, study: str, ev: Evaluated, objective: str, reference: str) -> str:
+    """The methods table's two cells of one objective: the all-scenario mean [CI] and the difference from the
+    reference [CI]."""
+    row = overall[(overall["quantity"] == objective) & (overall["study"] == study)
+                  & (overall["configuration"] == configuration_name(ev))].iloc[0]
+    mean = _ci(row["mean"], row["ci_low"], row["ci_high"]) + (f" ({row['note']})" if row["note"] else "")
+    is_ref = study == reference and row["configuration"] == PUBLISHED
+    diff = "(reference)" if is_ref else _ci(row["vs_reference"], row["vs_reference_ci_low"],
+                                            row["vs_reference_ci_high"])
+    return f"{mean} | {diff}"
+
+
 def write_comparison_report(comparison: Comparison, out: Path, results: list[tuple[StudySpec, Any, list[Evaluated]]]
                             ) -> Path:
     """Write ``<out>/report/comparison.{md,csv,png}``; returns the markdown file."""
@@ -145,6 +196,8 @@ def write_comparison_report(comparison: Comparison, out: Path, results: list[tup
     folder.mkdir(parents=True, exist_ok=True)
     table = comparison_table(comparison, results)
     table.to_csv(folder / "comparison.csv", index=False)
+    overall = overall_table(comparison, results)
+    overall.to_csv(folder / "comparison_overall.csv", index=False)
     figure = comparison_figure(comparison, table, folder / "comparison.png")
     ref = comparison.reference
     lines = [f"# Comparison {comparison.name}", "", *([comparison.description, ""] if comparison.description else []),
@@ -159,9 +212,10 @@ def write_comparison_report(comparison: Comparison, out: Path, results: list[tup
              f"Common reference: **{ref.name} {PUBLISHED}** (the reference study's default configuration).", "",
              "## Methods", "",
              *[f"- **{spec.name}**: {spec.description or '(no description)'}" for spec in comparison.studies], "",
-             "| study | base | sampler | trials completed / failed | configuration | trial | held-out "
-             + " | ".join(o.name for o in ref.objectives) + " (all scenarios) |",
-             "|---|---|---|---|---|---|" + "---|" * len(ref.objectives)]
+             "| study | base | sampler | trials completed / failed | configuration | trial | "
+             + " | ".join(f"held-out {o.name} (all scenarios) [95 % CI] | vs {ref.name} {PUBLISHED} [95 % CI]"
+                          for o in ref.objectives) + " |",
+             "|---|---|---|---|---|---|" + "---|---|" * len(ref.objectives)]
     for spec, study, evaluated in results:
         trials = study.get_trials(deepcopy=False)
         done = sum(t.state.name == "COMPLETE" for t in trials)
@@ -170,9 +224,13 @@ def write_comparison_report(comparison: Comparison, out: Path, results: list[tup
             trial = "—" if ev.trial is None else str(ev.trial) + (" (= published)" if ev.same_as_default else "")
             lines.append(f"| {spec.name} | `{' '.join(spec.base) or '(none)'}` | {spec.sampler} | {done} / "
                          f"{failed} | {configuration_name(ev)} | {trial} | "
-                         + " | ".join(_f(ev.objectives.get(o.name)) for o in ref.objectives) + " |")
+                         + " | ".join(_overall_cells(overall, spec.name, ev, o.name, ref.name)
+                                      for o in ref.objectives) + " |")
     lines += ["", "The all-scenario objective is the study's own (each scenario's mean, then their mean): the number "
-              "the study optimised, shown without interval; the tables below keep the scenarios apart.", "",
+              "the study optimised. Its 95 % interval, and that of its difference from "
+              f"{ref.name} {PUBLISHED} (paired by scenario and seed), is a percentile bootstrap that resamples the "
+              "held-out seeds within each scenario (seeded: the same report every time); all rows in "
+              "`comparison_overall.csv`. The tables below keep the scenarios apart.", "",
               f"![comparison]({figure.name})", "",
               "## Held-out results per scenario", "",
               "Mean and 95 % interval on the held-out seeds (Wilson for success, percentile bootstrap otherwise); "

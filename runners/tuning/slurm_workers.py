@@ -48,14 +48,15 @@ def override_problem(overrides: Sequence[str]) -> str | None:
     return None
 
 
-def storage_kind(kind: str, study_dir: Path) -> None:
+def storage_kind(kind: str, study_dir: Path, study: str) -> None:
     """Refuse a study stored in SQLite for Slurm workers: they run on other nodes and share the study folder over
-    the cluster's file system, where SQLite's locks (and its WAL's shared memory) do not hold."""
+    the cluster's file system, where SQLite's locks (and its WAL's shared memory) do not hold. ``study``: the study
+    as the command was given it, for the conversion's command line."""
     if kind == "sqlite":
         raise SlurmWorkersError(f"{study_dir / 'study.db'}: a study stored in SQLite cannot be shared by Slurm "
-                                "workers (SQLite locks badly over a shared file system); run it with --launcher "
-                                "local, or start it in a new folder (--out), which --launcher slurm stores in the "
-                                "journal file")
+                                "workers (SQLite locks badly over a shared file system); move it to the journal "
+                                f"file first with: python -m runners.tune {study} --out {study_dir} --to-journal "
+                                "(or run it with --launcher local)")
 
 
 def launcher_params(overrides: Sequence[str], study_dir: Path, job_name: str) -> dict[str, Any]:

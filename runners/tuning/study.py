@@ -214,10 +214,11 @@ def run_trial(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int
 
 
 def worker_identity() -> dict[str, Any]:
-    """Where a trial runs: host, process id and, in a Slurm job array, the task (``<array job>_<task>``)."""
+    """Where a trial runs: host, process id and, in Slurm, the task: ``<array job>_<task>`` in a job array, the job
+    id for a single job (Submitit submits one worker, ``--workers 1``, as a plain job, not an array of one)."""
     array, task = os.environ.get("SLURM_ARRAY_JOB_ID"), os.environ.get("SLURM_ARRAY_TASK_ID")
     return {"host": socket.gethostname(), "pid": os.getpid(),
-            "slurm_task": f"{array}_{task}" if array and task else None}
+            "slurm_task": f"{array}_{task}" if array and task else os.environ.get("SLURM_JOB_ID") or None}
 
 
 def run_trials(study: optuna.Study, spec: StudySpec, study_dir: Path, budget: int,
