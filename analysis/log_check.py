@@ -365,7 +365,47 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
     return config, dt
 
 
+_PARSED: dict[str, dict[str, Any]] = {}
+"""Config text -> its parsed and checked config: the episodes of one job log the same text (a sweep's 105 logs hold
+21), and parsing it was a fifth of reading a log."""
+_PARSED_MAX = 64
+
+
 def _parse_config(text: str) -> dict[str, Any]:
+    """The metadata's config, parsed and checked (:class:`CheckError` otherwise): a new object for each caller."""
+    config = _PARSED.get(text)
+    if config is None:
+        config = _parse_config_text(text)
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)), None)
+        _PARSED[text] = config
+    return _plain_copy(config)
+
+
+def _plain_copy(node: Any) -> Any:
+    """A copy of checked config data (mappings, lists and immutable scalars only: :func:`_check_plain`); without
+    recursion, as a config may nest deeper than Python's recursion limit."""
+    if type(node) is not dict and type(node) is not list:
+        return node
+    root: Any = {} if type(node) is dict else []
+    stack = [(node, root)]
+    while stack:
+        source, target = stack.pop()
+        for key, value in (source.items() if type(source) is dict else enumerate(source)):
+            kind = type(value)
+            if kind is dict or kind is list:
+                value_copy: Any = {} if kind is dict else []
+                stack.append((value, value_copy))
+            else:
+                value_copy = value
+            if type(target) is dict:
+                target[key] = value_copy
+            else:
+                target.append(value_copy)
+    return root
+
+
+def _parse_config_text(text: str) -> dict[str, Any]:
     if len(text) > MAX_CONFIG_BYTES:
         raise CheckError("config", f"{len(text)} characters (more than {MAX_CONFIG_BYTES})")
     try:

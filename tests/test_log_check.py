@@ -306,3 +306,18 @@ def test_a_counted_copy_lost_while_the_report_runs_is_replaced_by_another_copy(
     lost = analysis.excluded[analysis.excluded["kind"] != "duplicate"].iloc[0]
     assert "is counted instead" in lost["reason"] and Path(lost["log"]).name == "a.mcap"
     assert Path(analysis.episodes["log"].iloc[0]).name == "b.mcap"
+
+
+def test_a_config_text_parsed_once_gives_each_caller_its_own_copy():
+    from analysis import log_check
+
+    text = "a: {b: [1, {c: 2.5}], d: x}\nn: null\n"
+    first = log_check._parse_config(text)
+    first["a"]["b"][1]["c"] = 99  # a caller that changes its config changes no other caller's
+    second = log_check._parse_config(text)
+    assert second == {"a": {"b": [1, {"c": 2.5}], "d": "x"}, "n": None} and second is not first
+    deep = "a: " + "[" * 400 + "]" * 400 + "\n"  # deeper than the recursion limit allows a recursive copy
+    value = log_check._parse_config(deep)["a"]
+    for _ in range(399):
+        value = value[0]
+    assert value == []
