@@ -50,9 +50,11 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
             print(f"resume: {superseded} log(s) of episodes this sweep ran again with other code (a changed plug-in "
                   f"or fuzzynav version) kept in {holding_dir(sweep_dir).parent / sweep_resume.SUPERSEDED}, not "
                   "analysed")
-    # on the launcher's worker pool, still running; keeping what the report's pictures need (it reads no log again)
-    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True)
+    # the launcher's pool shut down first: its threads kept this process from forking the log readers (a sweep of
+    # fewer than analysis.logs.PARALLEL_MIN_LOGS logs was read in this process alone); keeping what the report's
+    # pictures need (it reads no log again)
     release_worker_pool()
+    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True)
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
     if signum is None and not run.errors:
@@ -76,8 +78,8 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
 
 
 def release_worker_pool() -> None:
-    """Shut down joblib's worker pool (the launcher's; its workers are idle once the logs are read): its threads
-    would keep the report from drawing its figures in worker processes forked from this one
+    """Shut down joblib's worker pool (the launcher's; its workers are idle once the jobs are done): its threads
+    would keep the log readers and the report's figures from running in worker processes forked from this one
     (:mod:`analysis.forked`). A later use of joblib starts a new pool."""
     try:
         from joblib.externals.loky import reusable_executor
