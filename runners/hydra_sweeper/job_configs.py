@@ -52,8 +52,8 @@ class JobConfigs:
     def add_composed(self, overrides: Sequence[str], config: DictConfig | bytes) -> None:
         """A config Hydra has composed elsewhere (the sweeper's check of each swept value): the object, or its
         pickled bytes when a worker process composed it. Bytes are unpickled only where a config is needed (the
-        launching process needs none: unpickling the default sweep's ten configs there, to pickle them again for
-        the workers, held back the sweep's first job by ~0.5 s)."""
+        launching process needs none: it unpickled the default sweep's ten configs only to pickle them again for
+        the workers, while they waited for their first job)."""
         key = tuple(overrides)
         if key in self._composed or key in self._pickled:
             return

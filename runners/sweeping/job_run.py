@@ -106,8 +106,8 @@ def slim(ret: JobReturn) -> JobReturn:
 
 def _without_hydra(config: DictConfig) -> DictConfig:
     """The task's config: a copy of ``config`` without Hydra's node (as Hydra makes it: struct flags kept). Hydra's
-    node is not copied only to be deleted (it is most of a job's config: a fifth of a sweep job's time outside its
-    episodes): the copy gets a placeholder there (deep copy's memo), which is then deleted."""
+    node is not copied only to be deleted (about a third of a run's config: the copy took ~20 ms and takes ~13 ms
+    without it): the copy gets a placeholder there (deep copy's memo), which is then deleted."""
     task_cfg = copy.deepcopy(config, {id(config["hydra"]): AnyNode(None)})
     with read_write(task_cfg), open_dict(task_cfg):
         del task_cfg["hydra"]
