@@ -33,6 +33,7 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
     """Account for every episode (kept, run, interrupted, lost, not run), write ``summary.csv`` and, when the sweep
     completed without a failure, the report. Failures are noted in ``run``; an error writing the summary or the
     report propagates (an ``OSError`` names the file)."""
+    from analysis import plots
     from analysis.metrics import analyse_logs
 
     sweep_dir = run.sweep_dir
@@ -54,7 +55,10 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
     # fewer than analysis.logs.PARALLEL_MIN_LOGS logs was read in this process alone); keeping what the report's
     # pictures need (it reads no log again)
     release_worker_pool()
-    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True)
+    # a complete sweep gets its report: matplotlib (~0.3 s) is imported while the forked readers read, so that the
+    # figures' workers, forked after it, do not each import it again
+    report_next = run.stop_signal() is None and not run.errors
+    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True, meanwhile=plots.pyplot if report_next else None)
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
     if signum is None and not run.errors:
