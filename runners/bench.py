@@ -226,8 +226,9 @@ def kernels_line(in_use: dict[str, bool], built: dict[str, bool], switched_off: 
 
     head = "compiled kernels (fuzzynav/numerics/compiled.py): "
     off = [name for name, on in in_use.items() if not on]
-    if not off:
-        return head + f"all {len(in_use)} in use"
+    if not off:  # (one kernel: its name, not "all 1")
+        return head + (f"all {len(in_use)} in use" if len(in_use) > 1 else
+                       ", ".join(f"{name.rpartition('.')[2]} in use" for name in in_use))
     reasons = {why(name) for name in off}
     if len(off) == len(in_use) and len(reasons) == 1:
         return head + f"none in use, the Python/numpy forms run ({reasons.pop()})"
