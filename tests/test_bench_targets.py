@@ -237,3 +237,17 @@ def test_a_target_as_bench_json_holds_it():
     assert Target("x", None, 2.0, True, "").as_dict()["met"] is None
     assert [Target("x", 1.0, 1.0, h, "", strict=s).sign for h in (True, False) for s in (False, True)] == [
         ">=", ">", "<=", "<"]
+
+
+@pytest.mark.parametrize("built, settings", [({"_orca": True}, ["_orca"]),
+                                             ({"_orca": True, "_b": True, "_c": False}, ["_orca", "_b", "all off"])])
+def test_the_kernels_table_times_all_off_only_when_it_differs_from_one_kernel_off(monkeypatch, built, settings):
+    """With one kernel built, "all off" would be that kernel off timed twice; with several it is a setting of its
+    own. A kernel not built is not timed. (A trivial command stands in for the documented workloads.)"""
+    from fuzzynav.numerics import compiled
+    from runners.benchmarks.main_job import bench_kernels
+
+    monkeypatch.setattr(compiled, "built", lambda: built)
+    result = bench_kernels(rounds=1, workloads=(("json help", ("json.tool", "--help")),))
+    assert list(result["medians_s"]["json help"]) == ["all on", *settings]
+    assert list(result["gain"]["json help"]) == settings
