@@ -1,6 +1,6 @@
 """Benchmarks (speed is measured here, never asserted in unit tests).
 
-    python -m runners.bench            # full run (over half an hour on 2 cores; the kernels' table ~20 minutes of it)
+    python -m runners.bench            # full run (about half an hour on 2 cores; the kernel's table several minutes)
     python -m runners.bench --quick    # reduced sizes, without the 1,000-episode sweep and the kernels' table
                                        # (a few minutes; CI runs it, no thresholds)
 
@@ -28,8 +28,8 @@
 9. The main job (:mod:`runners.benchmarks.main_job`): ``sweep efficiency`` (the default sweep's episodes/s as a
    whole command / (cores x the same episodes in one plain process)), the time to the first step of
    ``runners.run``, the report's episodes/s against the metrics alone (in one warm process, and as a cold command
-   on every core); in the full run also each compiled kernel's
-   end-to-end gain on the documented workloads (each kernel off in turn, ``FUZZYNAV_KERNELS_OFF``), and a 1,000-episode
+   on every core); in the full run also each compiled kernel's end-to-end gain on the documented workloads (each
+   kernel off in turn, ``FUZZYNAV_KERNELS_OFF``; the ORCA kernel's is the ORCA crowd sweep), and a 1,000-episode
    sweep's efficiency, on these cores and on 16 by simulation of the launcher's schedule from the measured jobs.
 10. Tuning (:mod:`runners.benchmarks.tuning`, issue #39): trials per minute of ``runners.tune``'s trial loop and
     the study machinery's overhead over the same episodes run plainly.
@@ -226,8 +226,9 @@ def kernels_line(in_use: dict[str, bool], built: dict[str, bool], switched_off: 
 
     head = "compiled kernels (fuzzynav/numerics/compiled.py): "
     off = [name for name, on in in_use.items() if not on]
-    if not off:
-        return head + f"all {len(in_use)} in use"
+    if not off:  # (one kernel: its name, not "all 1")
+        return head + (f"all {len(in_use)} in use" if len(in_use) > 1 else
+                       ", ".join(f"{name.rpartition('.')[2]} in use" for name in in_use))
     reasons = {why(name) for name in off}
     if len(off) == len(in_use) and len(reasons) == 1:
         return head + f"none in use, the Python/numpy forms run ({reasons.pop()})"
@@ -331,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.quick:  # the 1,000-episode sweep and its plain twin: about 2 minutes (main_job.FULL_RUN_ONLY)
         results["large_sweep"] = bench_large_sweep()
         print_large_sweep(results["large_sweep"])
-    if not args.quick:  # each kernel off in turn on every documented workload: about 20 minutes
+    if not args.quick:  # each kernel off in turn on every documented workload: several minutes
         results["kernels"] = bench_kernels(rounds=2)
         print_kernels(results["kernels"])
     from runners.benchmarks.tuning import bench_tuning, tuning_line  # issue #39: the study machinery's cost

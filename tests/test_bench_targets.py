@@ -144,7 +144,7 @@ JOB = {"cores": 2, "sweep_efficiency": 0.85, "episodes_phase_efficiency": 0.9, "
        "simulated_sweep_efficiency": 0.82, "first_step_s": 0.3, "report_over_metrics": 0.6}
 LARGE = {"cores": 2, "sweep_efficiency": 0.88, "simulated_cores": 16, "simulated_sweep_efficiency": 0.81}
 KERNELS = {"rounds": 2, "gain": {"default sweep": {"_raycast": 1.35, "_orca": 1.0, "all off": 1.4},
-                                 "orca crowd run (docs/crowds.md)": {"_raycast": 1.1, "_orca": 3.7, "all off": 4.1}}}
+                                 "orca crowd sweep (docs/crowds.md)": {"_raycast": 1.1, "_orca": 3.7, "all off": 4.1}}}
 MAIN_JOB = {"machine": {"kernels_built": {"_raycast": True, "_orca": True}}, "main_job": JOB, "large_sweep": LARGE,
             "kernels": KERNELS}
 DEFAULT_SWEEP = "sweep efficiency, the default sweep as a whole command"
@@ -167,7 +167,7 @@ def test_issue_36_targets_of_a_good_run_are_met_with_their_thresholds():
     assert got[(REPORT, "")].threshold == 0.5
     # a kernel's best gain is over the workloads, and names the workload; "all off" is not a kernel
     assert got[("kernel _raycast, best end-to-end gain", "default sweep")].value == 1.35
-    assert got[("kernel _orca, best end-to-end gain", "orca crowd run (docs/crowds.md)")].value == 3.7
+    assert got[("kernel _orca, best end-to-end gain", "orca crowd sweep (docs/crowds.md)")].value == 3.7
     assert [t.name for t in rows if t.name.startswith("kernel ")] == ["kernel _raycast, best end-to-end gain",
                                                                       "kernel _orca, best end-to-end gain"]
     assert "(target < 0.5: 0.6 of it) — met" in got[(FIRST_STEP, "")].line()
@@ -237,3 +237,17 @@ def test_a_target_as_bench_json_holds_it():
     assert Target("x", None, 2.0, True, "").as_dict()["met"] is None
     assert [Target("x", 1.0, 1.0, h, "", strict=s).sign for h in (True, False) for s in (False, True)] == [
         ">=", ">", "<=", "<"]
+
+
+@pytest.mark.parametrize("built, settings", [({"_orca": True}, ["_orca"]),
+                                             ({"_orca": True, "_b": True, "_c": False}, ["_orca", "_b", "all off"])])
+def test_the_kernels_table_times_all_off_only_when_it_differs_from_one_kernel_off(monkeypatch, built, settings):
+    """With one kernel built, "all off" would be that kernel off timed twice; with several it is a setting of its
+    own. A kernel not built is not timed. (A trivial command stands in for the documented workloads.)"""
+    from fuzzynav.numerics import compiled
+    from runners.benchmarks.main_job import bench_kernels
+
+    monkeypatch.setattr(compiled, "built", lambda: built)
+    result = bench_kernels(rounds=1, workloads=(("json help", ("json.tool", "--help")),))
+    assert list(result["medians_s"]["json help"]) == ["all on", *settings]
+    assert list(result["gain"]["json help"]) == settings

@@ -326,6 +326,7 @@ def test_the_bench_says_first_which_forms_it_times_and_why():
     built, none_built = {"_raycast": True, "_orca": True}, {"_raycast": False, "_orca": False}
     head = "compiled kernels (fuzzynav/numerics/compiled.py): "
     assert kernels_line(dict.fromkeys(names, True), built, False) == head + "all 2 in use"
+    assert kernels_line({names[1]: True}, {"_orca": True}, False) == head + "_orca in use"
     assert kernels_line(dict.fromkeys(names, False), none_built, False) == \
         head + "none in use, the Python/numpy forms run (not built at install: no C compiler?)"
     assert kernels_line(dict.fromkeys(names, False), built, True) == \

@@ -1,6 +1,6 @@
 """Log content does not depend on the CPU: the recorded datasets verify in child processes that run other
-OpenBLAS kernels and numpy with its optional SIMD dispatch switched off (README "Numerics"), and the fuzzy
-controller and the laser without their compiled kernels.
+OpenBLAS kernels and numpy with its optional SIMD dispatch switched off (README "Numerics"), and without the
+compiled kernel (the orca pedestrians' Python form).
 
 The machine's own kernel is covered by tests/test_suite_and_datasets.py. Here every configuration verifies
 paper_fig5 seed 0 (all seven variants, compared message by message with the committed logs) and suite_v1
@@ -46,9 +46,9 @@ def _configurations() -> list[tuple[str, dict[str, str]]]:
         # glibc's libm picks FMA or non-FMA variants of exp, sin, atan2... by CPU, and their last bits differ
         # (the pedestrian libraries measured for #17 changed trajectories under this setting)
         configs.append((f"GLIBC_TUNABLES={NO_FMA_LIBM} (libm without FMA)", {"GLIBC_TUNABLES": NO_FMA_LIBM}))
-    # the Python and numpy forms instead of the compiled kernels (fuzzynav/numerics/compiled.py): a machine without a
-    # C compiler at install runs them, and the logs must be the same bits
-    configs.append(("FUZZYNAV_KERNEL=python (without the compiled kernels)",
+    # the Python form instead of the compiled kernel (fuzzynav/numerics/compiled.py): a machine without a C compiler
+    # at install runs it, and the logs must be the same bits (suite_v2's and suite_v3's crowds have orca pedestrians)
+    configs.append(("FUZZYNAV_KERNEL=python (without the compiled kernel)",
                     {"FUZZYNAV_KERNEL": "python"}))
     return configs
 
@@ -74,33 +74,34 @@ _PROBE = textwrap.dedent("""
     still_on = [g for g in os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split() if __cpu_features__.get(g)]
     # libm's exp on fixed inputs: its last bits say which variant (FMA or not) the C library chose
     libm = hashlib.sha256(repr([math.exp(k / 997.0 - 300.0) for k in range(600_000)]).encode()).hexdigest()[:16]
-    from fuzzynav.sensing.raycast import kernel_on
-    print(name, libm, "kernel" if kernel_on() else "python", " ".join(still_on))
+    from fuzzynav.numerics import compiled
+    from fuzzynav.pedestrians import orca
+    print(name, libm, "python" if orca._kernel is None or compiled.switched_off() else "kernel", " ".join(still_on))
 """)
 
 
 def _probe(env: dict[str, str]) -> tuple[str, str, str, str]:
-    """(OpenBLAS kernel name, digest of libm's exp results, the ray caster's path (kernel or python), numpy
+    """(OpenBLAS kernel name, digest of libm's exp results, the orca pedestrians' path (kernel or python), numpy
     groups that are still on although disabled) in a child with ``env``."""
     out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=120,
                          cwd=ROOT)
     assert out.returncode == 0, out.stderr
-    corename, libm, fuzzy_path, *still_on = out.stdout.split()
-    return corename, libm, fuzzy_path, " ".join(still_on)
+    corename, libm, orca_path, *still_on = out.stdout.split()
+    return corename, libm, orca_path, " ".join(still_on)
 
 
 def _check_the_setting_took_effect(label: str, env: dict[str, str]) -> str:
     """Ask the child which BLAS kernel runs and which numpy groups are on, so the test cannot pass by an
     environment variable being ignored. Returns the kernel's name."""
-    corename, libm, fuzzy_path, still_on = _probe(env)
+    corename, libm, orca_path, still_on = _probe(env)
     assert not still_on, f"{label}: numpy still dispatches to {still_on}"
     if "OPENBLAS_CORETYPE" in env and corename != "unknown":
         default, _, _, _ = _probe(_child_env({}))
         assert corename != default, f"{label}: OpenBLAS still runs this machine's kernel {default}"
     if "FUZZYNAV_KERNEL" in env:
-        assert fuzzy_path == "python", f"{label}: the child still uses the compiled kernel"
+        assert orca_path == "python", f"{label}: the child still uses the compiled kernel"
         if os.environ.get("CI"):  # else the comparison would be Python path against Python path
-            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav.sensing._raycast was not built"
+            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav.pedestrians._orca was not built"
     if "GLIBC_TUNABLES" in env and _has_fma():
         _, default_libm, _, _ = _probe(_child_env({}))
         assert libm != default_libm, f"{label}: libm's exp gives the same bits as with FMA (setting ignored?)"

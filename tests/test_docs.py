@@ -128,10 +128,10 @@ def _main_job_results() -> dict:
                         "simulated_sweep_efficiency": 0.1206, "simulated_episodes_phase_efficiency": 0.1777},
         "kernels": {"rounds": 2,
                     "medians_s": {"default sweep": {"all on": 30.0, "_raycast": 33.0, "_orca": 30.3, "all off": 34.0},
-                                  "orca crowd run (docs/crowds.md)": {"all on": 2.0, "_raycast": 2.5, "_orca": 7.4,
-                                                                      "all off": 8.0}},
+                                  "orca crowd sweep (docs/crowds.md)": {"all on": 2.0, "_raycast": 2.5, "_orca": 7.4,
+                                                                        "all off": 8.0}},
                     "gain": {"default sweep": {"_raycast": 1.1, "_orca": 1.01, "all off": 1.13},
-                             "orca crowd run (docs/crowds.md)": {"_raycast": 1.25, "_orca": 3.7, "all off": 4.0}}},
+                             "orca crowd sweep (docs/crowds.md)": {"_raycast": 1.25, "_orca": 3.7, "all off": 4.0}}},
         "recorded": {"people": 300, "steps": 600, "repetitions": 3, "present_per_step": 13.8,
                      "in_laser_range_per_step": 0.42, "replay_us_per_step": 51.0, "sensing_extra_us_per_step": 61.0,
                      "mixed_us_per_step": 1800.0, "share_of_mixed_step": 0.062},
@@ -171,7 +171,7 @@ def test_the_performance_page_is_generated_from_bench_json(tmp_path: Path):
     assert "Recorded people: 300 people over 600 steps" in text and "100.0 trials/min" in text
     assert "2 of 9 targets met in this run." in text
     assert "| time to the first step of runners.run | 0.41 s | < 0.5 s | met |  |" in text
-    assert "| kernel _raycast, best end-to-end gain | 1.25 x | >= 1.3 x | **not met** | orca crowd run" in text
+    assert "| kernel _raycast, best end-to-end gain | 1.25 x | >= 1.3 x | **not met** | orca crowd sweep" in text
     assert "| sweep efficiency, a 1,000-episode sweep as a whole command | 0.113 | >= 0.8 | **not met** | 2 cores |" \
         in text
     measures = text[text.index("## What each number measures"):]

@@ -213,8 +213,7 @@ def test_a_walker_repels_more_in_front_of_it_than_behind_it():
     assert front[0] > 0 > behind[0] and abs(front[0]) > abs(behind[0])
 
 
-@pytest.mark.parametrize("compiled_kernel", [False, True])
-def test_step_ahead_readings_by_hand(compiled_kernel):
+def test_step_ahead_readings_by_hand():
     """Helbing & Molnár 1995: f = −∇V(b), V = V⁰ e^(−b/σ), 2b = √((‖r‖ + ‖r − v_β Δt e_β‖)² − (v_β Δt)²),
     so −∇V = V⁰/σ e^(−b/σ) ∇b with ∇b = (‖r‖ + ‖a‖)/(4b) · (r/‖r‖ + a/‖a‖), a = r − v_β Δt e_β.
     β at the origin walks east at v_β = 30 cm/s (velocity (30, 0)) but wants to go north (preferred velocity
@@ -227,9 +226,7 @@ def test_step_ahead_readings_by_hand(compiled_kernel):
     α stands with no preferred velocity (no driving force, nothing outside its view), so its force is β's
     repulsion alone. A β that is not of the group (another model's pedestrian, a scripted obstacle, the robot)
     steps along its velocity in both readings; so does a group member standing with no preferred velocity."""
-    if compiled_kernel and sf._kernel is None:
-        pytest.skip("the compiled kernel is not built")
-    substep_force = sf._substep_force_kernel if compiled_kernel else sf._substep_force_numpy
+    substep_force = sf._substep_force
     by_velocity = 700.0 * math.exp(-2.0 * math.sqrt(2.0)) * 0.75 / math.sqrt(2.0) * np.array([-0.6, 1.8])
     by_desire = np.array([0.0, 875.0 * math.exp(-4.0 / 3.0)])
     x, v, radii = np.array([[0.0, 80.0], [0.0, 0.0]]), np.array([[0.0, 0.0], [30.0, 0.0]]), np.full(2, 20.0)

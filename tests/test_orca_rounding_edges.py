@@ -1,7 +1,7 @@
 """The ORCA kernel (fuzzynav/pedestrians/_orca.c) against its Python form where a regrouped sum or product in one
 form flips a branch the other does not (issue #36: the twin kept, its sameness proved on the boundary cases).
 
-``tests/test_kernel_boundaries.py`` puts inputs on each predicate's edge by bisection over one input and steps
+``tests/test_orca_boundaries.py`` puts inputs on each predicate's edge by bisection over one input and steps
 1-3 ulps either side. That misses a regrouping whenever one ulp of the input moves the compared quantities by
 more than the two groupings differ: both groupings then flip between the same two inputs. Here, for each
 predicate, a seeded and bounded search bisects to the edge as the C form computes it, from many base inputs,
@@ -27,7 +27,7 @@ from fuzzynav.numerics.portable_math import hypot
 from fuzzynav.pedestrians import orca as pedestrian_orca
 from fuzzynav.pedestrians.orca import PedestrianOrcaConfig
 from tests.conftest import require_compiled
-from tests.test_kernel_boundaries import WORLD, _orca_model, _substep, edge, ulps
+from tests.test_orca_boundaries import WORLD, _orca_model, _substep, edge, ulps
 
 ME = (100.0, 100.0)  # the own pedestrian's position (cm) in the neighbour cases
 

@@ -1,7 +1,9 @@
 """The optional compiled kernels (C files built by the install when a C compiler is there).
 
-Each kernel performs its Python or numpy counterpart's IEEE operations in the same order, so results are the same
-bits with or without it (each kernel has a test that compares it with its counterpart).
+One kernel is left: ``fuzzynav.pedestrians._orca``, the orca pedestrians' velocities, kept because it makes the ORCA
+crowd sweep of docs/crowds.md at least 1.3x faster end to end (issue #36; ``python -m runners.bench`` measures it).
+A kernel performs its Python counterpart's IEEE operations in the same order, so results are the same bits with or
+without it (tests/test_orca_kernel.py and tests/test_orca_boundaries.py compare the two forms).
 ``FUZZYNAV_KERNEL=python`` in the environment switches every kernel off: the runs then take the Python paths (to
 check them, or to time them).
 """
@@ -15,24 +17,16 @@ from types import ModuleType
 
 KERNEL_ENV = "FUZZYNAV_KERNEL"  # "python": never use a compiled kernel
 # the modules pyproject.toml's ext-modules build
-KERNELS = ("fuzzynav.sensing._raycast", "fuzzynav.sensing._tracking", "fuzzynav.pedestrians._social_force",
-           "fuzzynav.pedestrians._orca", "fuzzynav.numerics._closest_approach")
+KERNELS = ("fuzzynav.pedestrians._orca",)
 
 
 def switched_off() -> bool:
-    """Whether the environment asks for the Python paths (read at every call, so it follows ``os.environ``)."""
-    env = os.environ
-    data, encode = getattr(env, "_data", None), getattr(env, "encodekey", None)
-    if type(data) is not dict or encode is None:  # not CPython's os._Environ
-        return env.get(KERNEL_ENV, "").strip().lower() == "python"
-    # CPython's os.environ keeps its variables in the dict _data: one lookup instead of Mapping.get's, which raises
-    # and catches KeyError when the variable is not set (the usual case) and costs ~1 us; the kernels ask at every
-    # call, up to ~10 times per simulation step
-    value = data.get(encode(KERNEL_ENV))
-    return value is not None and env.decodevalue(value).strip().lower() == "python"
+    """Whether the environment asks for the Python paths (read at every call, so it follows ``os.environ``; the orca
+    model asks once per step)."""
+    return os.environ.get(KERNEL_ENV, "").strip().lower() == "python"
 
 
-#: kernels to leave unused in this process, by full or last name, comma-separated (``_orca,_raycast``): read when
+#: kernels to leave unused in this process, by full or last name, comma-separated (``_orca``): read when
 #: a module loads its kernel; ``runners.bench`` times the commands with each kernel off in turn
 KERNELS_OFF_ENV = "FUZZYNAV_KERNELS_OFF"
 
@@ -76,7 +70,8 @@ def built() -> dict[str, bool]:
 
 def in_use() -> str:
     """Which forms this process runs, as every log's metadata records it (``kernels``): ``compiled``, ``python``
-    (no kernel built, e.g. no C compiler at install, or ``FUZZYNAV_KERNEL=python``) or ``python for _raycast, _orca``.
+    (no kernel built, e.g. no C compiler at install, or ``FUZZYNAV_KERNEL=python``) or, with several kernels of which
+    only some run, ``python for`` the others (``python for _a, _b``).
     Either way the results are the same bits; only the speed differs."""
     off = {k.rpartition(".")[2] for k in kernels_off()}
     python = [name for name, ok in built().items() if not ok or name in off]

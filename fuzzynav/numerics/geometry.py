@@ -16,10 +16,8 @@ from typing import TypeVar
 
 import numpy as np
 
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.portable_math import dot2, norm2
 
-_kernel = compiled.load("fuzzynav.numerics._closest_approach")
 Angle = TypeVar("Angle", float, np.ndarray)
 
 
@@ -36,34 +34,8 @@ def closest_approach(rel0: np.ndarray, rel_step: np.ndarray) -> np.ndarray:
     minimum distance of two points that both move straight and uniformly during the step, given their
     relative position at the start (cm) and its change over the step (cm). Also the distance from the
     segment ``p + [0, 1]·rel_step`` to a point q when ``rel0 = p - q``."""
-    if (_kernel is not None and type(rel0) is np.ndarray and type(rel_step) is np.ndarray
-            and rel0.dtype == rel_step.dtype == np.float64 and rel0.shape[-1:] == rel_step.shape[-1:] == (2,)
-            and rel0.flags.aligned and rel_step.flags.aligned and not compiled.switched_off()):
-        return _closest_approach_kernel(rel0, rel_step)
     s = closest_approach_fraction(rel0, rel_step)
     return norm2(rel0 + s[..., None] * rel_step)
-
-
-def _closest_approach_kernel(rel0: np.ndarray, rel_step: np.ndarray) -> np.ndarray:
-    """:func:`closest_approach` by the compiled kernel, for aligned float64 arrays whose last axis is 2 (the same
-    bits; a fifth to a third of the numpy form's time on the simulation's arrays, which are small: its cost is
-    numpy's per-call overhead)."""
-    shape = rel0.shape
-    if rel_step.shape != shape:
-        shape = np.broadcast(rel0, rel_step).shape  # numpy's broadcasting rules and errors
-        rel0, rel_step = _filled(shape, rel0), _filled(shape, rel_step)
-    out = np.empty(shape[:-1])
-    _kernel.closest_approach(np.ascontiguousarray(rel0), np.ascontiguousarray(rel_step), out)
-    return out if out.ndim else out[()]
-
-
-def _filled(shape: tuple[int, ...], a: np.ndarray) -> np.ndarray:
-    """``a`` broadcast to ``shape`` as a C-contiguous array (a copy unless it has that shape already)."""
-    if a.shape == shape:
-        return a
-    out = np.empty(shape)
-    np.copyto(out, a)
-    return out
 
 
 def swept_distance(p0: np.ndarray, p1: np.ndarray, o0: np.ndarray, o1: np.ndarray) -> np.ndarray:

@@ -51,7 +51,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.geometry import away_from_static, keep_inside
 from fuzzynav.numerics.portable_math import exp_array, norm2, sequential_sum, sin_cos_deg
 from fuzzynav.pedestrians.base import CrowdView, in_range, one_of, register_obstacle_model, substeps
@@ -66,10 +65,6 @@ STEP_AHEAD = ("velocity", "desired_direction")
 #: floor of b (cm) in the gradient's 1/b (see :func:`agent_repulsion`): 1 cm bounds the factor u/(4b) to a
 #: quarter of the pedestrians' distance in cm
 B_FLOOR_CM = 1.0
-
-# One substep's forces in C (fuzzynav/pedestrians/_social_force.c; None when not built): the same bits as
-# _substep_force_numpy, ~100 small numpy calls per substep replaced by one call
-_kernel = compiled.load("fuzzynav.pedestrians._social_force")
 
 
 @dataclass(frozen=True)
@@ -143,16 +138,15 @@ def wall_repulsion(positions: np.ndarray, radii: np.ndarray, segments: np.ndarra
     return np.stack([sequential_sum(force[..., 0]), sequential_sum(force[..., 1])], axis=-1)
 
 
-def _substep_force_numpy(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0: np.ndarray, o_vel: np.ndarray,
-                         tau: float, radii: np.ndarray, segments: np.ndarray, circles: np.ndarray,
-                         c: SocialForceConfig, cos_fov: float) -> np.ndarray:
+def _substep_force(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0: np.ndarray, o_vel: np.ndarray,
+                   tau: float, radii: np.ndarray, segments: np.ndarray, circles: np.ndarray,
+                   c: SocialForceConfig, cos_fov: float) -> np.ndarray:
     """The force (n, 2) cm/s² on each of a group's pedestrians at positions ``x`` (n, 2) cm with velocities ``v``
     (n, 2) cm/s, preferred velocities ``pref`` (n, 2) cm/s and disc radii ``radii`` (n,) cm, for the substep
     starting ``tau`` s after the step's: the driving force, plus the sum of the field-of-view-weighted
     repulsions from the group itself and from the other obstacles (at ``o_pos0`` + ``o_vel`` · tau, (k, 2) cm
     and cm/s), plus the sum of the repulsions of the walls ``segments`` (M, 4) cm and circles ``circles``
-    (C, 3) cm. ``cos_fov``: cos φ. The reference form (numpy), which :func:`_substep_force_kernel` reproduces
-    bit for bit."""
+    (C, 3) cm. ``cos_fov``: cos φ."""
     force = (pref - v) / c.relaxation_s
     # e: each pedestrian's desired direction (0 for one standing without a preferred velocity)
     speed = norm2(pref)
@@ -175,23 +169,6 @@ def _substep_force_numpy(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0:
     if len(segments) + len(circles):  # (a world without walls or circles: nothing to sum)
         force = force + wall_repulsion(x, radii, segments, circles, c.wall_strength_cm2_s2, c.wall_range_cm)
     return force
-
-
-def _substep_force_kernel(x: np.ndarray, v: np.ndarray, pref: np.ndarray, o_pos0: np.ndarray, o_vel: np.ndarray,
-                          tau: float, radii: np.ndarray, segments: np.ndarray, circles: np.ndarray,
-                          c: SocialForceConfig, cos_fov: float) -> np.ndarray:
-    """:func:`_substep_force_numpy` (same arguments and units, same bits) by the compiled kernel: one call
-    instead of ~100 small numpy calls."""
-    f64 = np.float64
-    out = np.empty((len(x), 2))
-    _kernel.forces(np.ascontiguousarray(x, dtype=f64), np.ascontiguousarray(v, dtype=f64),
-                   np.ascontiguousarray(pref, dtype=f64), np.ascontiguousarray(o_pos0, dtype=f64),
-                   np.ascontiguousarray(o_vel, dtype=f64), tau, np.ascontiguousarray(radii, dtype=f64),
-                   np.ascontiguousarray(segments, dtype=f64), np.ascontiguousarray(circles, dtype=f64),
-                   c.relaxation_s, c.agent_strength_cm2_s2, c.agent_range_cm, c.step_time_s,
-                   c.wall_strength_cm2_s2, c.wall_range_cm, cos_fov, c.fov_weight,
-                   c.step_ahead == "desired_direction", out)
-    return out
 
 
 @register_obstacle_model("social_force")
@@ -219,14 +196,12 @@ class SocialForceModel:
         n_sub, h = substeps(dt, c.substep_s)
         o_pos0, o_vel, _ = view.others(indices, c.sees_robot)
         segments, circles = view.world.segments, view.world.circles
-        # the compiled kernel unless it was not built or FUZZYNAV_KERNEL=python: the same bits either way
-        substep_force = _substep_force_numpy if _kernel is None or compiled.switched_off() else _substep_force_kernel
         v_max = c.max_speed_factor * self.intent.speeds
         x, v = self.x, self.v
         for k in range(n_sub):
             tau = k * h
             pref = self.intent.preferred(x)
-            force = substep_force(x, v, pref, o_pos0, o_vel, tau, self.radii, segments, circles, c, self.cos_fov)
+            force = _substep_force(x, v, pref, o_pos0, o_vel, tau, self.radii, segments, circles, c, self.cos_fov)
             v = v + force * h
             length = norm2(v)
             over = length > v_max

@@ -13,7 +13,6 @@ import numpy as np
 
 from fuzzynav.numerics.portable_math import sin_cos_deg, sin_cos_deg_array
 from fuzzynav.numerics.portable_random import NormalStream
-from fuzzynav.sensing import raycast
 from fuzzynav.sensing.raycast import cast_rays
 
 
@@ -90,8 +89,6 @@ def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: 
     static_circles, discs = static_circles.reshape(-1, 3), discs.reshape(-1, 3)
     circles = np.concatenate([static_circles, discs]) if len(static_circles) else discs
     n_static = len(segments) + len(static_circles)
-    if raycast.kernel_on():
-        return _scan_kernel(config, x, y, heading_deg, segments, circles, n_static, noise)
     directions = beam_directions(config, heading_deg)
     ranges, hit = cast_rays(np.array([x, y]), directions, segments, circles, config.range_cm)
     labels = np.where(hit < 0, -1, np.where(hit < n_static, 0, hit - n_static + 1))
@@ -99,23 +96,3 @@ def scan(config: LaserConfig, x: float, y: float, heading_deg: float, segments: 
         noisy = ranges + noise.draw(0.0, config.noise_std_cm, len(ranges))
         ranges = np.where(hit >= 0, np.clip(noisy, 0.0, np.nextafter(config.range_cm, 0)), ranges)
     return LaserScan(ranges=ranges, directions=directions, labels=labels, origin=(x, y), range_cm=config.range_cm)
-
-
-def _scan_kernel(config: LaserConfig, x: float, y: float, heading_deg: float, segments: np.ndarray,
-                 circles: np.ndarray, n_static: int, noise: NormalStream | None) -> LaserScan:
-    """:func:`scan` in one compiled call (``fuzzynav.sensing._raycast.laser_frame``: the directions, the ranges, the
-    noise, the labels and the end points, with the numpy operations' order, so the same bits); the frame's end
-    points come with it (:attr:`LaserScan.xy` is then not computed again)."""
-    n = config.beams
-    s, c = sin_cos_deg(heading_deg)
-    rel_sin, rel_cos = config.relative_directions
-    draws = noise.draw(0.0, config.noise_std_cm, n) if config.noise_std_cm > 0 and noise is not None else None
-    ranges, directions = np.empty(n), np.empty((n, 2))
-    labels, xy = np.empty(n, dtype=np.int64), np.empty((n, 2))
-    raycast.laser_frame(float(x), float(y), s, c, float(config.range_cm), raycast.cull_reach(config.range_cm),
-                        n_static, float(np.nextafter(config.range_cm, 0)), rel_sin, rel_cos,
-                        np.ascontiguousarray(segments, dtype=np.float64),
-                        np.ascontiguousarray(circles, dtype=np.float64), draws, ranges, directions, labels, xy)
-    frame = LaserScan(ranges=ranges, directions=directions, labels=labels, origin=(x, y), range_cm=config.range_cm)
-    frame.__dict__["xy"] = xy  # cached_property's own slot: the same values the property computes
-    return frame

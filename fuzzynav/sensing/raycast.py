@@ -4,22 +4,14 @@ Lengths in cm; rays are given by unit direction vectors in the world frame. Ever
 elementwise (one ray against one segment or circle at a time, always with the same operations), and the
 nearest hit per ray is a plain minimum, so the result does not depend on the CPU or on which other segments
 and circles are in the world.
-
-It runs in C (``fuzzynav.sensing._raycast``'s ``cast``, the culling and the casting; same operations in the same order:
-the
-same bits) when that was built at install; the numpy form below (culling, then ``nearest_numpy``) runs without it
-or with ``FUZZYNAV_KERNEL=python``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.geometry import segment_point_distance
 from fuzzynav.numerics.portable_math import norm2
-
-_raycast = compiled.load("fuzzynav.sensing._raycast")
 
 
 def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, circles: np.ndarray,
@@ -38,14 +30,6 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     ox, oy = float(origin[0]), float(origin[1])
     segments, circles = segments.reshape(-1, 4), circles.reshape(-1, 3)
     reach = cull_reach(max_range)
-    if kernel_on():
-        # culling and casting in one call (the numpy culling's fancy indexing cost as much as the casting);
-        # float64 and contiguous whatever the caller passed (the numpy form computes in float64 as well)
-        best, hit = np.empty(n), np.empty(n, dtype=np.int64)
-        _raycast.cast(ox, oy, float(max_range), reach, np.ascontiguousarray(d, dtype=np.float64),
-                      np.ascontiguousarray(segments, dtype=np.float64),
-                      np.ascontiguousarray(circles, dtype=np.float64), best, hit)
-        return best, hit
     seg_gaps = segment_point_distance(segments[:, :2], segments[:, 2:], np.array([ox, oy]))
     seg_ids = np.flatnonzero(seg_gaps <= reach)
     circ_ids = np.flatnonzero(norm2(circles[:, :2] - (ox, oy)) - circles[:, 2] <= reach)
@@ -53,14 +37,9 @@ def cast_rays(origin: np.ndarray, directions: np.ndarray, segments: np.ndarray, 
     hit = np.full(n, -1, dtype=np.int64)
     if not len(seg_ids) and not len(circ_ids):
         return best, hit
-    nearest_numpy(ox, oy, d, segments[seg_ids].astype(float), seg_ids, circles[circ_ids].astype(float),
-                  len(segments) + circ_ids, best, hit)
+    _nearest(ox, oy, d, segments[seg_ids].astype(float), seg_ids, circles[circ_ids].astype(float),
+             len(segments) + circ_ids, best, hit)
     return best, hit
-
-
-def kernel_on() -> bool:
-    """Whether the compiled ray caster runs (built at install, and not switched off)."""
-    return _raycast is not None and not compiled.switched_off()
 
 
 def cull_reach(max_range: float) -> float:
@@ -69,13 +48,8 @@ def cull_reach(max_range: float) -> float:
     return max_range * (1.0 + 1e-9) + 1e-9
 
 
-def laser_frame(*args) -> None:
-    """``fuzzynav.sensing._raycast.laser_frame`` (see :func:`fuzzynav.sensing.laser.scan`)."""
-    _raycast.laser_frame(*args)
-
-
-def nearest_numpy(ox: float, oy: float, directions: np.ndarray, segments: np.ndarray, segment_ids: np.ndarray,
-                  circles: np.ndarray, circle_ids: np.ndarray, best: np.ndarray, hit: np.ndarray) -> None:
+def _nearest(ox: float, oy: float, directions: np.ndarray, segments: np.ndarray, segment_ids: np.ndarray,
+             circles: np.ndarray, circle_ids: np.ndarray, best: np.ndarray, hit: np.ndarray) -> None:
     """Lower ``best`` (N,) to each ray's first nearest segment, then circle, strictly nearer, and set ``hit`` to
     its id there (in place). ``directions`` (N, 2) unit vectors from (ox, oy) cm; ``segments`` (M, 4) and
     ``circles`` (C, 3) the ones kept after culling, with their ``segment_ids`` and ``circle_ids``."""

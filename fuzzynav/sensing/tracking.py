@@ -32,11 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzynav.numerics import compiled
 from fuzzynav.numerics.portable_math import atan2_deg, hypot, norm2
 from fuzzynav.sensing.laser import LaserScan
-
-_tracking = compiled.load("fuzzynav.sensing._tracking")
 
 
 @dataclass(frozen=True)
@@ -189,24 +186,7 @@ def fit_disc(points: np.ndarray) -> tuple[float, float, float, float]:
 
 
 def detect(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
-    """Disc-shaped clusters of one laser frame (world coordinates). The clusters and fits run in C
-    (``fuzzynav.sensing._tracking``: the same bits) when it was built, else in :func:`detect_python`."""
-    if _tracking is not None and not compiled.switched_off():
-        beams = np.empty(len(scan.ranges), dtype=np.int64)
-        found = _tracking.discs(np.ascontiguousarray(scan.xy, dtype=np.float64),
-                                np.ascontiguousarray(scan.ranges, dtype=np.float64),
-                                np.ascontiguousarray(scan.returned, dtype=bool), float(config.cluster_gap_cm),
-                                int(config.min_points), 2.0 * config.max_radius_cm, float(config.max_radius_cm),
-                                float(config.max_fit_rms_cm), beams)
-        if found is not None:  # None: something the Python form treats specially (a non-finite point)
-            ox, oy = scan.origin
-            return [Detection(cx, cy, radius, beams[i:j]) for i, j, cx, cy, radius, nearest in found[1]
-                    if not hypot(cx - ox, cy - oy) <= nearest]  # concave side towards us: not a disc
-    return detect_python(scan, config)
-
-
-def detect_python(scan: LaserScan, config: TrackerConfig) -> list[Detection]:
-    """:func:`detect` with numpy and Python floats (what runs without the compiled kernel)."""
+    """Disc-shaped clusters of one laser frame (world coordinates)."""
     beams, cuts = _clusters(scan, config.cluster_gap_cm)
     if len(beams) == 0:
         return []
