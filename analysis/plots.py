@@ -12,6 +12,7 @@ import functools
 import hashlib
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -342,31 +343,91 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
     return _save(fig, out / "box_metrics.png")
 
 
-def draw_world(ax, world: World, margin_cm: float = 20.0) -> None:
+def world_limits(world: World, margin_cm: float = 20.0) -> tuple[float, float, float, float] | None:
+    """(xmin, ymin, xmax, ymax) a picture of ``world`` shows: its walls plus ``margin_cm`` (cm; None without walls)."""
+    if world.bounds is None:
+        return None
+    xmin, ymin, xmax, ymax = world.bounds
+    return xmin - margin_cm, ymin - margin_cm, xmax + margin_cm, ymax + margin_cm
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a picture of a world goes in an Axes shared by many (:func:`panel_placement`): ``transform`` from the
+    world's cm to the display, ``clip`` the display box it is clipped to, ``region`` (left, bottom, width, height)
+    that box in the Axes' data coordinates."""
+
+    transform: Any
+    clip: Any
+    region: tuple[float, float, float, float]
+
+
+def panel_placement(ax, cell: tuple[float, float, float, float], limits: tuple[float, float, float, float]
+                    ) -> Placement:
+    """The :class:`Placement` that draws the region ``limits`` (xmin, ymin, xmax, ymax, cm) of a world into ``cell``
+    (left, bottom, width, height in ``ax``'s data coordinates) at equal scale on both axes, centred, clipped to
+    ``limits``: many small pictures in one Axes (an Axes each, with its ticks and spines, cost several times the
+    picture)."""
+    from matplotlib.transforms import Affine2D, Bbox, TransformedBbox
+
+    left, bottom, width, height = cell
+    xmin, ymin, xmax, ymax = limits
+    scale = min(width / max(xmax - xmin, 1e-9), height / max(ymax - ymin, 1e-9))
+    w, h = (xmax - xmin) * scale, (ymax - ymin) * scale
+    region = (left + (width - w) / 2, bottom + (height - h) / 2, w, h)
+    transform = Affine2D().translate(-xmin, -ymin).scale(scale).translate(region[0], region[1]) + ax.transData
+    return Placement(transform, TransformedBbox(Bbox.from_bounds(*region), ax.transData), region)
+
+
+def _add(ax, artist, placement: Placement | None):
+    """``artist`` added to ``ax``: as Axes.add_line / add_patch / add_collection do (the data limits grow with it), or
+    into ``placement`` (its transform and clip box; the limits stay as they are set, so nothing measures it)."""
+    from matplotlib.collections import Collection
+    from matplotlib.patches import Patch
+
+    if placement is None:
+        if isinstance(artist, Collection):
+            return ax.add_collection(artist)
+        return ax.add_patch(artist) if isinstance(artist, Patch) else ax.add_line(artist)
+    artist.set_transform(placement.transform)
+    ax.add_artist(artist)
+    artist.set_clip_box(placement.clip)
+    return artist
+
+
+def draw_world(ax, world: World, margin_cm: float = 20.0, placement: Placement | None = None) -> None:
     """Walls, static obstacles and the goal; the axes fitted to the walls (plus ``margin_cm``), so that paths of
-    moving obstacles that start or end outside the world do not shrink it."""
+    moving obstacles that start or end outside the world do not shrink it. ``placement``: where in ``ax`` to draw
+    instead (:func:`panel_placement`; the axes are left as they are)."""
     from matplotlib.collections import PatchCollection
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
     from matplotlib.patches import Polygon as PolygonPatch
 
     if world.polygons:
-        ax.add_collection(PatchCollection([PolygonPatch(p, closed=True) for p in world.polygons], color="0.65",
-                                          lw=0, zorder=1))
+        _add(ax, PatchCollection([PolygonPatch(p, closed=True) for p in world.polygons], color="0.65", lw=0, zorder=1),
+             placement)
     if world.goal is not None:
-        ax.add_patch(Circle(world.goal, world.goal_tolerance or 20.0, color="#009E73", alpha=0.25, lw=0, zorder=1))
+        _add(ax, Circle(world.goal, world.goal_tolerance or 20.0, color="#009E73", alpha=0.25, lw=0, zorder=1),
+             placement)
     if world.bounds is not None:
         xmin, ymin, xmax, ymax = world.bounds
-        ax.plot([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3", lw=0.8, zorder=1)
-        ax.set_xlim(xmin - margin_cm, xmax + margin_cm)
-        ax.set_ylim(ymin - margin_cm, ymax + margin_cm)
-    ax.set_aspect("equal")
+        _add(ax, Line2D([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3", lw=0.8, zorder=1),
+             placement)
+        if placement is None:
+            ax.set_xlim(xmin - margin_cm, xmax + margin_cm)
+            ax.set_ylim(ymin - margin_cm, ymax + margin_cm)
+    if placement is None:
+        ax.set_aspect("equal")
 
 
-def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
+def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8, placement: Placement | None = None) -> None:
     """Robot paths as thin lines in ``color`` (overlapping paths darken each other), contacts as black ``x``;
     the moving obstacles' true paths dotted in faint red (each distinct path once), and an obstacle that never
-    moved (a dotted path of no length would not show) as a faint red circle where it stood."""
+    moved (a dotted path of no length would not show) as a faint red circle where it stood. ``placement``: where in
+    ``ax`` to draw (:func:`panel_placement`; default: the axes' data coordinates)."""
     from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
 
     seen: set[bytes] = set()
     for trace in traces:
@@ -376,15 +437,18 @@ def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
                 continue
             seen.add(key)
             if np.ptp(path, axis=0).max() < 1.0:
-                ax.plot(path[:1, 0], path[:1, 1], "o", mfc="none", color=OBSTACLE, alpha=0.7, ms=4, zorder=2)
+                _add(ax, Line2D(path[:1, 0], path[:1, 1], marker="o", linestyle="none", mfc="none", color=OBSTACLE,
+                                alpha=0.7, ms=4, zorder=2), placement)
             elif len(path) > 1:
-                ax.plot(path[:, 0], path[:, 1], ":", color=OBSTACLE, alpha=0.5, lw=0.8, zorder=2)
-    ax.add_collection(LineCollection([t.positions for t in traces if len(t.positions) > 1], colors=color,
-                                     linewidths=lw, alpha=0.7 if len(traces) < 5 else 0.45, zorder=3))
+                _add(ax, Line2D(path[:, 0], path[:, 1], linestyle=":", color=OBSTACLE, alpha=0.5, lw=0.8, zorder=2),
+                     placement)
+    _add(ax, LineCollection([t.positions for t in traces if len(t.positions) > 1], colors=color, linewidths=lw,
+                            alpha=0.7 if len(traces) < 5 else 0.45, zorder=3), placement)
     hits = [t.positions[list(t.contact_points)] for t in traces if t.contact_points]
     if hits:
         points = np.vstack(hits)
-        ax.plot(points[:, 0], points[:, 1], "x", color=CONTACT, ms=5, mew=1.2, zorder=4)
+        _add(ax, Line2D(points[:, 0], points[:, 1], marker="x", linestyle="none", color=CONTACT, ms=5, mew=1.2,
+                        zorder=4), placement)
 
 
 def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out: Path,
