@@ -18,8 +18,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from analysis import plots
 from analysis.deferred import deferred
 from analysis.drawing import Figure, Figures
@@ -89,43 +87,26 @@ def gallery_figure(rows: list[tuple[str, str, list[Panel]]], path: Path) -> Path
     """A figure of failures: per (heading, colour, panels) a row headed by the group's name in its colour, then a
     panel per failure (world, robot path, contacts, moving obstacles' paths: :func:`analysis.plots.draw_world`,
     :func:`analysis.plots.draw_traces`) titled with its seed and outcome; each row as high as its highest world.
-    The panels are placed in one Axes whose data coordinates are the figure's inches
-    (:func:`analysis.plots.panel_placement`)."""
+    The panels are placed on one :func:`analysis.plots.sheet` (:func:`analysis.plots.panel_placement`)."""
     heading_in, title_in, gap_in, margin_in = 0.24, 0.2, 0.1, 0.08
     cols = max(len(panels) for _, _, panels in rows)
     heights = [PANEL_WIDTH_IN * max(_aspect(p.trace) for p in panels) for _, _, panels in rows]
     width = 2 * margin_in + cols * PANEL_WIDTH_IN + (cols - 1) * gap_in
     height = 2 * margin_in + sum(heights) + len(rows) * (heading_in + title_in)
-    fig = plots.pyplot().figure(figsize=(width, height))
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-    ax.set_xlim(0, width)
-    ax.set_ylim(0, height)
-    ax.set_axis_off()
+    fig, ax = plots.sheet(width, height)
     top = height - margin_in
     for (heading, color, panels), panel_h in zip(rows, heights, strict=True):
         ax.text(margin_in, top - heading_in / 2, heading, color=color, fontsize=8, va="center")
         top -= heading_in + title_in + panel_h
         for col, panel in enumerate(panels):
             cell = (margin_in + col * (PANEL_WIDTH_IN + gap_in), top, PANEL_WIDTH_IN, panel_h)
-            limits = plots.world_limits(panel.trace.world) or _path_limits(panel.trace)
+            limits = plots.world_limits(panel.trace.world) or plots.paths_limits([panel.trace])
             placement = plots.panel_placement(ax, cell, limits)
             plots.draw_world(ax, panel.trace.world, placement=placement)
             plots.draw_traces(ax, [panel.trace], panel.color, lw=1.4, placement=placement)
             ax.text(cell[0] + PANEL_WIDTH_IN / 2, top + panel_h + 0.03, panel.title, fontsize=7, ha="center",
-                    va="bottom")
+                    va="baseline")
     return plots._save(fig, path)
-
-
-def _path_limits(trace: Trace, margin_cm: float = 20.0) -> tuple[float, float, float, float]:
-    """(xmin, ymin, xmax, ymax) of a world without walls: the robot's path and the goal, plus ``margin_cm``."""
-    points = [trace.positions[:, :2]] if len(trace.positions) else []
-    if trace.world.goal is not None:
-        points.append(np.asarray([trace.world.goal], dtype=float))
-    if not points:
-        return -100.0, -100.0, 100.0, 100.0
-    xy = np.vstack(points)
-    (xmin, ymin), (xmax, ymax) = xy.min(axis=0), xy.max(axis=0)
-    return xmin - margin_cm, ymin - margin_cm, xmax + margin_cm, ymax + margin_cm
 
 
 def figure_name(page: int) -> str:

@@ -343,6 +343,33 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
     return _save(fig, out / "box_metrics.png")
 
 
+TITLE_PAD_IN = 6 / 72
+"""Gap between a panel placed in a :func:`sheet` and its title (inches: matplotlib's 6 points above an Axes)."""
+
+
+def sheet(width: float, height: float):
+    """(figure, Axes) of ``width`` x ``height`` inches whose data coordinates are the figure's inches, axes off: the
+    ground many small pictures are placed on (:func:`panel_placement`)."""
+    fig = pyplot().figure(figsize=(width, height))
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.set_xlim(0, width)
+    ax.set_ylim(0, height)
+    ax.set_axis_off()
+    return fig, ax
+
+
+def paths_limits(traces: list[Trace], margin_cm: float = 20.0) -> tuple[float, float, float, float]:
+    """(xmin, ymin, xmax, ymax) of a picture of worlds without walls: the robot's paths and goals, plus ``margin_cm``
+    (cm)."""
+    points = [t.positions[:, :2] for t in traces if len(t.positions)]
+    points += [np.asarray([t.world.goal], dtype=float) for t in traces if t.world.goal is not None]
+    if not points:
+        return -100.0, -100.0, 100.0, 100.0
+    xy = np.vstack(points)
+    (xmin, ymin), (xmax, ymax) = xy.min(axis=0), xy.max(axis=0)
+    return xmin - margin_cm, ymin - margin_cm, xmax + margin_cm, ymax + margin_cm
+
+
 def world_limits(world: World, margin_cm: float = 20.0) -> tuple[float, float, float, float] | None:
     """(xmin, ymin, xmax, ymax) a picture of ``world`` shows: its walls plus ``margin_cm`` (cm; None without walls)."""
     if world.bounds is None:
@@ -458,6 +485,8 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     colour, contacts as black ``x``, the moving obstacles' true paths dotted, over the static world (each distinct
     world of the panel's episodes; axes fitted to the walls). ``traces``: log path -> :class:`Trace`
     (:func:`analysis.trace.load_traces`)."""
+    from matplotlib.patches import Rectangle
+
     pal = palette(df)
     sub = df.loc[df["scenario_label"] == scenario, ["scenario_label", "variant", "seed", "success", "log"]]
     variants = [v for v in pal if v in set(sub["variant"])]
@@ -471,32 +500,35 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     if worlds:
         xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
         aspect = max(0.25, min(2.0, (ymax - ymin) / max(xmax - xmin, 1e-9)))
-    panel = 3.0
-    fig, axes = grid(rows, cols, panel, panel * aspect, left=0.1, right=0.1, top=0.75, bottom=0.1, wspace=0.15,
-                     hspace=0.45)
+    panel_w, panel_h, left, top, wspace, hspace = 3.0, 3.0 * aspect, 0.1, 0.75, 0.15, 0.45  # inches
+    fig, ax = sheet(left + 0.1 + cols * panel_w + (cols - 1) * wspace, top + 0.1 + rows * panel_h + (rows - 1) * hspace)
+    height = ax.get_ylim()[1]
     chosen = panel_episodes(sub, max_seeds)
     seeds = sub.groupby("variant", sort=False).size()
     failures = (~sub["success"].astype(bool)).groupby(sub["variant"], sort=False).sum()
-    for ax, variant in zip(axes.flat, variants, strict=False):
+    for i, variant in enumerate(variants):
         mine = chosen[chosen["variant"] == variant]
         drawn = [traces[log] for log in mine["log"] if log in traces]
         drawn_worlds = {t.world.key(): t.world for t in drawn}
+        row, col = divmod(i, cols)
+        cell = (left + col * (panel_w + wspace), height - top - (row + 1) * panel_h - row * hspace, panel_w, panel_h)
+        # the walls of the panel's last world (as drawn over each other), or around the paths without walls
+        limits = next((world_limits(w) for w in reversed(drawn_worlds.values()) if w.bounds is not None), None)
+        placement = panel_placement(ax, cell, limits or paths_limits(drawn))
         for world in drawn_worlds.values():
-            draw_world(ax, world)
+            draw_world(ax, world, placement=placement)
         ok = set(mine.loc[mine["success"].astype(bool), "log"])
-        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color)  # the failed on top
+        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color,  # the failed on top
+                    placement=placement)
         n, failed = int(seeds[variant]), int(failures[variant])
         more = ""
         if len(drawn) < n:  # the failed first (panel_episodes): say so where it made a difference
             more = f", {len(drawn)} drawn, failed first" if 0 < failed < n else f", lowest {len(drawn)} seeds drawn"
-        set_title(ax, f"{variant}\n{n} seeds, {failed} failed{more}", fontsize=8)
-        ax.set_xticks([])  # the walls give the scale (in the title); ticks cost time in every panel
-        ax.set_yticks([])
-        for spine in ax.spines.values():
-            spine.set_color(pal[variant].color)
-            spine.set_linewidth(2)
-    for ax in list(axes.flat)[len(variants):]:
-        ax.set_axis_off()
+        x, y, w, h = placement.region
+        ax.text(x + w / 2, y + h + TITLE_PAD_IN, f"{variant}\n{n} seeds, {failed} failed{more}", fontsize=8,
+                ha="center", va="baseline")
+        # the frame in the group's colour; the walls give the scale (in the title), no ticks
+        ax.add_patch(Rectangle((x, y), w, h, fill=False, edgecolor=pal[variant].color, lw=2, zorder=2.5))
     size = ""
     if worlds:
         xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
