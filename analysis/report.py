@@ -424,7 +424,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     if df.empty:
         report.add("p", logs_line)
         _left_out(report, excluded)
-        _write(report, out, df, pd.DataFrame(), pd.DataFrame(), tables_dir)
+        write_tables(out, df, pd.DataFrame(), pd.DataFrame(), logs_from=tables_dir)
+        _write(report, out)
         return report
     main, long = group_table(df, grouping)
     # the figures first, drawn in worker processes while this one computes and writes the rest (analysis.drawing)
@@ -555,8 +556,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                 report.add("p", note)
         _left_out(report, excluded)
 
-    figures.draw(jobs, meanwhile=compose)
-    _write(report, out, df, long, paired, tables_dir)
+    def compose_and_write() -> None:
+        compose()
+        write_tables(out, df, long, paired, logs_from=tables_dir)  # while the workers draw: they need no figure
+
+    figures.draw(jobs, meanwhile=compose_and_write)
+    _write(report, out)
     return report
 
 
@@ -655,9 +660,8 @@ def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame,
-           tables_dir: Path) -> None:
-    write_tables(out, df, long, paired, logs_from=tables_dir)  # CSV and Parquet with units
+def _write(report: Report, out: Path) -> None:
+    """``report.md`` and ``report.html`` (after the figures they show are drawn; the tables are written by then)."""
     (out / "report.md").write_text(report.markdown())
     (out / "report.html").write_text(report.html())
 
