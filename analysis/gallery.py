@@ -102,8 +102,8 @@ def gallery_figure(rows: list[tuple[str, str, list[Panel]]], path: Path) -> Path
             cell = (margin_in + col * (PANEL_WIDTH_IN + gap_in), top, PANEL_WIDTH_IN, panel_h)
             limits = plots.world_limits(panel.trace.world) or plots.paths_limits([panel.trace])
             placement = plots.panel_placement(ax, cell, limits)
-            plots.draw_world(ax, panel.trace.world, placement=placement)
-            plots.draw_traces(ax, [panel.trace], panel.color, lw=1.4, placement=placement)
+            plots.draw_world(ax, panel.trace.world, placement)
+            plots.draw_traces(ax, [panel.trace], panel.color, placement, lw=1.4)
             ax.text(cell[0] + PANEL_WIDTH_IN / 2, top + panel_h + 0.03, panel.title, fontsize=7, ha="center",
                     va="baseline")
     return plots._save(fig, path)

@@ -412,26 +412,18 @@ def panel_placement(ax, cell: tuple[float, float, float, float], limits: tuple[f
     return Placement(transform, TransformedBbox(Bbox.from_bounds(*region), ax.transData), region)
 
 
-def _add(ax, artist, placement: Placement | None):
-    """``artist`` added to ``ax``: as Axes.add_line / add_patch / add_collection do (the data limits grow with it), or
-    into ``placement`` (its transform and clip box; the limits stay as they are set, so nothing measures it)."""
-    from matplotlib.collections import Collection
-    from matplotlib.patches import Patch
-
-    if placement is None:
-        if isinstance(artist, Collection):
-            return ax.add_collection(artist)
-        return ax.add_patch(artist) if isinstance(artist, Patch) else ax.add_line(artist)
+def _add(ax, artist, placement: Placement):
+    """``artist`` added to ``ax`` in ``placement`` (its transform and clip box; the Axes' limits are set, so nothing
+    measures it as Axes.add_line, add_patch and add_collection would)."""
     artist.set_transform(placement.transform)
     ax.add_artist(artist)
     artist.set_clip_box(placement.clip)
     return artist
 
 
-def draw_world(ax, world: World, margin_cm: float = 20.0, placement: Placement | None = None) -> None:
-    """Walls, static obstacles and the goal; the axes fitted to the walls (plus ``margin_cm``), so that paths of
-    moving obstacles that start or end outside the world do not shrink it. ``placement``: where in ``ax`` to draw
-    instead (:func:`panel_placement`; the axes are left as they are)."""
+def draw_world(ax, world: World, placement: Placement) -> None:
+    """Walls, static obstacles and the goal, in ``placement`` (:func:`panel_placement`: fitted to the walls and a
+    margin, so that paths of moving obstacles that start or end outside the world do not shrink it)."""
     from matplotlib.collections import PatchCollection
     from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
@@ -447,18 +439,13 @@ def draw_world(ax, world: World, margin_cm: float = 20.0, placement: Placement |
         xmin, ymin, xmax, ymax = world.bounds
         _add(ax, Line2D([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3", lw=0.8, zorder=1),
              placement)
-        if placement is None:
-            ax.set_xlim(xmin - margin_cm, xmax + margin_cm)
-            ax.set_ylim(ymin - margin_cm, ymax + margin_cm)
-    if placement is None:
-        ax.set_aspect("equal")
 
 
-def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8, placement: Placement | None = None) -> None:
+def draw_traces(ax, traces: list[Trace], color: str, placement: Placement, lw: float = 0.8) -> None:
     """Robot paths as thin lines in ``color`` (overlapping paths darken each other), contacts as black ``x``;
     the moving obstacles' true paths dotted in faint red (each distinct path once), and an obstacle that never
-    moved (a dotted path of no length would not show) as a faint red circle where it stood. ``placement``: where in
-    ``ax`` to draw (:func:`panel_placement`; default: the axes' data coordinates)."""
+    moved (a dotted path of no length would not show) as a faint red circle where it stood; in ``placement``
+    (:func:`panel_placement`)."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
 
@@ -522,10 +509,9 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
         limits = next((world_limits(w) for w in reversed(drawn_worlds.values()) if w.bounds is not None), None)
         placement = panel_placement(ax, cell, limits or paths_limits(drawn))
         for world in drawn_worlds.values():
-            draw_world(ax, world, placement=placement)
+            draw_world(ax, world, placement)
         ok = set(mine.loc[mine["success"].astype(bool), "log"])
-        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color,  # the failed on top
-                    placement=placement)
+        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color, placement)  # failed on top
         n, failed = int(seeds[variant]), int(failures[variant])
         more = ""
         if len(drawn) < n:  # the failed first (panel_episodes): say so where it made a difference
