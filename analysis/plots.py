@@ -12,6 +12,7 @@ import functools
 import hashlib
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -82,9 +83,15 @@ def _file_part(label: str) -> str:
     return f"{part[:40]}_{hashlib.sha1(label.encode()).hexdigest()[:10]}"
 
 
+PNG_COMPRESS_LEVEL = 1
+"""zlib's level for the PNGs: the fastest, a quarter larger files than the default 6, which spent a tenth of a
+report's drawing time compressing (issue #36)."""
+
+
 def _save(fig, path: Path) -> Path:
-    """Write a figure and free it (one place, so that tests can look at every figure before it is saved)."""
-    fig.savefig(path, dpi=DPI)
+    """Write a figure and free it (one place, so that tests can look at every figure before it is saved). No
+    ``Software`` entry (matplotlib's version): the same figure gives the same bytes whatever the version."""
+    fig.savefig(path, dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     pyplot().close(fig)
     return path
 
@@ -342,31 +349,105 @@ def box_by_variant(df: pd.DataFrame, metrics: list[str], out: Path) -> Path:
     return _save(fig, out / "box_metrics.png")
 
 
-def draw_world(ax, world: World, margin_cm: float = 20.0) -> None:
-    """Walls, static obstacles and the goal; the axes fitted to the walls (plus ``margin_cm``), so that paths of
-    moving obstacles that start or end outside the world do not shrink it."""
+TITLE_PAD_IN = 6 / 72
+"""Gap between a panel placed in a :func:`sheet` and its title (inches: matplotlib's 6 points above an Axes)."""
+
+
+def sheet(width: float, height: float):
+    """(figure, Axes) of ``width`` x ``height`` inches whose data coordinates are the figure's inches, axes off: the
+    ground many small pictures are placed on (:func:`panel_placement`)."""
+    fig = pyplot().figure(figsize=(width, height))
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.set_xlim(0, width)
+    ax.set_ylim(0, height)
+    ax.set_axis_off()
+    return fig, ax
+
+
+def paths_limits(traces: list[Trace], margin_cm: float = 20.0) -> tuple[float, float, float, float]:
+    """(xmin, ymin, xmax, ymax) of a picture of worlds without walls: the robot's paths and goals, plus ``margin_cm``
+    (cm)."""
+    points = [t.positions[:, :2] for t in traces if len(t.positions)]
+    points += [np.asarray([t.world.goal], dtype=float) for t in traces if t.world.goal is not None]
+    if not points:
+        return -100.0, -100.0, 100.0, 100.0
+    xy = np.vstack(points)
+    (xmin, ymin), (xmax, ymax) = xy.min(axis=0), xy.max(axis=0)
+    return xmin - margin_cm, ymin - margin_cm, xmax + margin_cm, ymax + margin_cm
+
+
+def world_limits(world: World, margin_cm: float = 20.0) -> tuple[float, float, float, float] | None:
+    """(xmin, ymin, xmax, ymax) a picture of ``world`` shows: its walls plus ``margin_cm`` (cm; None without walls)."""
+    if world.bounds is None:
+        return None
+    xmin, ymin, xmax, ymax = world.bounds
+    return xmin - margin_cm, ymin - margin_cm, xmax + margin_cm, ymax + margin_cm
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a picture of a world goes in an Axes shared by many (:func:`panel_placement`): ``transform`` from the
+    world's cm to the display, ``clip`` the display box it is clipped to, ``region`` (left, bottom, width, height)
+    that box in the Axes' data coordinates."""
+
+    transform: Any
+    clip: Any
+    region: tuple[float, float, float, float]
+
+
+def panel_placement(ax, cell: tuple[float, float, float, float], limits: tuple[float, float, float, float]
+                    ) -> Placement:
+    """The :class:`Placement` that draws the region ``limits`` (xmin, ymin, xmax, ymax, cm) of a world into ``cell``
+    (left, bottom, width, height in ``ax``'s data coordinates) at equal scale on both axes, centred, clipped to
+    ``limits``: many small pictures in one Axes (an Axes each, with its ticks and spines, cost several times the
+    picture)."""
+    from matplotlib.transforms import Affine2D, Bbox, TransformedBbox
+
+    left, bottom, width, height = cell
+    xmin, ymin, xmax, ymax = limits
+    scale = min(width / max(xmax - xmin, 1e-9), height / max(ymax - ymin, 1e-9))
+    w, h = (xmax - xmin) * scale, (ymax - ymin) * scale
+    region = (left + (width - w) / 2, bottom + (height - h) / 2, w, h)
+    transform = Affine2D().translate(-xmin, -ymin).scale(scale).translate(region[0], region[1]) + ax.transData
+    return Placement(transform, TransformedBbox(Bbox.from_bounds(*region), ax.transData), region)
+
+
+def _add(ax, artist, placement: Placement):
+    """``artist`` added to ``ax`` in ``placement`` (its transform and clip box; the Axes' limits are set, so nothing
+    measures it as Axes.add_line, add_patch and add_collection would)."""
+    artist.set_transform(placement.transform)
+    ax.add_artist(artist)
+    artist.set_clip_box(placement.clip)
+    return artist
+
+
+def draw_world(ax, world: World, placement: Placement) -> None:
+    """Walls, static obstacles and the goal, in ``placement`` (:func:`panel_placement`: fitted to the walls and a
+    margin, so that paths of moving obstacles that start or end outside the world do not shrink it)."""
     from matplotlib.collections import PatchCollection
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
     from matplotlib.patches import Polygon as PolygonPatch
 
     if world.polygons:
-        ax.add_collection(PatchCollection([PolygonPatch(p, closed=True) for p in world.polygons], color="0.65",
-                                          lw=0, zorder=1))
+        _add(ax, PatchCollection([PolygonPatch(p, closed=True) for p in world.polygons], color="0.65", lw=0, zorder=1),
+             placement)
     if world.goal is not None:
-        ax.add_patch(Circle(world.goal, world.goal_tolerance or 20.0, color="#009E73", alpha=0.25, lw=0, zorder=1))
+        _add(ax, Circle(world.goal, world.goal_tolerance or 20.0, color="#009E73", alpha=0.25, lw=0, zorder=1),
+             placement)
     if world.bounds is not None:
         xmin, ymin, xmax, ymax = world.bounds
-        ax.plot([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3", lw=0.8, zorder=1)
-        ax.set_xlim(xmin - margin_cm, xmax + margin_cm)
-        ax.set_ylim(ymin - margin_cm, ymax + margin_cm)
-    ax.set_aspect("equal")
+        _add(ax, Line2D([xmin, xmax, xmax, xmin, xmin], [ymin, ymin, ymax, ymax, ymin], color="0.3", lw=0.8, zorder=1),
+             placement)
 
 
-def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
+def draw_traces(ax, traces: list[Trace], color: str, placement: Placement, lw: float = 0.8) -> None:
     """Robot paths as thin lines in ``color`` (overlapping paths darken each other), contacts as black ``x``;
     the moving obstacles' true paths dotted in faint red (each distinct path once), and an obstacle that never
-    moved (a dotted path of no length would not show) as a faint red circle where it stood."""
+    moved (a dotted path of no length would not show) as a faint red circle where it stood; in ``placement``
+    (:func:`panel_placement`)."""
     from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
 
     seen: set[bytes] = set()
     for trace in traces:
@@ -376,15 +457,18 @@ def draw_traces(ax, traces: list[Trace], color: str, lw: float = 0.8) -> None:
                 continue
             seen.add(key)
             if np.ptp(path, axis=0).max() < 1.0:
-                ax.plot(path[:1, 0], path[:1, 1], "o", mfc="none", color=OBSTACLE, alpha=0.7, ms=4, zorder=2)
+                _add(ax, Line2D(path[:1, 0], path[:1, 1], marker="o", linestyle="none", mfc="none", color=OBSTACLE,
+                                alpha=0.7, ms=4, zorder=2), placement)
             elif len(path) > 1:
-                ax.plot(path[:, 0], path[:, 1], ":", color=OBSTACLE, alpha=0.5, lw=0.8, zorder=2)
-    ax.add_collection(LineCollection([t.positions for t in traces if len(t.positions) > 1], colors=color,
-                                     linewidths=lw, alpha=0.7 if len(traces) < 5 else 0.45, zorder=3))
+                _add(ax, Line2D(path[:, 0], path[:, 1], linestyle=":", color=OBSTACLE, alpha=0.5, lw=0.8, zorder=2),
+                     placement)
+    _add(ax, LineCollection([t.positions for t in traces if len(t.positions) > 1], colors=color, linewidths=lw,
+                            alpha=0.7 if len(traces) < 5 else 0.45, zorder=3), placement)
     hits = [t.positions[list(t.contact_points)] for t in traces if t.contact_points]
     if hits:
         points = np.vstack(hits)
-        ax.plot(points[:, 0], points[:, 1], "x", color=CONTACT, ms=5, mew=1.2, zorder=4)
+        _add(ax, Line2D(points[:, 0], points[:, 1], marker="x", linestyle="none", color=CONTACT, ms=5, mew=1.2,
+                        zorder=4), placement)
 
 
 def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out: Path,
@@ -394,6 +478,8 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     colour, contacts as black ``x``, the moving obstacles' true paths dotted, over the static world (each distinct
     world of the panel's episodes; axes fitted to the walls). ``traces``: log path -> :class:`Trace`
     (:func:`analysis.trace.load_traces`)."""
+    from matplotlib.patches import Rectangle
+
     pal = palette(df)
     sub = df.loc[df["scenario_label"] == scenario, ["scenario_label", "variant", "seed", "success", "log"]]
     variants = [v for v in pal if v in set(sub["variant"])]
@@ -407,32 +493,34 @@ def trajectories(df: pd.DataFrame, scenario: str, traces: dict[str, Trace], out:
     if worlds:
         xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]
         aspect = max(0.25, min(2.0, (ymax - ymin) / max(xmax - xmin, 1e-9)))
-    panel = 3.0
-    fig, axes = grid(rows, cols, panel, panel * aspect, left=0.1, right=0.1, top=0.75, bottom=0.1, wspace=0.15,
-                     hspace=0.45)
+    panel_w, panel_h, left, top, wspace, hspace = 3.0, 3.0 * aspect, 0.1, 0.75, 0.15, 0.45  # inches
+    fig, ax = sheet(left + 0.1 + cols * panel_w + (cols - 1) * wspace, top + 0.1 + rows * panel_h + (rows - 1) * hspace)
+    height = ax.get_ylim()[1]
     chosen = panel_episodes(sub, max_seeds)
     seeds = sub.groupby("variant", sort=False).size()
     failures = (~sub["success"].astype(bool)).groupby(sub["variant"], sort=False).sum()
-    for ax, variant in zip(axes.flat, variants, strict=False):
+    for i, variant in enumerate(variants):
         mine = chosen[chosen["variant"] == variant]
         drawn = [traces[log] for log in mine["log"] if log in traces]
         drawn_worlds = {t.world.key(): t.world for t in drawn}
+        row, col = divmod(i, cols)
+        cell = (left + col * (panel_w + wspace), height - top - (row + 1) * panel_h - row * hspace, panel_w, panel_h)
+        # the walls of the panel's last world (as drawn over each other), or around the paths without walls
+        limits = next((world_limits(w) for w in reversed(drawn_worlds.values()) if w.bounds is not None), None)
+        placement = panel_placement(ax, cell, limits or paths_limits(drawn))
         for world in drawn_worlds.values():
-            draw_world(ax, world)
+            draw_world(ax, world, placement)
         ok = set(mine.loc[mine["success"].astype(bool), "log"])
-        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color)  # the failed on top
+        draw_traces(ax, sorted(drawn, key=lambda t: t.log not in ok), pal[variant].color, placement)  # failed on top
         n, failed = int(seeds[variant]), int(failures[variant])
         more = ""
         if len(drawn) < n:  # the failed first (panel_episodes): say so where it made a difference
             more = f", {len(drawn)} drawn, failed first" if 0 < failed < n else f", lowest {len(drawn)} seeds drawn"
-        set_title(ax, f"{variant}\n{n} seeds, {failed} failed{more}", fontsize=8)
-        ax.set_xticks([])  # the walls give the scale (in the title); ticks cost time in every panel
-        ax.set_yticks([])
-        for spine in ax.spines.values():
-            spine.set_color(pal[variant].color)
-            spine.set_linewidth(2)
-    for ax in list(axes.flat)[len(variants):]:
-        ax.set_axis_off()
+        x, y, w, h = placement.region
+        ax.text(x + w / 2, y + h + TITLE_PAD_IN, f"{variant}\n{n} seeds, {failed} failed{more}", fontsize=8,
+                ha="center", va="baseline")
+        # the frame in the group's colour; the walls give the scale (in the title), no ticks
+        ax.add_patch(Rectangle((x, y), w, h, fill=False, edgecolor=pal[variant].color, lw=2, zorder=2.5))
     size = ""
     if worlds:
         xmin, ymin, xmax, ymax = worlds[0].bounds  # type: ignore[misc]

@@ -310,8 +310,8 @@ def _bounded(table: pd.DataFrame, csv_name: str, what: str, limit: int = INLINE_
 class Report:
     """The report's content as blocks, rendered to Markdown and HTML alike. Kinds: ``h2``, ``p``, ``list``,
     ``table`` (a DataFrame), ``img`` (a PNG's path, or a :class:`analysis.drawing.Figure` drawn before the report
-    is rendered) and ``gallery`` (a list of
-    :class:`analysis.gallery.Failure`)."""
+    is rendered) and ``gallery`` (a list of :class:`analysis.gallery.Failure`: a table of the pictured failures,
+    shown under their figure)."""
 
     title: str
     blocks: list[tuple[str, object]] = field(default_factory=list)
@@ -333,10 +333,7 @@ class Report:
             elif kind == "img":
                 lines += [f"![{_image(value).stem}]({_image(value).name})", ""]
             elif kind == "gallery":
-                table = pd.DataFrame([{"picture": f"![{f.picture}]({f.picture})", "scenario": f.row["scenario"],
-                                       "group": f.row["variant"], "seed": f.row["seed"], "outcome": f.row["outcome"],
-                                       "first contact step": _step(f.row["first_contact_step"]), "log": f.row["log"]}
-                                      for f in value])  # type: ignore[attr-defined]
+                table = _gallery_table(value)  # type: ignore[arg-type]
                 lines += [table.to_markdown(index=False) if not table.empty else "_none_", ""]
         return "\n".join(lines)
 
@@ -356,24 +353,27 @@ class Report:
                 name = html.escape(_image(value).name)
                 body.append(f'<p><img id="{html.escape(_image(value).stem)}" src="{name}" alt="{name}"></p>')
             elif kind == "gallery":
-                cards = [f'<figure><img src="{html.escape(f.picture)}" alt="{html.escape(f.picture)}">'
-                         f"<figcaption>{html.escape(str(f.row['scenario']))} · {html.escape(str(f.row['variant']))}"
-                         f" · seed {f.row['seed']} · "
-                         f"{html.escape(str(f.row['outcome']))} · first contact step "
-                         f"{_step(f.row['first_contact_step'])}<br><code>{html.escape(str(f.row['log']))}</code>"
-                         "</figcaption></figure>" for f in value]  # type: ignore[attr-defined]
-                body.append('<div class="gallery">' + "".join(cards) + "</div>" if cards else "<p><em>none</em></p>")
+                table = _gallery_table(value)  # type: ignore[arg-type]
+                body.append(table.to_html(index=False, border=0, classes="t", na_rep="–")
+                            if not table.empty else "<p><em>none</em></p>")
         style = ("body{font-family:sans-serif;max-width:1400px;margin:0.5em auto;padding:0 1em}"
                  "h1{font-size:1.2em;margin:0.2em 0}h2{margin-top:1.4em}"
                  "table.t{border-collapse:collapse;font-size:13px}table.t td,table.t th{border:1px solid #ccc;"
-                 "padding:3px 6px;text-align:right}img{max-width:100%}"
-                 ".gallery{display:flex;flex-wrap:wrap;gap:8px}.gallery figure{margin:0;width:230px;font-size:11px}"
-                 ".gallery code{font-size:9px;word-break:break-all}")
+                 "padding:3px 6px;text-align:right}img{max-width:100%}")
         check = ("<script>window.addEventListener('load',function(){var bad=[].slice.call("
                  "document.images).filter(function(i){return !(i.complete&&i.naturalWidth>0)});"
                  "document.title=bad.length?'report: '+bad.length+' broken image(s)':'report: ok';});</script>")
         return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
                 f"<style>{style}</style>{check}</head><body>{''.join(body)}</body></html>")
+
+
+def _gallery_table(failures: list[gallery.Failure]) -> pd.DataFrame:
+    """The pictured failures in their panels' order (a row of panels per group, lowest seed first): the figure with
+    the panel, scenario, group, seed, outcome, first contact step and log."""
+    return pd.DataFrame([{"picture": f.picture, "scenario": f.row["scenario"], "group": f.row["variant"],
+                          "seed": f.row["seed"], "outcome": f.row["outcome"],
+                          "first contact step": _step(f.row["first_contact_step"]), "log": f.row["log"]}
+                         for f in failures])
 
 
 def _image(value: object) -> Path:
@@ -424,7 +424,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     if df.empty:
         report.add("p", logs_line)
         _left_out(report, excluded)
-        _write(report, out, df, pd.DataFrame(), pd.DataFrame(), tables_dir)
+        write_tables(out, df, pd.DataFrame(), pd.DataFrame(), logs_from=tables_dir)
+        _write(report, out)
         return report
     main, long = group_table(df, grouping)
     # the figures first, drawn in worker processes while this one computes and writes the rest (analysis.drawing)
@@ -453,7 +454,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
     groups = df.groupby("scenario_label", sort=False)["variant"].nunique()
     trajectory_figures = [figures.add(plots.trajectories, df, scenario, traces, out, cost=0.7 * groups[scenario])
                           for scenario in pd.unique(df["scenario_label"])]
-    failures, counts = gallery.gallery(df, traces, out, logs_from=tables_dir, contacts=contacts, figures=figures)
+    failures, counts, gallery_figures = gallery.gallery(df, traces, out, logs_from=tables_dir, contacts=contacts,
+                                                        figures=figures)
     box_figure = figures.add(plots.box_by_variant, df, BOX_METRICS, out,
                              cost=1.3 * len(BOX_METRICS) * df["scenario_label"].nunique())
     paired = pd.DataFrame()
@@ -500,7 +502,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         read_all = n_failed <= gallery.READ_ALL_MAX
         report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the "
                         f"goal reached after a contact); pictured: the first {gallery.MAX_PER_GROUP} of each group "
-                        f"(lowest seeds), {len(failures)} in all. Every failure with its log: failures.csv, with the "
+                        f"(lowest seeds), {len(failures)} in all: a row of panels per group in the figure below, "
+                        "listed in the same order under it. Every failure with its log: failures.csv, with the "
                         "first contact step (the first step the simulator flagged as in contact; empty with log_read "
                         "true: none flagged) "
                         + ("of each." if read_all else f"of those whose log the pictures read (more than "
@@ -508,6 +511,8 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                            "`python -m runners.replay <log>` shows any episode's steps)."))
         if not counts.empty:
             report.add("table", counts)
+        for figure in gallery_figures:
+            report.add("img", figure)
         report.add("gallery", failures)
 
         report.add("h2", "Paired comparisons (same scenario and seed)")
@@ -551,8 +556,12 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                 report.add("p", note)
         _left_out(report, excluded)
 
-    figures.draw(jobs, meanwhile=compose)
-    _write(report, out, df, long, paired, tables_dir)
+    def compose_and_write() -> None:
+        compose()
+        write_tables(out, df, long, paired, logs_from=tables_dir)  # while the workers draw: they need no figure
+
+    figures.draw(jobs, meanwhile=compose_and_write)
+    _write(report, out)
     return report
 
 
@@ -651,9 +660,8 @@ def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _write(report: Report, out: Path, df: pd.DataFrame, long: pd.DataFrame, paired: pd.DataFrame,
-           tables_dir: Path) -> None:
-    write_tables(out, df, long, paired, logs_from=tables_dir)  # CSV and Parquet with units
+def _write(report: Report, out: Path) -> None:
+    """``report.md`` and ``report.html`` (after the figures they show are drawn; the tables are written by then)."""
     (out / "report.md").write_text(report.markdown())
     (out / "report.html").write_text(report.html())
 

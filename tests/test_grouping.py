@@ -379,7 +379,9 @@ def test_sweep_plots_have_one_series_per_margin(margin_sweep, tmp_path, monkeypa
         seen[path.name] = {"legend": [t.get_text() for legend in fig.legends for t in legend.get_texts()],
                            "ticks": next((labels for labels in ticks if labels), []),  # a panel that shows them
                            "titles": [a.get_title().split("\n")[0] for a in fig.axes if a.get_title()],
-                           "frames": [a.spines["top"].get_edgecolor() for a in fig.axes if a.get_title()],
+                           # pictures placed on one sheet (plots.panel_placement): titles as texts, frames as patches
+                           "panel titles": [t.get_text().split("\n")[0] for a in fig.axes for t in a.texts],
+                           "frames": [p.get_edgecolor() for a in fig.axes for p in a.patches if not p.get_fill()],
                            "colors": {line.get_label(): line.get_color() for a in fig.axes for line in a.get_lines()
                                       if line.get_label() in VARIANTS}}
         plt.close(fig)
@@ -394,7 +396,7 @@ def test_sweep_plots_have_one_series_per_margin(margin_sweep, tmp_path, monkeypa
         if name.startswith("box_"):
             assert figure["ticks"] == sorted(VARIANTS, key=_natural), name
         elif name.startswith("trajectories_"):  # a panel per group, framed in the group's colour
-            assert sorted(figure["titles"]) == sorted(VARIANTS), name
+            assert sorted(figure["panel titles"]) == sorted(VARIANTS), name
             assert len({tuple(c) for c in figure["frames"]}) == len(VARIANTS), name
         elif name == "overview.png":
             assert sorted(figure["legend"]) == sorted(VARIANTS)

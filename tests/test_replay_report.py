@@ -111,9 +111,9 @@ def test_sweep_writes_the_report(small_sweep):
 
 
 def test_the_failures_gallery_pictures_every_failure_of_a_small_sweep(small_sweep):
-    """Every failed episode of the quick sweep (8 episodes or fewer per group: all pictured) has its picture, its
-    log and its first contact step in the report and in failures.csv; a paired difference is shown only if its
-    interval excludes zero."""
+    """Every failed episode of the quick sweep (8 episodes or fewer per group: all pictured) has its panel in the
+    gallery's one figure, its log and its first contact step in the report and in failures.csv; a paired difference
+    is shown only if its interval excludes zero."""
     out, _ = small_sweep
     rep = out / "report"
     episodes = pd.read_csv(rep / "episodes.csv")
@@ -121,8 +121,10 @@ def test_the_failures_gallery_pictures_every_failure_of_a_small_sweep(small_swee
     assert sorted(failures["log"]) == sorted(episodes.loc[~episodes["success"], "log"])
     assert len(failures) > 0 and failures["log_read"].all()
     md = (rep / "report.md").read_text()
+    assert set(failures["picture"]) == {"failures.png"} and "![failures](failures.png)" in md
+    assert not list(rep.glob("failure_*.png"))  # one figure, not a file per failure
     for _, failure in failures.iterrows():
-        assert (rep / failure["picture"]).exists() and f"![{failure['picture']}]({failure['picture']})" in md
+        assert (rep / failure["picture"]).exists()
         assert failure["log"] in md
         if failure["outcome"] == "collision":
             assert failure["first_contact_step"] >= 0

@@ -66,7 +66,8 @@ def test_the_report_opens_with_the_overview_and_pictures_each_failure(crash_logs
     drawn: dict[str, plt.Figure] = {}
 
     def keep(fig, path):
-        drawn[path.name] = [a.get_title() for a in fig.axes] + [t.get_text() for t in fig.texts]
+        drawn[path.name] = ([a.get_title() for a in fig.axes] + [t.get_text() for t in fig.texts]
+                            + [t.get_text() for a in fig.axes for t in a.texts])
         plt.close(fig)
         path.write_bytes(b"")
         return path
@@ -80,11 +81,52 @@ def test_the_report_opens_with_the_overview_and_pictures_each_failure(crash_logs
     assert sorted(failures["seed"]) == [0, 1, 2]
     assert set(failures["variant"]) == {"auto(h=2) · safety_margin_cm=30"}
     assert list(failures["first_contact_step"]) == [1, 1, 1] and failures["log_read"].all()
-    for picture in failures["picture"]:
-        assert f"![{picture}]({picture})" in md and picture in drawn
+    assert set(failures["picture"]) == {"failures.png"} and "![failures](failures.png)" in md  # one gallery figure
+    group = "head_on · auto(h=2) · safety_margin_cm=30"
+    assert drawn["failures.png"] == ["", group, *(f"seed {s}: collision, contact at step 1" for s in range(3))]
+    listed = md[md.index("![failures](failures.png)"):]
+    assert [listed.index(str(crash_logs / f"crash_{s}.mcap").split("/")[-1]) for s in range(3)] == sorted(
+        listed.index(str(crash_logs / f"crash_{s}.mcap").split("/")[-1]) for s in range(3))  # in the panels' order
     assert "3 of 6 episodes failed" in md
     html = (out / "report.html").read_text()
     assert html.index('<img id="overview" src="overview.png"') < html.index("<h2>")
+
+
+def test_the_gallery_has_a_row_per_group_and_goes_on_in_a_second_figure(monkeypatch, tmp_path):
+    """A row of panels per failing group, in the groups' order, at most ROWS_PER_FIGURE rows a figure (a figure of
+    hundreds of rows would be too high to draw): the next groups are in failures_2.png, and failures.csv names the
+    figure of each failure's panel."""
+    import numpy as np
+
+    from analysis.trace import Trace, World
+
+    rows = []
+    for g in range(3):
+        for seed in range(2):
+            rows.append({"scenario_label": "s", "variant": f"g{g}", "strategy": "auto", "seed": seed, "success": False,
+                         "outcome": "timeout", "steps": 9, "collisions_static": 0, "collisions_dynamic": 0,
+                         "log": f"l{g}{seed}"})
+    df = pd.DataFrame(rows)
+    world = World(bounds=(0.0, 0.0, 100.0, 50.0), polygons=(), goal=(90.0, 25.0), goal_tolerance=5.0)
+    traces = {r["log"]: Trace(r["log"], np.array([[5.0, 25.0], [40.0, 25.0]]), (), None, (), world, 10.0, "timeout", 9)
+              for r in rows}
+    drawn: dict[str, list[str]] = {}
+
+    def keep(fig, path):
+        drawn[path.name] = [t.get_text() for a in fig.axes for t in a.texts]
+        plt.close(fig)
+        return path
+
+    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(gallery, "ROWS_PER_FIGURE", 2)
+    pictures, counts, figures = gallery.gallery(df, traces, tmp_path)
+    assert figures == [tmp_path / "failures.png", tmp_path / "failures_2.png"]
+    assert drawn["failures.png"] == ["s · g0", "seed 0: timeout", "seed 1: timeout", "s · g1", "seed 0: timeout",
+                                     "seed 1: timeout"]
+    assert drawn["failures_2.png"] == ["s · g2", "seed 0: timeout", "seed 1: timeout"]
+    assert [f.picture for f in pictures] == ["failures.png"] * 4 + ["failures_2.png"] * 2
+    assert list(pd.read_csv(tmp_path / "failures.csv")["picture"]) == [f.picture for f in pictures]
+    assert list(counts["pictured"]) == [2, 2, 2]
 
 
 @pytest.fixture
