@@ -69,7 +69,11 @@ def write_parquet(df: pd.DataFrame, path: Path, table: str, extra_metadata: dict
     metadata.update({k.encode(): v.encode() for k, v in (extra_metadata or {}).items()})
     import pyarrow.parquet as pq
 
-    pq.write_table(arrow.cast(pa.schema(fields, metadata=metadata)), path)
+    # Encoded in memory, written by Python: a full disk is then an OSError with its errno and strerror ("No space
+    # left on device"), not Arrow's own message without them. The tables are small (kilobytes per thousand rows).
+    sink = pa.BufferOutputStream()
+    pq.write_table(arrow.cast(pa.schema(fields, metadata=metadata)), sink)
+    Path(path).write_bytes(sink.getvalue().to_pybytes())
 
 
 def _metric_units(table: pd.DataFrame) -> dict[str, str]:
