@@ -1,6 +1,6 @@
 """Benchmarks (speed is measured here, never asserted in unit tests).
 
-    python -m runners.bench            # full run (about half an hour on 2 cores; the kernel's table several minutes)
+    python -m runners.bench            # full run (about 12 minutes on 2 cores; the kernel's table about 3)
     python -m runners.bench --quick    # reduced sizes, without the 1,000-episode sweep and the kernels' table
                                        # (a few minutes; CI runs it, no thresholds)
 
