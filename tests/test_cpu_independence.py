@@ -5,7 +5,8 @@ compiled kernel (the orca pedestrians' Python form).
 The machine's own kernel is covered by tests/test_suite_and_datasets.py. Here every configuration verifies
 paper_fig5 seed 0 (all seven variants, compared message by message with the committed logs) and suite_v1
 seed 0 (all scenarios x strategies, compared by digest), suite_v2 seed 0 (the crowds: reactive pedestrians,
-by digest) and suite_v3 seed 0 (every navigator in the situations the paper did not try, by digest). The
+by digest), suite_v3 seed 0 (every navigator in the situations the paper did not try, by digest) and
+orca_crowds seed 0 (the crowds with ORCA pedestrians, the one model with a compiled kernel, by digest). The
 terminal summary lists what ran.
 """
 
@@ -25,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 NO_FMA_LIBM = "glibc.cpu.hwcaps=-AVX2,-FMA,-AVX,-FMA4"
 PORTABLE_KERNELS = {"x86_64": ("Prescott", "Nehalem"), "AMD64": ("Prescott", "Nehalem"),
                     "aarch64": ("ARMV8", "CORTEXA57"), "arm64": ("ARMV8", "CORTEXA57")}
-SUBSETS = (("paper_fig5", "0:1"), ("suite_v1", "0:1"), ("suite_v2", "0:1"), ("suite_v3", "0:1"))
+SUBSETS = (("paper_fig5", "0:1"), ("suite_v1", "0:1"), ("suite_v2", "0:1"), ("suite_v3", "0:1"),
+           ("orca_crowds", "0:1"))
 
 
 def numpy_dispatch_groups() -> list[str]:
@@ -47,7 +49,7 @@ def _configurations() -> list[tuple[str, dict[str, str]]]:
         # (the pedestrian libraries measured for #17 changed trajectories under this setting)
         configs.append((f"GLIBC_TUNABLES={NO_FMA_LIBM} (libm without FMA)", {"GLIBC_TUNABLES": NO_FMA_LIBM}))
     # the Python form instead of the compiled kernel (fuzzynav/numerics/compiled.py): a machine without a C compiler
-    # at install runs it, and the logs must be the same bits (suite_v2's and suite_v3's crowds have orca pedestrians)
+    # at install runs it, and the logs must be the same bits (orca_crowds is the dataset whose pedestrians run it)
     configs.append(("FUZZYNAV_KERNEL=python (without the compiled kernel)",
                     {"FUZZYNAV_KERNEL": "python"}))
     return configs

@@ -124,7 +124,8 @@ def test_dataset_list_and_manifests():
     assert names["suite_v1"]["episodes"] == 14 * 4 * 10 and names["suite_v1"]["built"]
     assert names["suite_v2"]["episodes"] == 5 * 5 * 10 and names["suite_v2"]["built"]
     assert names["suite_v3"]["episodes"] == 4 * 8 * 10 and names["suite_v3"]["built"]
-    for name in ("paper_fig5", "suite_v1", "suite_v2", "suite_v3"):
+    assert names["orca_crowds"]["episodes"] == 4 * 3 * 5 and names["orca_crowds"]["built"]
+    for name in ("paper_fig5", "suite_v1", "suite_v2", "suite_v3", "orca_crowds"):
         m = dataset.load_manifest(name)
         assert len(m["episodes"]) == len(dataset.jobs(m)) and "success" in m["metrics_columns"]
 
@@ -161,6 +162,19 @@ def test_suite_v3_dataset_verifies_on_its_first_seed():
     out = run_dataset("verify", "suite_v3", "--seeds", "0:1")
     assert out.returncode == 0, out.stdout + out.stderr[-2000:]
     assert "seeds 0:1 of the dataset match" in out.stdout
+
+
+@pytest.mark.parametrize("form", ["kernel", "python"])
+def test_orca_crowds_dataset_verifies_with_either_form_of_orca(monkeypatch, form):
+    """The crowds with ORCA pedestrians, seeds 0-1, with the compiled kernel and with its Python form
+    (``FUZZYNAV_KERNEL=python``): both give the recorded bits. Without a built kernel both runs are the Python form."""
+    if form == "python":
+        monkeypatch.setenv("FUZZYNAV_KERNEL", "python")
+    else:
+        monkeypatch.delenv("FUZZYNAV_KERNEL", raising=False)
+    out = run_dataset("verify", "orca_crowds", "--seeds", "0:2")
+    assert out.returncode == 0, out.stdout + out.stderr[-2000:]
+    assert "seeds 0:2 of the dataset match" in out.stdout
 
 
 def test_verify_fails_readably_when_a_behaviour_parameter_changes():
