@@ -666,6 +666,24 @@ def _write(report: Report, out: Path) -> None:
     (out / "report.html").write_text(report.html())
 
 
+#: the names of the files the report last written into a folder wrote (hidden, in that folder): a later report
+#: into the same folder removes those it does not write itself (``failures_2.png`` of a report with more groups,
+#: ``trajectories_<scenario>.png`` of a scenario no longer in the logs), so that no figure of another report is
+#: left beside this one's
+WRITTEN_LIST = ".report-files"
+
+
+def previous_report_files(out: Path) -> set[str]:
+    """The plain file names :data:`WRITTEN_LIST` in ``out`` lists (none if it is missing or unreadable); a name
+    with a directory part, a hidden name or ``report``'s own list is left out, so an edited list cannot reach
+    outside ``out``."""
+    try:
+        lines = (out / WRITTEN_LIST).read_text(encoding="utf-8", errors="replace").splitlines()
+    except (OSError, ValueError):
+        return set()
+    return {n for n in lines[:100_000] if n and n == Path(n).name and not n.startswith(".") and "\\" not in n}
+
+
 def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, analysis: Analysis,
                 jobs: int = -1) -> None:
     """Write the report into ``out`` whole or not at all: built in a temporary directory inside ``out``, then each
@@ -675,8 +693,15 @@ def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, 
     tmp = Path(tempfile.mkdtemp(prefix=".report.partial-", dir=out))
     try:
         build_report(paths, tmp, options, jobs=jobs, analysis=analysis, final_dir=out)
+        written = sorted(item.name for item in tmp.iterdir())
+        (tmp / WRITTEN_LIST).write_text("".join(f"{name}\n" for name in written))
+        before = previous_report_files(out)
         for item in sorted(tmp.iterdir()):
             os.replace(item, out / item.name)
+        for name in sorted(before - set(written)):  # an earlier report's figure this one does not have
+            with contextlib.suppress(OSError):
+                if (out / name).is_file() and not (out / name).is_symlink():
+                    (out / name).unlink()
     except OSError as err:  # name the file as the user knows it, not inside the temporary directory
         name = err.filename
         if name is not None and Path(name).is_relative_to(tmp):

@@ -3,6 +3,8 @@ sweep). The report of a real sweep in a browser: tests/test_replay_report.py."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib.pyplot as plt
 import pandas as pd
 import pytest
@@ -273,3 +275,26 @@ def test_a_swept_parameter_that_changed_no_episode_is_said():
     lines = unchanged_by(pd.DataFrame(rows), Grouping())
     assert lines == ["head_on: h_wait changed no episode (auto(h=1), auto(h=2), auto(h=3): the same outcome, steps "
                      "and path on each of 2 common seeds)."]
+
+
+def test_a_report_into_the_folder_of_an_earlier_one_leaves_none_of_its_figures(crash_logs, tmp_path):
+    """The second report has no failure: the first one's failures.png goes (it pictured logs this report does not
+    have); a file the report did not write stays, and a tampered list reaches nothing outside the folder."""
+    from analysis.report import WRITTEN_LIST, main
+
+    out = tmp_path / "rep"
+    every = [str(p) for p in sorted(crash_logs.glob("*.mcap"))]
+    assert main([*every, "--out", str(out), "--jobs", "1"]) == 0
+    assert (out / "failures.png").is_file() and "failures.png" in (out / WRITTEN_LIST).read_text().split()
+    (out / "mine.png").write_bytes(b"the user's")
+    outside = tmp_path / "outside.txt"
+    outside.write_text("keep")
+    with (out / WRITTEN_LIST).open("a") as listed:
+        listed.write("../outside.txt\nmine/../../outside.txt\n.hidden\n")
+    successes = [p for p in every if Path(p).name.startswith("ok_")]
+    assert main([*successes, "--out", str(out), "--jobs", "1"]) == 0
+    assert not (out / "failures.png").exists() and "failures.png" not in (out / "report.md").read_text()
+    assert (out / "mine.png").read_bytes() == b"the user's" and outside.read_text() == "keep"
+    fresh = tmp_path / "fresh"
+    assert main([*successes, "--out", str(fresh), "--jobs", "1"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted([*(p.name for p in fresh.iterdir()), "mine.png"])
