@@ -104,7 +104,7 @@ def kind_of(value: Any) -> str:
 
 def number(lo: float = -MAX_CM, hi: float = MAX_CM) -> Check:
     """A JSON number (not a boolean) in [lo, hi]; NaN and infinities fail the range test. The bounds are taken as
-    floats, as the kernel takes them (an int bound above 2**53 would otherwise mean one thing to each form)."""
+    floats (an int bound above 2**53 is not exactly a float: compared as given it would mean another range)."""
     lo, hi = float(lo), float(hi)
 
     def check(v: Any) -> None:

@@ -90,7 +90,7 @@ report's drawing time compressing (issue #36)."""
 
 def _save(fig, path: Path) -> Path:
     """Write a figure and free it (one place, so that tests can look at every figure before it is saved). No
-    ``Software`` entry (matplotlib's version): the same figure gives the same bytes whatever the version."""
+    ``Software`` entry: no version string in the file (the pixels may still change with matplotlib's rendering)."""
     fig.savefig(path, dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     pyplot().close(fig)
     return path

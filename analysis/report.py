@@ -502,7 +502,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         read_all = n_failed <= gallery.READ_ALL_MAX
         report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the "
                         f"goal reached after a contact); pictured: the first {gallery.MAX_PER_GROUP} of each group "
-                        f"(lowest seeds), {len(failures)} in all: a row of panels per group in the figure below, "
+                        f"(lowest seeds), {len(failures)} in all: a row of panels per group in the figure(s) below, "
                         "listed in the same order under it. Every failure with its log: failures.csv, with the "
                         "first contact step (the first step the simulator flagged as in contact; empty with log_read "
                         "true: none flagged) "

@@ -74,7 +74,7 @@ def point(x_m: float, y_m: float, z_m: float) -> dict:
 def half_angle(heading_deg: float) -> tuple[float, float]:
     """(z, w) of the quaternion of a rotation by ``heading_deg`` about the vertical (portable: log content must not
     depend on the CPU); exactly (0.0, 1.0) for heading 0. A numpy scalar is taken as the equal float (the same
-    half, the compiled sine; the JSON is the same)."""
+    half; the JSON is the same)."""
     return (0.0, 1.0) if heading_deg == 0.0 else sin_cos_deg(float(heading_deg) / 2.0)
 
 
