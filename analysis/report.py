@@ -503,7 +503,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
         report.add("p", f"{n_failed} of {len(df)} episodes failed (not a success: a collision, a timeout, or the "
                         f"goal reached after a contact); pictured: the first {gallery.MAX_PER_GROUP} of each group "
                         f"(lowest seeds), {len(failures)} in all: a row of panels per group in the figure(s) below, "
-                        "listed in the same order under it. Every failure with its log: failures.csv, with the "
+                        "listed in the same order under them. Every failure with its log: failures.csv, with the "
                         "first contact step (the first step the simulator flagged as in contact; empty with log_read "
                         "true: none flagged) "
                         + ("of each." if read_all else f"of those whose log the pictures read (more than "
@@ -688,8 +688,9 @@ def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, 
                 jobs: int = -1) -> None:
     """Write the report into ``out`` whole or not at all: built in a temporary directory inside ``out``, then each
     file moved into place (a rename needs no space); on a failure (a full disk) the temporary directory is
-    removed and ``out`` holds what it held before, not a few plots of a report that does not exist. ``jobs``: worker
-    processes reading logs again for the pictures (as ``--jobs``)."""
+    removed and ``out`` holds what it held before, not a few plots of a report that does not exist. Once this report
+    is in place, the files an earlier report in ``out`` wrote and this one did not are removed
+    (:data:`WRITTEN_LIST`). ``jobs``: worker processes reading logs again for the pictures (as ``--jobs``)."""
     tmp = Path(tempfile.mkdtemp(prefix=".report.partial-", dir=out))
     try:
         build_report(paths, tmp, options, jobs=jobs, analysis=analysis, final_dir=out)

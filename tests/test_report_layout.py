@@ -5,9 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import hypothesis
 import matplotlib.pyplot as plt
 import pandas as pd
 import pytest
+from hypothesis import strategies as st
 
 from analysis import gallery, plots
 from analysis.palette import OKABE_ITO, TOL_MUTED, contrast_on_white, group_styles
@@ -298,3 +300,15 @@ def test_a_report_into_the_folder_of_an_earlier_one_leaves_none_of_its_figures(c
     fresh = tmp_path / "fresh"
     assert main([*successes, "--out", str(fresh), "--jobs", "1"]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted([*(p.name for p in fresh.iterdir()), "mine.png"])
+
+
+@hypothesis.settings(max_examples=200, deadline=None,
+                     suppress_health_check=[hypothesis.HealthCheck.function_scoped_fixture])
+@hypothesis.given(text=st.text(alphabet=st.sampled_from(list("ab./\\\n~ \x00é")), max_size=60))
+def test_an_edited_file_list_names_only_plain_files_of_the_folder(tmp_path, text):
+    """Whatever the hidden list holds, the names a later report may remove are plain, visible files of its folder."""
+    from analysis.report import WRITTEN_LIST, previous_report_files
+
+    (tmp_path / WRITTEN_LIST).write_text(text, encoding="utf-8")
+    for name in previous_report_files(tmp_path):
+        assert (tmp_path / name).parent == tmp_path and not name.startswith(".") and name not in ("", WRITTEN_LIST)
