@@ -78,6 +78,16 @@ class Figures:
         for i, result in by_figure.items():
             if isinstance(result, Path):
                 self.planned[i].path = result
-        errors = [by_figure[i] for i in range(len(self.planned)) if isinstance(by_figure[i], BaseException)]
+        errors = [(i, by_figure[i]) for i in range(len(self.planned)) if isinstance(by_figure[i], BaseException)]
         if errors:
-            raise errors[0]
+            i, error = errors[0]
+            if isinstance(error, OSError):  # (a full disk, a folder gone: the callers name the file)
+                raise error
+            name = getattr(self.planned[i].draw, "__name__", "figure")
+            raise FigureError(f"figure {name!r} could not be drawn: {type(error).__name__}: "
+                              f"{' '.join(str(error).split())[:300]}") from error
+
+
+class FigureError(RuntimeError):
+    """A figure whose drawing raised something other than an ``OSError``: which one, and what it raised, in one
+    line (the drawing's own exception is its ``__cause__``)."""

@@ -35,7 +35,7 @@ from analysis import gallery, plots
 from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwritable_dir
 from analysis.deferred import deferred
 from analysis.density import density_figure, density_table
-from analysis.drawing import Figure, Figures
+from analysis.drawing import Figure, FigureError, Figures
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.overview import overview
 from analysis.recorded_people import horizon_figure, horizon_table, shown_table
@@ -759,6 +759,12 @@ def main(argv: list[str] | None = None) -> int:
         write_whole(args.paths, out, options, analysis, args.jobs)
     except OSError as err:  # disk full, or the directory changed under us: nothing of the report was written
         print(f"error: {err.filename or out}: cannot write the report: {err.strerror or err} (nothing written)",
+              file=sys.stderr)
+        return 1
+    except FigureError as err:  # a bug of ours or of matplotlib on these data: one line, HYDRA_FULL_ERROR=1 the rest
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        print(f"error: {out}: cannot write the report: {err} (nothing written; HYDRA_FULL_ERROR=1 shows where)",
               file=sys.stderr)
         return 1
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")

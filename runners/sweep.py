@@ -32,6 +32,7 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
+from analysis.drawing import FigureError
 from analysis.logs import is_complete
 from runners.progress import EpisodeProgress
 from runners.sweeping import control as sweep_control
@@ -295,6 +296,8 @@ class SweepProgress(Callback):
             if sweep_control.debug_requested():
                 raise
             run.errors.append(sweep_control.io_line(err) if isinstance(err, OSError) else
+                              f"{sweep_dir / 'report'}: the report could not be written: {err}"
+                              if isinstance(err, FigureError) else
                               f"writing the summary failed: {type(err).__name__}: {err}")
         sweep_control.finish(run)
 

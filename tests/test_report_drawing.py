@@ -211,3 +211,69 @@ def test_a_report_stopped_while_its_workers_draw_ends_them_with_one_line(many_se
     with pytest.raises(ProcessLookupError):
         os.kill(worker, 0)  # ended (and reaped) with the report's process
     assert not out.exists() or not list(out.iterdir())  # whole or nothing
+
+
+def _bug(path: Path) -> Path:
+    raise ValueError("x and y must have the same\nfirst dimension")
+
+
+def test_a_figure_that_raises_is_named_in_one_line_after_the_others_are_drawn(tmp_path):
+    from analysis.drawing import FigureError
+
+    figures = Figures()
+    ok = figures.add(_write, tmp_path / "ok.txt", "x")
+    figures.add(_bug, tmp_path / "bug.png")
+    with pytest.raises(FigureError, match=r"^figure '_bug' could not be drawn: ValueError: x and y must have the "
+                                          r"same first dimension$") as err:
+        figures.draw(jobs=1)
+    assert isinstance(err.value.__cause__, ValueError) and ok.path is not None and ok.path.exists()
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_a_report_whose_figure_raises_is_one_line_and_writes_nothing(many_seeds, tmp_path, monkeypatch,  # noqa: F811
+                                                                     capsys, jobs):
+    """A figure that raises something else than an OSError (a bug, ours or a library's, on these data): the report
+    command says which figure and what in one line, exits 1 and leaves no file (HYDRA_FULL_ERROR=1: the traceback)."""
+    from analysis import plots
+    from analysis.report import main
+
+    def broken(*args, **kwargs):
+        raise ValueError("cannot draw this")
+
+    monkeypatch.setattr(plots, "box_by_variant", broken)
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    out = tmp_path / "rep"
+    assert main([str(many_seeds), "--out", str(out), "--jobs", jobs]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"error: {out}: cannot write the report: figure 'broken' could not be drawn: ValueError: "
+                          "cannot draw this (nothing written"), err
+    assert list(out.iterdir()) == []
+    monkeypatch.setenv("HYDRA_FULL_ERROR", "1")
+    with pytest.raises(Exception, match="could not be drawn"):
+        main([str(many_seeds), "--out", str(out), "--jobs", jobs])
+
+
+def test_a_sweeps_report_whose_figure_raises_leaves_the_earlier_report_and_no_partial_one(many_seeds, tmp_path,  # noqa: F811
+                                                                                         monkeypatch):
+    import shutil
+
+    from analysis import plots
+    from analysis.drawing import FigureError
+    from analysis.metrics import analyse_logs
+    from runners.sweeping.outputs import write_report
+
+    sweep = tmp_path / "sweep"
+    shutil.copytree(many_seeds, sweep)
+    analysis = analyse_logs([sweep], jobs=1, traces=True)
+    earlier = write_report(sweep, analysis)
+    before = {p.name: p.read_bytes() for p in earlier.iterdir()}
+
+    def broken(*args, **kwargs):
+        raise ValueError("cannot draw this")
+
+    monkeypatch.setattr(plots, "box_by_variant", broken)
+    with pytest.raises(FigureError, match="'broken' could not be drawn: ValueError: cannot draw this"):
+        write_report(sweep, analysis)
+    assert {p.name: p.read_bytes() for p in (sweep / "report").iterdir()} == before
+    assert sorted(p.name for p in sweep.iterdir() if p.name.startswith(".report")) == []

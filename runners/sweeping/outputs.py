@@ -45,10 +45,12 @@ def write_report(sweep_dir: Path, analysis: Analysis) -> Path:
         if final.exists():
             os.replace(final, old)
         os.replace(tmp, final)
-    except OSError as err:
+    except Exception as err:  # (a figure that raised too: no half-built report stays behind)
         shutil.rmtree(tmp, ignore_errors=True)
         if old.exists() and not final.exists():  # the earlier report stays where it was
             os.replace(old, final)
-        raise OSError(err.errno, f"the report could not be written: {err.strerror or err}", str(final)) from None
+        if isinstance(err, OSError):
+            raise OSError(err.errno, f"the report could not be written: {err.strerror or err}", str(final)) from None
+        raise
     shutil.rmtree(old, ignore_errors=True)
     return final
