@@ -151,6 +151,7 @@ DEFAULT_SWEEP = "sweep efficiency, the default sweep as a whole command"
 LARGE_SWEEP = "sweep efficiency, a 1,000-episode sweep as a whole command"
 FIRST_STEP = "time to the first step of runners.run"
 REPORT = "analysis.report / the metrics alone (episodes/s)"
+DEFAULT_LOGS = "the default sweep's logs"
 
 
 def by_key(rows: list[Target]) -> dict[tuple[str, str], Target]:
@@ -164,7 +165,7 @@ def test_issue_36_targets_of_a_good_run_are_met_with_their_thresholds():
     assert got[(DEFAULT_SWEEP, "2 cores")].threshold == 0.8 and got[(DEFAULT_SWEEP, "2 cores")].higher
     assert got[(LARGE_SWEEP, "2 cores")].value == 0.88 and got[(LARGE_SWEEP, "2 cores")].threshold == 0.8
     assert got[(FIRST_STEP, "")].threshold == 0.5 and got[(FIRST_STEP, "")].sign == "<"
-    assert got[(REPORT, "")].threshold == 0.5
+    assert got[(REPORT, DEFAULT_LOGS)].threshold == 0.5
     # a kernel's best gain is over the workloads, and names the workload; "all off" is not a kernel
     assert got[("kernel _raycast, best end-to-end gain", "default sweep")].value == 1.35
     assert got[("kernel _orca, best end-to-end gain", "orca crowd sweep (docs/crowds.md)")].value == 3.7
@@ -179,7 +180,7 @@ def test_issue_36_targets_of_a_good_run_are_met_with_their_thresholds():
     (("large_sweep", "sweep_efficiency"), 0.799, (LARGE_SWEEP, "2 cores")),
     (("main_job", "first_step_s"), 0.5, (FIRST_STEP, "")),  # "under 0.5 s": 0.5 itself misses it
     (("main_job", "first_step_s"), 1.2, (FIRST_STEP, "")),
-    (("main_job", "report_over_metrics"), 0.49, (REPORT, "")),
+    (("main_job", "report_over_metrics"), 0.49, (REPORT, DEFAULT_LOGS)),
     (("kernels", "gain", "default sweep", "_raycast"), 1.29, ("kernel _raycast, best end-to-end gain",
                                                              "default sweep")),  # its best: 1.1 on the other
 ])
@@ -192,7 +193,7 @@ def test_an_issue_36_target_missed_is_not_met(path, value, key):
     (("main_job", "sweep_efficiency"), 0.8, (DEFAULT_SWEEP, "2 cores")),  # ">= 0.8"
     (("large_sweep", "sweep_efficiency"), 0.8, (LARGE_SWEEP, "2 cores")),
     (("main_job", "first_step_s"), 0.4999, (FIRST_STEP, "")),
-    (("main_job", "report_over_metrics"), 0.5, (REPORT, "")),
+    (("main_job", "report_over_metrics"), 0.5, (REPORT, DEFAULT_LOGS)),
     (("kernels", "gain", "default sweep", "_raycast"), 1.3, ("kernel _raycast, best end-to-end gain",
                                                             "default sweep")),
 ])
@@ -251,3 +252,13 @@ def test_the_kernels_table_times_all_off_only_when_it_differs_from_one_kernel_of
     result = bench_kernels(rounds=1, workloads=(("json help", ("json.tool", "--help")),))
     assert list(result["medians_s"]["json help"]) == ["all on", *settings]
     assert list(result["gain"]["json help"]) == settings
+
+
+def test_the_report_on_the_1000_episode_sweeps_logs_is_a_target_row_of_its_own():
+    large = {**LARGE, "episodes": 1008, "report_over_metrics": 0.7}
+    got = by_key(main_job_targets({**MAIN_JOB, "large_sweep": large}))
+    assert got[(REPORT, "the 1008 episodes' logs")].met and got[(REPORT, "the 1008 episodes' logs")].value == 0.7
+    assert got[(REPORT, DEFAULT_LOGS)].value == 0.6  # the default sweep's row stays apart
+    missed = by_key(main_job_targets({**MAIN_JOB, "large_sweep": {**large, "report_over_metrics": 0.49}}))
+    assert missed[(REPORT, "the 1008 episodes' logs")].met is False
+    assert (REPORT, "the 1008 episodes' logs") not in by_key(main_job_targets(MAIN_JOB))  # an earlier bench.json

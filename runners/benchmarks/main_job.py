@@ -230,7 +230,7 @@ def bench_large_sweep(rounds: int = 2) -> dict[str, Any]:
     this machine's cores and on :data:`SIMULATED_CORES` by :func:`simulated_wall_s` from this machine's job spans."""
     cores = os.cpu_count() or 1
     rows: dict[str, list[float]] = {k: [] for k in ("wall_s", "first_log_s", "last_log_s", "plain_s", "sim_wall_s",
-                                                    "sim_phase_s")}
+                                                    "sim_phase_s", "report_s", "metrics_s")}
     episodes = 0
     for _ in range(rounds):
         with tempfile.TemporaryDirectory() as tmp:
@@ -242,9 +242,12 @@ def bench_large_sweep(rounds: int = 2) -> dict[str, Any]:
                 raise RuntimeError(f"the plain process ran {n} episodes, the sweep {episodes}")
             sim_wall, sim_phase = simulated_wall_s(sweep["job_spans_s"], SIMULATED_CORES, sweep["before_jobs_s"],
                                                    sweep["after_jobs_s"])
+            # the report on these logs against the metrics alone, as for the default sweep: its fixed costs
+            # (start-up, imports, a few figures) weigh less on 1,000 episodes than on 105
+            report, metrics = report_seconds(out, Path(tmp) / "report"), metrics_seconds(out)
             for key, value in (("wall_s", sweep["wall_s"]), ("first_log_s", sweep["first_log_s"]),
                                ("last_log_s", sweep["last_log_s"]), ("plain_s", plain), ("sim_wall_s", sim_wall),
-                               ("sim_phase_s", sim_phase)):
+                               ("sim_phase_s", sim_phase), ("report_s", report), ("metrics_s", metrics)):
                 rows[key].append(value)
     med = {k: statistics.median(v) for k, v in rows.items()}
     rate = episodes / med["plain_s"]
@@ -254,7 +257,9 @@ def bench_large_sweep(rounds: int = 2) -> dict[str, Any]:
             "episodes_phase_efficiency": episodes / max(med["last_log_s"] - med["first_log_s"], 1e-9) / (cores * rate),
             "simulated_cores": SIMULATED_CORES,
             "simulated_sweep_efficiency": episodes / med["sim_wall_s"] / (SIMULATED_CORES * rate),
-            "simulated_episodes_phase_efficiency": episodes / med["sim_phase_s"] / (SIMULATED_CORES * rate)}
+            "simulated_episodes_phase_efficiency": episodes / med["sim_phase_s"] / (SIMULATED_CORES * rate),
+            "report_episodes_per_s": episodes / med["report_s"], "metrics_episodes_per_s": episodes / med["metrics_s"],
+            "report_over_metrics": med["metrics_s"] / med["report_s"]}
 
 
 def print_large_sweep(r: dict[str, Any]) -> None:
@@ -266,6 +271,10 @@ def print_large_sweep(r: dict[str, Any]) -> None:
     print(f"  on {r['simulated_cores']} cores, by simulation of the schedule from these job spans: "
           f"{r['simulated_sweep_efficiency']:.2f} (whole command, {r['sim_wall_s']:.1f} s), episodes phase "
           f"{r['simulated_episodes_phase_efficiency']:.2f}")
+    if "report_s" in r:  # (a results file of an earlier bench has no report on these logs)
+        print(f"report ({r['episodes']} episodes): {r['report_episodes_per_s']:.1f} episodes/s "
+              f"({r['report_s']:.1f} s), the metrics alone {r['metrics_episodes_per_s']:.1f} episodes/s: "
+              f"report / metrics = {r['report_over_metrics']:.2f}")
 
 
 def print_main_job(r: dict[str, Any]) -> None:

@@ -116,7 +116,8 @@ MEASURES = f"""\
   {_CONFIGURATIONS} configurations × {len(LARGE_SEEDS)} seeds, {_CONFIGURATIONS * len(LARGE_SEEDS)} episodes in
   seed blocks, as [Sweeps](sweeps.md) writes a long sweep),
   measured as the main job is: against the same episodes in one plain process, and on {SIMULATED_CORES} cores by
-  the same simulation of the schedule.
+  the same simulation of the schedule; and the report on its logs against the metrics alone, as for the default
+  sweep (there, a command's start-up and a few figures weigh on 105 episodes; here, on ten times as many).
 - **Kernels end to end** (full run only): each documented workload run as a command with every compiled kernel
   on, with each kernel off in turn (`FUZZYNAV_KERNELS_OFF`) and, when more than one is built, with all off, the
   order of the settings alternating between rounds. A cell is the median wall time with that kernel off ÷ with
@@ -208,7 +209,7 @@ def _machine(results: dict[str, Any]) -> str:
              f"| compiled kernels built at install | {_count(m.get('kernels_built'))} |",
              f"| forms the logs record | {text('kernels')} |",
              f"| bytecode cache | {text('bytecode').removeprefix('bytecode cache: ')} |",
-             f"| sizes | {_SIZES.get(results.get('quick'), '–')} |"]
+             f"| sizes | {_SIZES.get(quick, '–') if isinstance(quick := results.get('quick'), bool) else '–'} |"]
     return "## The run\n\n" + "\n".join(lines) + "\n"
 
 

@@ -135,7 +135,7 @@ def main_job_targets(results: dict[str, Any]) -> list[Target]:
         out.append(Target("time to the first step of runners.run", job["first_step_s"], FIRST_STEP_S, False, "s",
                           strict=True))
         out.append(Target("analysis.report / the metrics alone (episodes/s)", job["report_over_metrics"],
-                          REPORT_OVER_METRICS, True, ""))
+                          REPORT_OVER_METRICS, True, "", "the default sweep's logs"))
     else:
         why = _absent(results, "main_job")
         out += [Target("sweep efficiency, the default sweep as a whole command", None, SWEEP_EFFICIENCY, True, "", why),
@@ -148,6 +148,9 @@ def main_job_targets(results: dict[str, Any]) -> list[Target]:
         out.append(Target("sweep efficiency, a 1,000-episode sweep as a whole command",
                           large["simulated_sweep_efficiency"], SWEEP_EFFICIENCY, True, "",
                           f"{large['simulated_cores']} cores, simulated schedule"))
+        if "report_over_metrics" in large:
+            out.append(Target("analysis.report / the metrics alone (episodes/s)", large["report_over_metrics"],
+                              REPORT_OVER_METRICS, True, "", f"the {large['episodes']} episodes' logs"))
     else:
         out.append(Target("sweep efficiency, a 1,000-episode sweep as a whole command", None, SWEEP_EFFICIENCY, True,
                           "", _absent(results, "large_sweep")))
