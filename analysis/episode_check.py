@@ -164,6 +164,13 @@ def _check_against_scenario(log: EpisodeLog) -> None:
                                                        f"distance_to_goal_cm says {st['distance_to_goal_cm']!r}")
     if log.goal is not None and max(abs(log.goal[0] - gx), abs(log.goal[1] - gy)) > 0.011:
         raise CheckError("/scene goal", f"{log.goal} is not the scenario's goal ({gx}, {gy})")
+    tol = world.get("goal_tolerance")
+    tol = robot["radius"] if tol is None else tol  # type: ignore[index]
+    # the metrics measure the time to the goal with the scene's goal disc: it must be the scenario's tolerance
+    if log.goal_tolerance is not None and isinstance(tol, int | float) and not isinstance(tol, bool) \
+            and abs(log.goal_tolerance - float(tol)) > 0.011:
+        raise CheckError("/scene goal", f"a disc of radius {log.goal_tolerance:g} cm, not the scenario's goal "
+                                        f"tolerance ({float(tol):g} cm, metadata scenario_yaml)")
     _check_obstacle_ids(log, world)
 
 

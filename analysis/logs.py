@@ -30,6 +30,7 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 LEFT_OUT_KINDS = {
     # the log was not read, on purpose
     "not-regular-file": "a FIFO, device, socket or directory named *.mcap: never opened",
+    "bad-name": "a file name that is not UTF-8 text (the tables could not name it): never opened",
     "duplicate": "a copy of another log of the same episode: counted once",
     "conflict": "the same episode as another log, with different content: none of them counted",
     # the log could not be read or believed
@@ -48,7 +49,16 @@ LEFT_OUT_KINDS = {
     "interrupted": "the episode was stopped",
 }
 """Why a log is left out of the statistics: the ``kind`` of each row of the report's *Logs left out* table."""
-SKIPPED_KINDS = ("not-regular-file", "duplicate", "conflict")  # left out without being read
+SKIPPED_KINDS = ("not-regular-file", "bad-name", "duplicate", "conflict")  # left out without being read
+
+
+def printable(text: str) -> str:
+    """``text`` (a path as the file system gave it, or a message naming one) as UTF-8 text: the bytes of a name
+    that are not UTF-8 as ``\\xNN`` escapes (the tables' writers refuse the surrogates Python reads them as)."""
+    try:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # a surrogate that no file name gave
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 class LogError(Exception):

@@ -25,6 +25,9 @@ from typing import Any, BinaryIO
 MAGIC = b"\x89MCAP0\r\n"
 MAX_FILE_BYTES = 256 * 2**20  # a 10,000-step episode's log is ~20 MB: anything larger is not a fuzzynav log
 MAX_CHUNK_BYTES = 64 * 2**20  # the writer's chunks are ~32 KB uncompressed: a bound against bogus size fields
+#: all of a file's chunks decompressed (a log's compress about 4:1): without a bound, a few MB of chunks of zeros
+#: declaring 64 MB each kept the analysis decompressing for minutes
+MAX_DECOMPRESSED_BYTES = 4 * MAX_FILE_BYTES
 
 # record opcodes (MCAP specification)
 HEADER, FOOTER, SCHEMA, CHANNEL, MESSAGE, CHUNK, MESSAGE_INDEX, CHUNK_INDEX = 1, 2, 3, 4, 5, 6, 7, 8
@@ -232,6 +235,7 @@ class _Reader:
         # the bytes before this offset match the data section's CRC (_intact_data_section): a chunk that ends there
         # decompresses to what its writer compressed, so its own CRC (a fifth of the reading time) is not computed
         self.intact_below = 0
+        self.decompressed = 0  # bytes, all chunks so far
 
     def record(self, opcode: int, at: int, body: int, end: int) -> None:
         first = not self.header_seen
@@ -272,6 +276,10 @@ class _Reader:
         payload = memoryview(self.data)[cur.take(n):cur.pos]
         if size > MAX_CHUNK_BYTES:
             raise McapError(f"chunk at byte {at}: declared size {size} bytes is implausible")
+        self.decompressed += size
+        if self.decompressed > MAX_DECOMPRESSED_BYTES:
+            raise McapError(f"chunk at byte {at}: the chunks decompress to more than "
+                            f"{MAX_DECOMPRESSED_BYTES // 2**20} MB: larger than any episode log")
         if compression == "zstd" and self.zstd is None:
             import zstandard
 

@@ -26,7 +26,7 @@ from analysis.deferred import deferred, load
 from analysis.episode_log import EpisodeLog, load_episode
 from analysis.horizon_errors import COLUMN_PATTERN, horizon_errors
 from analysis.log_inputs import find_logs
-from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, read_logs
+from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, printable, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import ADE_PREFIX, FDE_PREFIX, STANDING_MODELS, model_columns, obstacle_models, tpt_errors
 from analysis.trace import KeptTraces, Trace
@@ -407,8 +407,8 @@ def _metrics_row(path: Path, options: MetricOptions | None, parameters: Callable
     try:
         log = load_episode(path)
     except LogError as err:
-        return None, {"log": str(path), "outcome": "skipped" if err.kind in SKIPPED_KINDS else "unreadable",
-                      "kind": err.kind, "reason": str(err)}
+        return None, {"log": printable(str(path)), "outcome": "skipped" if err.kind in SKIPPED_KINDS else "unreadable",
+                      "kind": err.kind, "reason": printable(str(err))}
     if not log.complete:
         return None, {"log": str(path), "outcome": log.outcome, RUN_PARAMETERS: parameters(log), "seed": seed(log),
                       "kind": "truncated", "reason": "truncated: the file ends before the MCAP summary "

@@ -75,12 +75,16 @@ would exceed the file system's 255 bytes."""
 
 
 def _file_part(label: str) -> str:
-    """A label as part of a file name (``random_mixed · n_dynamic=5`` -> ``random_mixed__n_dynamic=5``); a long one
-    as its first 40 characters and a hash of the whole, still unique."""
-    part = re.sub(r"[^A-Za-z0-9_.=-]+", "_", label.replace(SEP, "__"))
-    if len(part) <= FILE_PART_MAX:
-        return part
-    return f"{part[:40]}_{hashlib.sha1(label.encode()).hexdigest()[:10]}"
+    """A label as part of a file name (``random_mixed · n_dynamic=5`` -> ``random_mixed__n_dynamic=5``), one file
+    per label: where characters had to be replaced (``x y`` and ``x_y`` would both be ``x_y``), where ``__`` was
+    already in the label, or where letters are upper case (one file on a case-insensitive file system), the name
+    ends in a hash of the label; a long one is its first 40 characters and that hash."""
+    plain = label.replace(SEP, "__")
+    part = re.sub(r"[^A-Za-z0-9_.=-]+", "_", plain)
+    digest = hashlib.sha1(label.encode()).hexdigest()[:10]
+    if len(part) > FILE_PART_MAX:
+        return f"{part[:40]}_{digest}"
+    return part if part == plain and "__" not in label and part == part.lower() else f"{part}_{digest}"
 
 
 PNG_COMPRESS_LEVEL = 1

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import html
 import itertools
 import math
@@ -25,6 +26,7 @@ import os
 import shutil
 import sys
 import tempfile
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +38,7 @@ from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwr
 from analysis.deferred import deferred
 from analysis.density import density_figure, density_table
 from analysis.drawing import Figure, FigureError, Figures
+from analysis.logs import printable
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.overview import overview
 from analysis.recorded_people import horizon_figure, horizon_table, shown_table
@@ -165,11 +168,16 @@ def _neighbours(h_a: str, h_b: str, h_values: list[float]) -> bool:
     return abs(i - j) == 1
 
 
-def parameter_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
-    """Each shown run parameter and each group dimension: its label name and its values with episode counts."""
+def parameter_table(df: pd.DataFrame, grouping: Grouping, runs: list[dict] | None = None) -> pd.DataFrame:
+    """Each shown run parameter and each group dimension: its label name and its values with episode counts (as the
+    labels show them, from ``runs``, the episodes' parameters in ``df``'s order, where given: a table keeps no
+    difference between null and a missing key)."""
     rows = []
     for key in [*SHOWN, *(k for k in grouping.dimensions if k not in SHOWN)]:
-        counts = df[key].map(format_value).value_counts(sort=False)
+        if runs is not None and len(runs) == len(df):
+            counts = Counter(grouping.value_label(run, key) for run in runs)
+        else:
+            counts = Counter(df[key].map(format_value))
         if len(counts) == 1:
             role = "same in every episode"
         elif key == "scenario" or key in grouping.scenario_keys:
@@ -306,6 +314,19 @@ def _bounded(table: pd.DataFrame, csv_name: str, what: str, limit: int = INLINE_
     return table.head(limit), f"The first {limit} of {len(table)} {what} are shown; all of them: {csv_name}."
 
 
+def _markdown_table(table: pd.DataFrame) -> str:
+    """``table`` as a Markdown table whose text cells cannot break it: ``|`` escaped, line breaks as spaces (a log
+    named ``a|b.mcap`` split its row into two columns)."""
+    def cell(value: object) -> object:
+        return " ".join(value.replace("|", "\\|").splitlines()) if isinstance(value, str) else value
+
+    text = table.copy()
+    for column in text.columns:
+        if text[column].dtype.kind not in "biufcmM":  # (text: object or pandas' string dtype)
+            text[column] = text[column].map(cell)
+    return text.to_markdown(index=False)
+
+
 @dataclass
 class Report:
     """The report's content as blocks, rendered to Markdown and HTML alike. Kinds: ``h2``, ``p``, ``list``,
@@ -329,12 +350,12 @@ class Report:
             elif kind == "list":
                 lines += [f"- {item}" for item in value] + [""]  # type: ignore[attr-defined]
             elif kind == "table":
-                lines += [value.to_markdown(index=False) if not value.empty else "_none_", ""]  # type: ignore
+                lines += [_markdown_table(value) if not value.empty else "_none_", ""]  # type: ignore[arg-type]
             elif kind == "img":
                 lines += [f"![{_image(value).stem}]({_image(value).name})", ""]
             elif kind == "gallery":
                 table = _gallery_table(value)  # type: ignore[arg-type]
-                lines += [table.to_markdown(index=False) if not table.empty else "_none_", ""]
+                lines += [_markdown_table(table) if not table.empty else "_none_", ""]
         return "\n".join(lines)
 
     def html(self) -> str:
@@ -541,7 +562,7 @@ def build_report(paths: Iterable[str | Path], out: Path, options: MetricOptions 
                   if grouping.dimensions else "here none differs")
         report.add("p", "Episodes are grouped by scenario, strategy and h_wait, and by every other run parameter "
                         f"whose value differs among these logs ({others}); seeds are pooled.")
-        report.add("table", parameter_table(df, grouping))
+        report.add("table", parameter_table(df, grouping, analysis.runs))
         disagree = df[~df["collision_check_agrees"]]
         report.add("h2", "Collision cross-check")
         report.add("p", "Contacts recomputed from the logged geometry agree with the simulator's flags in "
@@ -661,9 +682,10 @@ def tpt_error_table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _write(report: Report, out: Path) -> None:
-    """``report.md`` and ``report.html`` (after the figures they show are drawn; the tables are written by then)."""
-    (out / "report.md").write_text(report.markdown())
-    (out / "report.html").write_text(report.html())
+    """``report.md`` and ``report.html`` (after the figures they show are drawn; the tables are written by then).
+    UTF-8, whatever the locale; a path given in bytes that are not UTF-8 is written with escapes."""
+    (out / "report.md").write_text(printable(report.markdown()), encoding="utf-8")
+    (out / "report.html").write_text(printable(report.html()), encoding="utf-8")
 
 
 #: the names of the files the report last written into a folder wrote (hidden, in that folder): a later report
@@ -681,7 +703,13 @@ def previous_report_files(out: Path) -> set[str]:
         lines = (out / WRITTEN_LIST).read_text(encoding="utf-8", errors="replace").splitlines()
     except (OSError, ValueError):
         return set()
-    return {n for n in lines[:100_000] if n and n == Path(n).name and not n.startswith(".") and "\\" not in n}
+    return {n for n in lines[:100_000] if n and n == Path(n).name and not n.startswith(".") and "\\" not in n
+            and n.lower().endswith(REPORT_SUFFIXES)}
+
+
+#: the kinds of file a report writes: the only files its list can make a later report remove (never a log, were
+#: the list edited to name one and the report written into the logs' folder)
+REPORT_SUFFIXES = (".png", ".csv", ".parquet", ".md", ".html")
 
 
 def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, analysis: Analysis,
@@ -697,8 +725,7 @@ def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, 
         written = sorted(item.name for item in tmp.iterdir())
         (tmp / WRITTEN_LIST).write_text("".join(f"{name}\n" for name in written))
         before = previous_report_files(out)
-        for item in sorted(tmp.iterdir()):
-            os.replace(item, out / item.name)
+        _move_in(tmp, sorted(item.name for item in tmp.iterdir()), out)
         for name in sorted(before - set(written)):  # an earlier report's figure this one does not have
             with contextlib.suppress(OSError):
                 if (out / name).is_file() and not (out / name).is_symlink():
@@ -710,6 +737,33 @@ def write_whole(paths: Iterable[str | Path], out: Path, options: MetricOptions, 
         raise OSError(err.errno, err.strerror or str(err), name) from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _move_in(tmp: Path, names: list[str], out: Path) -> None:
+    """Move the files ``names`` from ``tmp`` into ``out``, all or none: a name ``out`` holds as a directory fails
+    before any file moves; the files they replace are set aside in ``tmp`` and put back should a move fail, so
+    that ``out`` never mixes two reports."""
+    for name in names:
+        if (out / name).is_dir() and not (out / name).is_symlink():
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(out / name))
+    aside = tmp / ".replaced"
+    aside.mkdir()
+    moved: list[tuple[str, bool]] = []  # (name, whether it replaced a file)
+    try:
+        for name in names:
+            had = os.path.lexists(out / name)
+            if had:
+                os.replace(out / name, aside / name)
+            moved.append((name, had))
+            os.replace(tmp / name, out / name)
+    except OSError:
+        for name, had in reversed(moved):
+            with contextlib.suppress(OSError):
+                if os.path.lexists(out / name) and not os.path.lexists(tmp / name):
+                    os.replace(out / name, tmp / name)
+                if had:
+                    os.replace(aside / name, out / name)
+        raise
 
 
 def main(argv: list[str] | None = None) -> int:

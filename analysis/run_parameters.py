@@ -62,6 +62,7 @@ LEGACY_POLICY = "fuzzy"
 POLICY_FIRST, POLICY_LAST = "fuzzy", "direct"
 CONFIG = "config"  # "logged", or "none" for a log without a readable config: its config keys are unknown, not unset
 UNSET = "unset"  # label of a parameter a log does not have (e.g. a key added to the config later)
+NULL = "null"  # label of a parameter whose value is null in the log's config
 OFF = "off (planner=none)"  # the value of a planner parameter that nothing reads: never a difference, never a label
 SEP = " · "
 RECORDING_PARAMETER = f"scenario.{RECORDING}"  # a scenario parameter: the world it was read from
@@ -161,7 +162,20 @@ def _implied_by_name(key: str, runs: Sequence[Mapping[str, Any]]) -> bool:
 
 
 def _hashable(value: Any) -> Any:
-    return ("nan",) if isinstance(value, float) and math.isnan(value) else value  # NaN != NaN would split
+    """A value as logs are compared by it: its kind, then the value. 10 and 10.0 are one value (their label is
+    ``10``); 10 and '10', true and 1, null and a missing key are two (as their labels are: :func:`format_value`),
+    which Python's ``==`` would partly pool (``True == 1``). NaN is one value (NaN != NaN would split)."""
+    if value is _MISSING:
+        return ("missing",)
+    if value is None:
+        return ("null",)
+    if isinstance(value, bool):
+        return ("bool", value)
+    if isinstance(value, int | float):
+        return ("number", "nan") if isinstance(value, float) and math.isnan(value) else ("number", value)
+    if isinstance(value, str):
+        return ("text", value)
+    return ("other", repr(value))
 
 
 def differing_parameters(runs: Sequence[Mapping[str, Any]]) -> list[str]:
@@ -203,18 +217,35 @@ def short_names(keys: Iterable[str]) -> dict[str, str]:
 
 
 def format_value(value: Any) -> str:
-    """A value as it appears in a label: ``5`` for 5.0, ``true``, ``unset`` for a missing key; long text
-    (controller rules, git commits) as its first 10 characters and a 6-character hash, still unique."""
-    if value is _MISSING or value is None:
+    """A value as it appears in a label: ``5`` for 5.0, ``true``, ``null``, ``unset`` for a missing key; text
+    that would read as one of those or as a number in quotes (``'10'``), so that two values that differ never
+    share a label (the groups are made by label); long text (controller rules, git commits) as its first 10
+    characters and a 6-character hash, still unique."""
+    if value is _MISSING:
         return UNSET
+    if value is None:
+        return NULL
     if isinstance(value, bool):
         return str(value).lower()
     if isinstance(value, float):
         return str(int(value)) if value.is_integer() else repr(value)
     text = str(value)
+    if isinstance(value, str) and _reads_as_another_kind(text):
+        text = f"'{text}'"
     if len(text) > 24:
         return f"{text[:10]}…{hashlib.sha1(text.encode()).hexdigest()[:6]}"
     return text
+
+
+def _reads_as_another_kind(text: str) -> bool:
+    """Whether a text's label would be that of a number, a boolean, null or a missing key."""
+    if text.strip().lower() in (UNSET, NULL, "true", "false", "none", ""):
+        return True
+    try:
+        float(text)
+    except ValueError:
+        return text.startswith("'")  # (a text already in quotes: quoted again, never the label of another)
+    return True
 
 
 def _order(value: Any) -> tuple:
@@ -248,8 +279,13 @@ class Grouping:
         return self.scenario_keys + self.variant_keys
 
     def _parts(self, run: Mapping[str, Any], keys: Iterable[str]) -> list[str]:
-        return [f"{self.short.get(k, k)}={format_value(run.get(k, _MISSING))}" for k in keys
-                if run.get(k, _MISSING) != OFF]
+        return [f"{self.short.get(k, k)}={self.value_label(run, k)}" for k in keys if run.get(k, _MISSING) != OFF]
+
+    def value_label(self, run: Mapping[str, Any], key: str) -> str:
+        """``key``'s value in ``run`` as labels show it (:func:`format_value`; a shown parameter the metadata lacks,
+        None in ``run``, is ``unset``)."""
+        value = run.get(key, _MISSING)
+        return format_value(_MISSING if value is None and key in SHOWN else value)
 
     def strategy_label(self, run: Mapping[str, Any]) -> str:
         """``auto(h=2)``, ``wait``; ``wait(h=1)`` when wait episodes with different h_wait are analysed."""
@@ -265,7 +301,7 @@ class Grouping:
         policies differ (``dwa · auto(h=2)``)."""
         if "policy" in self.variant_keys:
             rest = [k for k in self.variant_keys if k != "policy"]
-            return SEP.join([format_value(run.get("policy")), self.strategy_label(run), *self._parts(run, rest)])
+            return SEP.join([self.value_label(run, "policy"), self.strategy_label(run), *self._parts(run, rest)])
         return SEP.join([self.strategy_label(run), *self._parts(run, self.variant_keys)])
 
     def scenario_label(self, run: Mapping[str, Any]) -> str:
@@ -316,7 +352,7 @@ def provenance_warning(grouping: Grouping, runs: Sequence[Mapping[str, Any]]) ->
         return None
     parts = []
     for key in grouping.pooled_provenance:
-        counts = Counter(format_value(run.get(key, _MISSING)) for run in runs)
+        counts = Counter(grouping.value_label(run, key) for run in runs)
         parts.append(f"{key} " + ", ".join(f"{value} ({n} episodes)" for value, n in sorted(counts.items())))
     return ("warning: these logs were written by different code — " + "; ".join(parts) + ". They are pooled in "
             "the groups; results may differ between versions (split them with --split-provenance).")

@@ -258,3 +258,49 @@ def test_report_into_a_read_only_or_full_file_system_is_one_line(mount, good):
         assert res.returncode == code and expect in one_error_line(res.stderr), res.stderr
         assert str(out) in res.stderr
         assert not list(out.rglob("*")) if out.exists() else True  # whole or nothing: no plots of a lost report
+
+
+def _zero_chunks(log: Path, out: Path, chunks: int) -> Path:
+    """``log``'s data section, then a channel and ``chunks`` chunks that each decompress to 64 MB of zeros (a few
+    kB each on disk), without the file's end: what a decompression bomb looks like to the reader."""
+    import struct
+
+    import zstandard
+
+    data = log.read_bytes()
+    pos, data_end = 8, None
+    while pos < len(data):
+        opcode, length = struct.unpack_from("<BQ", data, pos)
+        if opcode == 0x0F:
+            data_end = pos
+            break
+        pos += 9 + length
+    assert data_end is not None
+
+    def record(opcode: int, body: bytes) -> bytes:
+        return struct.pack("<BQ", opcode, len(body)) + body
+
+    def text(s: str) -> bytes:
+        return struct.pack("<I", len(s)) + s.encode()
+
+    size = 64 * 2**20
+    inner = struct.pack("<BQ", 5, size - 9) + struct.pack("<HIQQ", 99, 0, 0, 0) + bytes(size - 9 - 22)
+    packed = zstandard.ZstdCompressor(level=3).compress(inner)
+    chunk = record(6, struct.pack("<QQQI", 0, 0, size, 0) + text("zstd") + struct.pack("<Q", len(packed)) + packed)
+    channel = record(4, struct.pack("<HH", 99, 0) + text("/junk") + text("json") + struct.pack("<I", 0))
+    out.write_bytes(data[:data_end] + channel + chunk * chunks)
+    return out
+
+
+def test_chunks_that_decompress_to_more_than_any_log_are_refused_at_once(tmp_path, good):
+    """Chunks of zeros that each declare 64 MB (each within the per-chunk bound): the file is left out as too large
+    once its chunks pass the bound on all of them, instead of being decompressed chunk after chunk (a 5 MB file of
+    them kept the report busy for minutes)."""
+    from analysis.mcap_verify import MAX_DECOMPRESSED_BYTES
+
+    bomb = _zero_chunks(good, tmp_path / "bomb.mcap", MAX_DECOMPRESSED_BYTES // (64 * 2**20) + 1)
+    assert bomb.stat().st_size < 200_000
+    df, left_out = metrics_table([bomb])
+    assert df.empty and left_out["kind"].tolist() == ["too-large"]
+    assert "the chunks decompress to more than 1024 MB" in left_out["reason"].iloc[0]
+    assert replay.main([str(bomb)]) == 2

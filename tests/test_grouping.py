@@ -11,6 +11,8 @@ import matplotlib.pyplot as plt
 import pandas as pd
 import pytest
 import yaml
+from hypothesis import given
+from hypothesis import strategies as st
 
 from analysis import plots
 from analysis.metrics import analyse_logs, metrics_table
@@ -179,7 +181,7 @@ def test_short_names_are_unambiguous_suffixes():
 
 
 def test_values_format_short_and_groups_sort_by_number():
-    assert [format_value(v) for v in (5.0, 0.25, 3, True, None, "laser")] == ["5", "0.25", "3", "true", "unset",
+    assert [format_value(v) for v in (5.0, 0.25, 3, True, None, "laser")] == ["5", "0.25", "3", "true", "null",
                                                                               "laser"]
     logs = runs(*(meta(setter("planner.safety_margin_cm", m)) for m in (20.0, 5.0, 10.0)))
     grouping = find_grouping(logs)
@@ -410,3 +412,38 @@ def _natural(variant: str) -> tuple:
     """Groups' order: auto before wait, margins by number."""
     strategy, margin = variant.split(" · safety_margin_cm=")
     return (not strategy.startswith("auto"), float(margin))
+
+
+MISSING = object()  # a key the log's config does not have
+
+
+@pytest.mark.parametrize("a, b", [(10.0, "10"), (None, MISSING), (True, 1), (False, 0), ("true", True),
+                                  ("unset", MISSING), ("null", None), (math.nan, "nan"), ("'10'", "10"),
+                                  ("1e3", 1000.0), (10**30, "1" + "0" * 30)])
+def test_values_that_differ_are_two_groups_with_two_labels(a, b):
+    """Values that print alike are still told apart, and labelled apart (the report groups by label): a number and
+    its text, null and a missing key, a boolean and 0/1."""
+    def with_margin(value):
+        params = runs(meta())[0]
+        params.pop("planner.safety_margin_cm")
+        return params if value is MISSING else {**params, "planner.safety_margin_cm": value}
+
+    logs = [with_margin(a), with_margin(b)]
+    grouping = find_grouping(logs)
+    assert "planner.safety_margin_cm" in grouping.dimensions
+    labels = {grouping.variant_label(run) for run in logs}
+    assert len(labels) == 2, labels
+
+
+@given(st.lists(st.one_of(st.none(), st.booleans(), st.integers(-10**20, 10**20), st.floats(allow_nan=True),
+                          st.text(max_size=30)), min_size=2, max_size=6))
+def test_labels_split_exactly_what_the_grouping_tells_apart(values):
+    """For any values of one parameter, the variant labels are as many as the values the grouping tells apart: no
+    two different values share a group, no value is split in two."""
+    from analysis.run_parameters import _hashable
+
+    base = runs(meta())[0]
+    logs = [{**base, "planner.safety_margin_cm": v} for v in values]
+    grouping = find_grouping(logs)
+    labels = {grouping.variant_label(run) for run in logs}
+    assert len(labels) == len({_hashable(v) for v in values})

@@ -321,3 +321,25 @@ def test_a_config_text_parsed_once_gives_each_caller_its_own_copy():
     for _ in range(399):
         value = value[0]
     assert value == []
+
+
+@pytest.mark.parametrize("factor", [5.0, 0.0, 1.01])
+def test_a_goal_disc_other_than_the_scenarios_tolerance_is_left_out(tmp_path, recorded_logs, factor):  # noqa: F811
+    """The scene's goal disc re-sized (the metrics measure the time to the goal with it): the log contradicts its
+    scenario's goal tolerance and is left out, as a moved goal is; the disc as written passes."""
+    from analysis.metrics import analyse_logs
+    from tests.log_surgery import rewrite
+
+    def resize(topic, index, msg):
+        if topic != "/scene" or index != 0:
+            return msg
+        msg = copy.deepcopy(msg)
+        goal = next(e for e in msg["entities"] if e.get("id") == "goal")
+        for cylinder in goal["cylinders"]:
+            cylinder["size"]["x"] *= factor
+            cylinder["size"]["y"] *= factor
+        return msg
+
+    analysis = analyse_logs([rewrite(recorded_logs[0], tmp_path / "goal.mcap", message=resize)])
+    assert analysis.episodes.empty and analysis.excluded["kind"].tolist() == ["episode"]
+    assert "/scene goal: a disc of radius" in analysis.excluded["reason"].iloc[0]

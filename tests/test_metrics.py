@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -128,6 +129,20 @@ def test_wilson_interval_known_values():
     p, lo, hi = wilson(0, 10)
     assert p == 0.0 and lo == 0.0 and hi == pytest.approx(0.2775, abs=1e-3)
     assert all(math.isnan(v) for v in wilson(0, 0))
+    for n in range(1, 200):  # the exact ends, not 5.6e-17 or 1 - 1.1e-16
+        assert wilson(0, n)[1] == 0.0 and wilson(n, n)[2] == 1.0
+        assert (wilson(1, n)[1] > 0.0 and wilson(n - 1, n)[2] < 1.0) or n == 1
+
+
+def test_text_cells_cannot_break_a_markdown_table():
+    import pandas as pd
+
+    from analysis.report import _markdown_table
+
+    text = _markdown_table(pd.DataFrame({"log": ["a|b.mcap", "x\ny.mcap"], "n": [1, 2]}))
+    rows = text.splitlines()
+    assert len(rows) == 4 and all(len(re.split(r"(?<!\\)\|", row)) == 4 for row in rows), text
+    assert "a\\|b.mcap" in text and "x y.mcap" in text
 
 
 def test_bootstrap_is_seeded_and_brackets_the_mean():

@@ -304,7 +304,7 @@ def test_a_report_into_the_folder_of_an_earlier_one_leaves_none_of_its_figures(c
 
 @hypothesis.settings(max_examples=200, deadline=None,
                      suppress_health_check=[hypothesis.HealthCheck.function_scoped_fixture])
-@hypothesis.given(text=st.text(alphabet=st.sampled_from(list("ab./\\\n~ \x00é")), max_size=60))
+@hypothesis.given(text=st.text(alphabet=st.sampled_from(list("ab./\\\n~ \x00épngmd")), max_size=60))
 def test_an_edited_file_list_names_only_plain_files_of_the_folder(tmp_path, text):
     """Whatever the hidden list holds, the names a later report may remove are plain, visible files of its folder."""
     from analysis.report import WRITTEN_LIST, previous_report_files
@@ -312,3 +312,99 @@ def test_an_edited_file_list_names_only_plain_files_of_the_folder(tmp_path, text
     (tmp_path / WRITTEN_LIST).write_text(text, encoding="utf-8")
     for name in previous_report_files(tmp_path):
         assert (tmp_path / name).parent == tmp_path and not name.startswith(".") and name not in ("", WRITTEN_LIST)
+        assert name.lower().endswith((".png", ".csv", ".parquet", ".md", ".html"))  # never a log
+
+
+def test_a_list_that_names_a_log_never_removes_it(crash_logs, tmp_path):
+    """The report written into its logs' folder, its list edited to name one of the logs: the log stays."""
+    import shutil
+
+    from analysis.report import WRITTEN_LIST, main
+
+    folder = tmp_path / "logs"
+    shutil.copytree(crash_logs, folder)
+    assert main([str(folder), "--out", str(folder), "--jobs", "1"]) == 0
+    log = sorted(folder.glob("*.mcap"))[0]
+    with (folder / WRITTEN_LIST).open("a") as listed:
+        listed.write(f"{log.name}\n")
+    before = log.read_bytes()
+    assert main([str(folder), "--out", str(folder), "--jobs", "1"]) == 0
+    assert log.read_bytes() == before
+
+
+def test_a_report_that_cannot_be_moved_in_leaves_the_earlier_one_whole(crash_logs, tmp_path, monkeypatch, capsys):
+    """A file of the report that cannot take its place (a directory of its name; a move that fails half-way):
+    one line, exit 1, and the folder holds the earlier report as it was, not a mix of the two."""
+    import os
+
+    import analysis.report as report
+
+    out = tmp_path / "rep"
+    every = [str(p) for p in sorted(crash_logs.glob("*.mcap"))]
+    assert report.main([every[0], "--out", str(out), "--jobs", "1"]) == 0
+
+    def snapshot() -> dict[str, bytes | None]:
+        return {p.name: p.read_bytes() if p.is_file() else None for p in sorted(out.iterdir())}
+
+    (out / "report.md").unlink()
+    (out / "report.md").mkdir()
+    earlier = snapshot()
+    capsys.readouterr()
+    assert report.main([*every, "--out", str(out), "--jobs", "1"]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: {out / 'report.md'}: cannot write the report: Is a directory (nothing written)\n"
+    assert snapshot() == earlier
+    (out / "report.md").rmdir()
+    assert report.main([every[0], "--out", str(out), "--jobs", "1"]) == 0
+    earlier = snapshot()
+    real_replace, calls = os.replace, []
+
+    def failing_replace(src, dst):
+        calls.append(dst)
+        if len(calls) == 7:  # some files of the new report are in place, others not yet
+            raise OSError(28, "No space left on device", str(dst))
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(report.os, "replace", failing_replace)
+    assert report.main([*every, "--out", str(out), "--jobs", "1"]) == 1
+    assert snapshot() == earlier
+    assert not [p for p in out.iterdir() if p.name.startswith(".report.partial")]
+
+
+def test_a_log_whose_name_is_not_utf8_is_left_out_by_name(crash_logs, tmp_path, capsys):
+    """A file name in bytes that are not UTF-8 (copied from another system): left out as ``bad-name`` with the name
+    escaped, never opened; the other logs make the report, whether the file is found in a folder or named."""
+    import os
+    import shutil
+
+    from analysis.metrics import analyse_logs
+    from analysis.report import main
+
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    good, other = sorted(crash_logs.glob("ok_*.mcap"))[:2]
+    shutil.copy(good, folder / good.name)
+    odd = folder / os.fsdecode(b"bad\xff.mcap")
+    shutil.copy(other, odd)
+    analysis = analyse_logs([folder], jobs=1)
+    assert len(analysis.episodes) == 1 and analysis.excluded["kind"].tolist() == ["bad-name"]
+    assert analysis.excluded["log"].tolist() == [str(folder / "bad\\xff.mcap")]
+    for given in ([str(folder)], [str(folder / good.name), str(odd)]):
+        out = tmp_path / f"rep{len(given)}"
+        assert main([*given, "--out", str(out), "--jobs", "1"]) == 0
+        assert "1 log(s) left out (1 bad-name)" in capsys.readouterr().out
+        assert "bad\\xff.mcap" in (out / "report.md").read_text(encoding="utf-8")
+    out = tmp_path / "alone"
+    assert main([str(odd), "--out", str(out), "--jobs", "1"]) == 1  # nothing usable: one line, the report says why
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bad\\xff.mcap: the file name is not UTF-8 text" in err, err
+
+
+@hypothesis.given(labels=st.lists(st.lists(st.sampled_from([*"aAb _.=·/é(", " · "]), min_size=1, max_size=30)
+                                  .map("".join), min_size=2, max_size=2, unique=True))
+def test_two_labels_never_share_a_picture_file(labels):
+    """Two scenario groups whose labels differ get two files, even where the file system folds case (``x y`` and
+    ``x_y`` shared one trajectories picture: the first group's trajectories were never shown)."""
+    a, b = (plots._file_part(label) for label in labels)
+    assert a.lower() != b.lower()
+    assert plots._file_part("head_on · description=x y") != plots._file_part("head_on · description=x_y")
