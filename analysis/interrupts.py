@@ -82,6 +82,18 @@ def guard_startup() -> None:
         _exit_interrupted(interrupt)
 
     sys.excepthook = excepthook
+    previous_unraisable = sys.unraisablehook
+
+    def unraisablehook(unraisable: Any) -> None:
+        # an interrupt raised where Python ignores exceptions (a weak reference's callback, such as the import
+        # system's module locks): printed as "Exception ignored in ..." with a traceback, and the command went on
+        interrupt = interrupt_in_chain(unraisable.exc_value) if unraisable.exc_value is not None else None
+        if interrupt is None:
+            previous_unraisable(unraisable)
+            return
+        _exit_interrupted(interrupt)
+
+    sys.unraisablehook = unraisablehook
     # once the command has ended, a signal must not replace its exit status: from the threads' shutdown (the
     # first step of the interpreter's exit) a signal is only noted, and after the exit handlers ignored, since
     # the interpreter then puts back the default action, which killed the exiting process (status -2, no word)

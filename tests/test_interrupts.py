@@ -85,6 +85,24 @@ def test_an_error_raised_while_an_interrupt_unwinds_still_exits_as_interrupted()
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
 
+def test_an_interrupt_where_python_ignores_exceptions_still_ends_the_command():
+    """A signal landing in a weak reference's callback (the import system's module locks run one after each
+    import): Python printed "Exception ignored in ..." with a traceback and the command went on (a flaky start-up
+    test caught it); it ends with one line and exit 130."""
+    code = ("from analysis import interrupts\n"
+            "interrupts.guard_startup()\n"
+            "import signal, weakref\n"
+            "class Thing: pass\n"
+            "thing = Thing()\n"
+            "def callback(ref): raise interrupts.Interrupted(signal.SIGINT)\n"
+            "ref = weakref.ref(thing, callback)\n"
+            "del thing\n"
+            "print('went on')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130 and "went on" not in proc.stdout, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
 def test_a_signal_while_deferred_is_raised_when_resumed_and_a_second_one_ends_at_once():
     """Hydra's start of a run is deferred (``interrupts.defer``): a signal there is raised as the interrupt only
     once the task function resumes, so it never lands inside OmegaConf (whose half-done clean-up Hydra reported as
