@@ -337,7 +337,10 @@ def episode_summary(path: Path) -> dict[str, Any]:
         check_metadata(meta)
     except CheckError as err:
         raise LogError(f"{path}: metadata {err}", "metadata") from None
-    row: dict[str, Any] = {"log": str(path), "scenario": meta["scenario"], "strategy": meta["strategy"],
+    from analysis.run_parameters import LEGACY_POLICY
+
+    row: dict[str, Any] = {"log": str(path), "scenario": meta["scenario"],
+                           "policy": meta.get("policy") or LEGACY_POLICY, "strategy": meta["strategy"],
                            "h_wait": int(meta["h_wait"]), "controller": meta["controller"],
                            "perception": meta["perception"], "seed": int(meta["seed"]),
                            "outcome": "incomplete", "steps": None, "time_s": None, "contacts": None}

@@ -58,6 +58,16 @@ def episode_key_of(meta: Mapping[str, Any] | None) -> str | None:
                        str(meta.get(RECORDING, "")))
 
 
+def same_episode_config(config_a: str, config_b: str) -> bool:
+    """Whether two resolved configs (YAML text) run the same episodes: equal but for :data:`BATCHING_KEYS` (a run
+    with ``resume=true`` or another ``episodes`` re-runs the episode of the same seed, not another one)."""
+    def body(config_yaml: str) -> list[str]:
+        prefixes = tuple(f"{key}:" for key in BATCHING_KEYS)
+        return [line for line in config_yaml.splitlines() if not line.startswith(prefixes)]
+
+    return body(config_a) == body(config_b)
+
+
 def config_hash(config_yaml: str, seed: int | str, fuzzynav_version: str) -> str:
     """The ``config_hash`` a log records: the config without ``resume``, the seed and the version."""
     return _digest(config_yaml, HASH_IGNORED_KEYS, seed, fuzzynav_version)

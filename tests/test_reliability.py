@@ -118,3 +118,21 @@ def test_sweep_with_submitit_local_launcher(tmp_path):
     outcomes = {(episode_summary(p)["strategy"], episode_summary(p)["outcome"]) for p in logs}
     assert outcomes == {("auto", "goal"), ("none", "collision")}
     assert (tmp_path / "report" / "report.md").exists() and (tmp_path / ".submitit").is_dir()
+
+
+def test_a_single_run_resumes_and_reruns_its_own_episode(tmp_path):
+    """``runners.run X resume=true`` over X's complete log keeps it (it raised KeyError: 'policy'); a run with or
+    without ``resume`` over the log the other wrote is the same episode, not "the log of another episode"."""
+    def run(*extra: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "runners.run", "scenario=head_on", f"hydra.run.dir={tmp_path}",
+                               *extra], cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+    first = run("resume=true")
+    assert first.returncode == 0 and "(complete: kept)" not in first.stdout, first.stderr
+    log = next(tmp_path.glob("*.mcap"))
+    kept = run("resume=true")
+    assert kept.returncode == 0 and "Traceback" not in kept.stderr, kept.stderr
+    assert "policy=fuzzy" in kept.stdout and kept.stdout.rstrip().endswith("(complete: kept)"), kept.stdout
+    again = run()
+    assert again.returncode == 0 and "another episode" not in again.stderr, again.stderr
+    assert episode_summary(log)["outcome"] == "goal"

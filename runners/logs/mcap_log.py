@@ -32,6 +32,7 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from analysis.log_format import SCHEMAS, TOPICS
 from fuzzynav.episode import Episode, StepRecord
+from fuzzynav.episode_identity import same_episode_config
 from fuzzynav.numerics.portable_math import dist
 from fuzzynav.params.names import DEFAULT_MODEL
 from runners.logs.foxglove_scene import FRAME, StepScenes, pose, stamp, static_scene
@@ -401,8 +402,12 @@ def _other_episode(path: Path, identity: tuple[str | None, str | None]) -> str |
             for record in make_reader(f).iter_metadata():
                 if record.name == RUN_METADATA:
                     meta = dict(record.metadata)
-                    if (meta.get("config"), meta.get("seed")) != identity:
-                        same_seed = meta.get("seed") == identity[1]
+                    config, seed = meta.get("config"), meta.get("seed")
+                    same_config = config == identity[0] or (
+                        isinstance(config, str) and isinstance(identity[0], str)
+                        and same_episode_config(config, identity[0]))  # (resume, episodes: the same episode)
+                    if not same_config or seed != identity[1]:
+                        same_seed = seed == identity[1]
                         return (f"the log of another episode ({'another config' if same_seed else 'seed '}"
                                 f"{'' if same_seed else meta.get('seed')})")
                     return None
