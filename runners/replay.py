@@ -105,6 +105,9 @@ def _set(config: dict[str, Any], dotted: str, value: Any) -> None:
         node = node.get(key) if isinstance(node, dict) else None
     if not isinstance(node, dict) or keys[-1] not in node:
         raise ReplayError(f"override {dotted}: no such key in the recorded config")
+    if isinstance(node[keys[-1]], dict):  # ``planner=`` replaced the recorded section by its defaults
+        raise ReplayError(f"override {dotted}: a section of the recorded config; give its keys one by one "
+                          f"({dotted}.<key>=value)")
     node[keys[-1]] = value
 
 
@@ -120,14 +123,24 @@ def parse_steps(text: str) -> list[int]:
 
 
 def parse_override(item: str) -> tuple[str, Any]:
-    """``key=value`` (the value as YAML, like a Hydra override)."""
-    key, sep, value = item.partition("=")
+    """``key=value``, the value read by Hydra's override grammar, as ``runners.run`` reads it (``010`` is text,
+    not YAML 1.1's octal 8; ``1e-3`` a number); one value of a key the recorded config has (no sweep, ``+``, ``~``)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    key, sep, _value = item.partition("=")
     if not sep or not key or any(not part for part in key.split(".")):
         raise ReplayError(f"override {item[:60]!r}: expected key=value, e.g. planner.h_wait=4")
     try:
-        return key, yaml.safe_load(value)
-    except yaml.YAMLError as err:
-        raise ReplayError(f"override {key}: the value is not valid YAML ({getattr(err, 'problem', err)})") from None
+        override = OverridesParser.create().parse_override(item)
+    except HydraException as err:
+        reason = " ".join(str(err).split())[:200]
+        raise ReplayError(f"override {key[:60]}: not a value Hydra can read ({reason})") from None
+    if override.is_add() or override.is_force_add() or override.is_delete() or override.package:
+        raise ReplayError(f"override {key[:60]}: a replay changes recorded values only (no +, ++, ~ or @package)")
+    if override.is_sweep_override():
+        raise ReplayError(f"override {key[:60]}: one value per key (a sweep of values: python -m runners.sweep)")
+    return override.key_or_group, override.value()
 
 
 def navigator_for(config: dict[str, Any], robot_radius: float) -> PlanningLayer:

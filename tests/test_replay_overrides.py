@@ -187,3 +187,28 @@ def test_an_out_stem_that_cannot_be_a_file_stem_is_refused(kind, capsys, tmp_pat
     assert one_error_line(out.err).startswith(f"error: --out: {stem}: ")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
     assert sorted(p.name for p in work.iterdir()) == before
+
+
+@pytest.mark.parametrize("override, expect", [
+    ("planner=", "override planner: a section of the recorded config; give its keys one by one"),
+    ("planner={}", "override planner: a section of the recorded config"),
+    ("navigator={}", "override navigator: a section of the recorded config"),
+    ("planner.h_wait=1,3", "override planner.h_wait: one value per key"),
+    ("+planner.h_wait=3", "override +planner.h_wait: a replay changes recorded values only"),
+    ("~planner.h_wait=3", "a replay changes recorded values only"),
+    ("planner.h_wait=010", "planner.h_wait: expected an integer, got '010'"),  # not YAML 1.1's octal 8
+    ("planner.h_wait=1:0", "planner.h_wait: expected an integer, got '1:0'"),  # not YAML 1.1's base 60
+])
+def test_an_override_is_read_as_runners_run_reads_it_or_refused(override, expect, capsys, tmp_path, good):
+    """``planner=`` replaced the recorded planner by the defaults and compared with a strategy nobody asked for;
+    values were read by YAML 1.1 (``010`` was 8, ``1:0`` was 60, ``1e-3`` text), not by Hydra's grammar."""
+    code, out, err = run_replay(capsys, tmp_path, good, override)
+    assert code == 2 and out == "", (out, err)
+    line = one_error_line(err)
+    assert line.startswith("error: ") and expect in line, line
+
+
+def test_a_number_hydra_reads_is_a_number_in_a_replay(capsys, tmp_path, good):
+    code, out, err = run_replay(capsys, tmp_path, good, "navigator.static_near_cm=8e1")
+    assert code == 0 and err == "" and "decisions differ" in out
+    assert replay.parse_override("dt=1e-3") == ("dt", 0.001)
