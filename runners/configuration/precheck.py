@@ -32,12 +32,12 @@ import yaml
 from hydra import compose, initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import ChoiceSweep, Glob, Override, ValueType
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from analysis import interrupts
 from fuzzynav.conf import CONF_DIR as CONF
+from runners.configuration import hydra_paths, schema
 from runners.configuration import plugins as config_plugins
-from runners.configuration import schema
 from runners.configuration.data_files import (
     CONFIG_FILE,
     SCENARIO_OR_CONTROLLER,
@@ -402,6 +402,8 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     config_plugins.register()  # other packages' config folders (entry points)
     # job_name: hydra.job.name as Hydra gives it to runners.run's jobs (the task function's file, run.py): a single
     # run is run from the config composed here (runners.run.run_composed)
+    sweep_dirs: dict[str, list[str]] = {}  # a sweep's folder, resolved for each job composed: one in all
+    first: DictConfig | None = None
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3", job_name="run"):
         for k, overrides in enumerate(trials):
             with warnings.catch_warnings(record=True) as caught:
@@ -423,11 +425,23 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
             if callback:
                 where = file_setting(overrides, callback[0].removesuffix("._target_"))
                 return f"{where if where else 'config'}: {callback[0]}: {callback[1]}"
-            problem = check_composed(cfg)
+            problem = check_composed(cfg) or hydra_paths.run_paths_problem(cfg)
             if problem:
                 return problem
+            if multirun:
+                if first is None:
+                    first = cfg
+                else:  # ${now:...} as the first resolved it (the sweeper gives every job the sweep's cache)
+                    OmegaConf.copy_cache(from_config=first, to_config=cfg)
+                paths = hydra_paths.sweep_paths(cfg)
+                if isinstance(paths, str):
+                    return paths
+                sweep_dirs.setdefault(paths[0], overrides)
             if k == 0 and on_config is not None:
                 on_config(cfg)
+        problem = hydra_paths.one_sweep_dir(sweep_dirs)
+        if problem:
+            return problem
         if multirun and variants:
             problem = _base_problem(base, {o.get_key_element() for o in parsed if o.is_sweep_override()})
             if problem:

@@ -22,11 +22,12 @@ from pathlib import Path
 from typing import Any
 
 from hydra.core.singleton import Singleton
-from hydra.core.utils import JobReturn, configure_log, filter_overrides, setup_globals
+from hydra.core.utils import JobReturn, JobStatus, configure_log, filter_overrides, setup_globals
 from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
-from omegaconf import DictConfig, open_dict
+from omegaconf import DictConfig, OmegaConf, open_dict
 
+from runners.configuration import hydra_paths
 from runners.sweeping import job_run
 
 from . import launch_state
@@ -133,4 +134,9 @@ def execute_job(ref: launch_state.LaunchStateFile, overrides: list[str], idx: in
     with open_dict(config):
         config.hydra.job.id = f"{config.hydra.job.name}_{idx}"
         config.hydra.job.num = idx
+    # a job whose folder is not in the sweep's (a subdir or sweep dir resolved from its values): nothing written
+    problem = hydra_paths.job_dir_problem(config, str(state.master.hydra.sweep.dir))
+    if problem is not None:
+        return JobReturn(overrides=list(overrides), status=JobStatus.FAILED, _return_value=ValueError(problem),
+                         hydra_cfg=OmegaConf.create({"hydra": {"job": {"num": idx}}}))
     return job_run.slim(job_run.run_job(config, state.hydra_context, state.task_function))
