@@ -394,8 +394,9 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
     from runners.configuration.precheck import debug_requested, precheck
 
     args = sys.argv[1:]
-    if not sweep and ("--multirun" in args or "-m" in args):
-        print(f"error: {multirun_problem(args)}", file=sys.stderr)
+    problem = argument_problem(args, sweep)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
         sys.exit(2)
     if "--debug" in args:
         args.remove("--debug")
@@ -432,11 +433,41 @@ def raised_by_code(err: KeyboardInterrupt) -> str:
     return f"{where} raised KeyboardInterrupt (no signal was received: treated as the code's error)"
 
 
+def argument_problem(args: list[str], sweep: bool) -> str | None:
+    """One line about the first command-line argument a run (``sweep``: a sweep) cannot take, or None: text that
+    is not UTF-8 (its logs could not be read back), ``-m`` or ``hydra.mode=MULTIRUN`` in a single run, the other's
+    output folder (``hydra.run.dir`` in a sweep, ``hydra.sweep.dir`` in a run: Hydra ignores it, and the logs went to
+    ./multirun/ or ./outputs/), and Hydra's options that fuzzynav does not support (``--experimental-rerun``
+    unpickles the file it is given; ``--shell-completion``)."""
+    from analysis.logs import printable
+
+    for i, arg in enumerate(args, start=1):
+        if printable(arg) != arg:
+            return (f"argument {i} ({printable(arg)[:60]}): not UTF-8 text (the run's config is logged as UTF-8 "
+                    "and could not be read back)")
+    if not sweep and ("--multirun" in args or "-m" in args):
+        return multirun_problem(args)
+    for arg in args:
+        key, _, value = arg.lstrip("+~").partition("=")
+        if not sweep and key.strip() == "hydra.mode" and value.strip().upper() == "MULTIRUN":
+            return multirun_problem([a for a in args if a != arg])
+        if key.strip() == ("hydra.run.dir" if sweep else "hydra.sweep.dir"):
+            other = "hydra.sweep.dir" if sweep else "hydra.run.dir"
+            return (f"{key.strip()}: {'a single run' if sweep else 'a sweep'}'s folder; "
+                    f"{'a sweep' if sweep else 'a single run'} writes into {other}={value[:80]}")
+    for option in ("--experimental-rerun", "--shell-completion", "-sc"):
+        if any(a == option or a.startswith(option + "=") for a in args):
+            return f"{option}: Hydra's option is not supported by fuzzynav's commands (see --help)"
+    return None
+
+
 def multirun_problem(args: list[str]) -> str:
     """One line for ``runners.run -m ...``: the same command line as a ``runners.sweep`` command."""
     import shlex
 
-    rest = [a for a in args if a not in ("-m", "--multirun")]
+    # a sweep writes into hydra.sweep.dir: the single run's folder, said as the sweep's
+    rest = [a.replace("hydra.run.dir=", "hydra.sweep.dir=", 1) if a.startswith("hydra.run.dir=") else a
+            for a in args if a not in ("-m", "--multirun")]
     command = shlex.join(["python", "-m", "runners.sweep", *rest])
     return (f"-m/--multirun: runners.run runs one configuration; for a sweep (all cores, progress, a summary and the "
             f"report) use: {command[:300]}")

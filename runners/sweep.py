@@ -195,7 +195,7 @@ def prewarm_workers(config: DictConfig) -> None:
     if "FuzzynavLauncher" not in str(launcher.get("_target_", "")):
         return
     try:  # only an optimisation: without it the launcher starts its workers itself
-        from hydra_plugins.fuzzynav_sweeper.launcher import parallel_settings
+        from hydra_plugins.fuzzynav_sweeper.launcher import parallel_settings, worker_pool
         from joblib import Parallel, cpu_count, delayed
     except ImportError:
         return
@@ -205,7 +205,7 @@ def prewarm_workers(config: DictConfig) -> None:
     workers = cpu_count() if n_jobs < 0 else n_jobs
 
     def warm() -> None:
-        with contextlib.suppress(Exception):
+        with contextlib.suppress(Exception), worker_pool():
             Parallel(**settings)(delayed(_import_runner)() for _ in range(workers))
 
     _PREWARMED.append(True)

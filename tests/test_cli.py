@@ -336,3 +336,33 @@ def test_the_bench_says_first_which_forms_it_times_and_why():
     assert kernels_line({names[0]: False, names[1]: False}, {"_raycast": False, "_orca": True}, False) == \
         head + "0 of 2 in use; _raycast Python/numpy form (not built at install: no C compiler?), _orca " \
                "Python/numpy form (FUZZYNAV_KERNELS_OFF)"
+
+
+@pytest.mark.parametrize("command, args, expect", [
+    ("runners.run", ["+episode=5"], "error: config: episode: no such setting (did you mean episodes?)"),
+    ("runners.sweep", ["planner=auto,wait", "+episode=3"], "error: config: episode: no such setting"),
+    ("runners.run", ["hydra.mode=MULTIRUN"], "error: -m/--multirun: runners.run runs one configuration"),
+    ("runners.sweep", ["planner=auto,wait", "hydra.run.dir=/tmp/x"],
+     "error: hydra.run.dir: a single run's folder; a sweep writes into hydra.sweep.dir=/tmp/x"),
+    ("runners.run", ["hydra.sweep.dir=/tmp/x"], "error: hydra.sweep.dir: a sweep's folder; a single run writes into"),
+    ("runners.run", ["--experimental-rerun", "/dev/null"], "error: --experimental-rerun: Hydra's option is not"),
+    ("runners.run", ["--shell-completion"], "error: --shell-completion: Hydra's option is not supported"),
+    ("runners.run", [os.fsdecode(b"scenario.description='a\xff'")],
+     "error: argument 4 (scenario.description='a\\xff'): not UTF-8 text"),
+    ("runners.sweep", ["planner=auto", "dt=interval(0.5,1)"], "error: config: dt: interval(0.5,1) is a continuous"),
+    ("runners.sweep", ["planner=auto", "hydra.sweeper.max_batch_size=0"],
+     "error: config: hydra.sweeper.max_batch_size: 0 is not a number of jobs"),
+    ("runners.sweep", ["planner=auto", "hydra.sweeper.max_batch_size=abc"], "error: config: hydra.sweeper.max_batch"),
+    ("runners.sweep", ["planner=auto", "hydra.launcher.n_jobs=null"],
+     "error: config: hydra.launcher.n_jobs: must be an integer"),
+])
+def test_arguments_a_command_cannot_take_are_one_line_before_anything_runs(tmp_path, command, args, expect):
+    """Hostile review of the sweep: each was accepted (a typo with '+', a multirun that wrote into ./multirun), or a
+    traceback (interval(), max_batch_size, Hydra's options), or logs no tool could read (a byte that is not UTF-8)."""
+    out = ["hydra.run.dir" if command == "runners.run" else "hydra.sweep.dir"]
+    given = any(a.startswith(("hydra.run.dir", "hydra.sweep.dir")) for a in args)
+    own = [] if given else [f"{out[0]}={tmp_path / 'o'}"]
+    res = subprocess.run([sys.executable, "-m", command, "scenario=head_on", "episodes=1", *own, *args], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert one_error_line(res).startswith(expect), res.stderr
+    assert not (tmp_path / "o").exists()

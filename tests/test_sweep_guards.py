@@ -267,12 +267,13 @@ def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
     assert sweep_resume.restore(tmp_path) == (1, 0, 0) and is_complete(log)
 
 
-@pytest.mark.parametrize("phase", ["in_flight", "idle"])
+@pytest.mark.parametrize("phase", ["starting", "in_flight", "idle"])
 def test_a_launcher_killed_with_sigkill_leaves_no_process(tmp_path, phase):
     """issue 14: kill -9 of the sweep's launching process left its loky workers (which ignore SIGTERM when idle)
     and their resource trackers alive for ever, holding the caller's pipes. Workers now end within a second of
-    their launcher (runners.sweeping.process_tree.exit_with_parent): with episodes in flight, and idle after their
-    jobs."""
+    their launcher (runners.sweeping.process_tree.exit_with_parent): with episodes in flight, idle after their
+    jobs, and starting (killed as soon as they exist, before any job: they waited for loky's five-minute idle
+    timeout, holding the pipes; runners.sweeping.process_tree.worker_started)."""
     from tests.test_sweep_faults import SEARCH, group, partials, running, wait_for
 
     sweep_dir = tmp_path / "s"
@@ -282,7 +283,10 @@ def test_a_launcher_killed_with_sigkill_leaves_no_process(tmp_path, phase):
     args = ["sweep=quick", SEARCH, f"scenario={scenario}", "planner=auto", f"seed={seeds}", "episodes=1",
             "hydra.launcher.n_jobs=2", f"hydra.sweep.dir={sweep_dir}"]
     with running(args) as proc:
-        if phase == "in_flight":
+        if phase == "starting":
+            assert wait_for(lambda: len([p for p, cmd in group(proc.pid) if "popen_loky_posix" in cmd]) == 2,
+                            timeout=60.0), "no workers started"
+        elif phase == "in_flight":
             assert wait_for(lambda: len(partials(sweep_dir, scenario)) == 2), "the episodes did not start"
         else:
             assert wait_for(lambda: len(list(sweep_dir.rglob("head_on*.mcap"))) >= 2), "the episodes did not end"

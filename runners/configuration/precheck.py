@@ -299,6 +299,26 @@ def _unreadable(parser: OverridesParser, overrides: list[str], err: Exception) -
     return f"config: cannot read the overrides: {str(err).splitlines()[0]}"
 
 
+def _new_top_level_key(added: Sequence[Override], overrides: list[str]) -> str | None:
+    """One line for the first ``+key=value`` that adds a top-level key the run's config does not have (nothing
+    reads it: ``+episode=5`` ran one episode, and the log recorded ``episode: 5``), or None."""
+    import difflib
+
+    without = [t for t in overrides if t not in {o.input_line for o in added}]
+    try:
+        known = set(compose("config", overrides=without))
+    except Exception:  # the config without them does not compose: composing with them reported it
+        return None
+    for o in added:
+        key = o.key_or_group
+        if key not in known:
+            close = difflib.get_close_matches(key, sorted(known), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            return (f"config: {key[:80]}: no such setting{hint}; '+' adds a key the run does not read "
+                    "(settings: python -m runners.run --cfg job)")
+    return None
+
+
 def _numeric_ends(values: list[str]) -> list[str]:
     """The smallest and the largest of ``key=value`` overrides whose values are all numbers (none otherwise)."""
     numbers = []
@@ -375,10 +395,13 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
             continue
         if o.value_type == ValueType.GLOB_CHOICE_SWEEP:
             continue  # globs only select existing options
+        if o.value_type == ValueType.INTERVAL_SWEEP:  # Hydra's basic sweeper cannot list it: a traceback later
+            return (f"config: {o.get_key_element()}: {o.input_line.partition('=')[2][:60]} is a continuous range "
+                    "(for an optimiser's sweeper); a sweep runs listed values: a list (0.5,0.75,1) or range()")
         values = list(o.sweep_string_iterator())
-        if not values and o.value_type != ValueType.INTERVAL_SWEEP:  # range(5,0): a sweep of no job, exit 0
+        if not values:  # range(5,0): a sweep of no job, exit 0
             return f"config: {o.get_key_element()}: {o.input_line.partition('=')[2]} selects no value (an empty sweep)"
-        if o.value_type in (ValueType.RANGE_SWEEP, ValueType.INTERVAL_SWEEP):
+        if o.value_type == ValueType.RANGE_SWEEP:
             values = values[:1]  # numbers of one type: the first stands for all (without listing them all)
         prefix = "+" if o.is_add() else ""
         variants.append([f"{prefix}{o.get_key_element()}={v}" for v in values])
@@ -398,6 +421,8 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     problem = check_selected_files(overrides)
     if problem:
         return problem
+    added = [o for o in parsed if (o.is_add() or o.is_force_add()) and "." not in o.key_or_group
+             and not any((d / o.key_or_group).is_dir() for d in _search_dirs(parsed))]
     schema.register()
     config_plugins.register()  # other packages' config folders (entry points)
     # job_name: hydra.job.name as Hydra gives it to runners.run's jobs (the task function's file, run.py): a single
@@ -437,6 +462,10 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                 if isinstance(paths, str):
                     return paths
                 sweep_dirs.setdefault(paths[0], overrides)
+            if k == 0 and added:
+                problem = _new_top_level_key(added, overrides)
+                if problem:
+                    return problem
             if k == 0 and on_config is not None:
                 on_config(cfg)
         problem = hydra_paths.one_sweep_dir(sweep_dirs)

@@ -170,6 +170,9 @@ def check_launcher(hydra_node: Any) -> None:
     target = str(launcher.get("_target_", "")) if launcher else ""
     if "FuzzynavLauncher" in target and not isinstance(launcher.get("assemble", True), bool):
         raise ValueError(f"hydra.launcher.assemble: must be true or false, not {launcher.get('assemble')!r:.60}")
+    if "FuzzynavLauncher" in target and launcher.get("n_jobs", -1) is None:
+        raise ValueError("hydra.launcher.n_jobs: must be an integer (a number of worker processes; -1 = all cores), "
+                         "not null")
     if ("joblib" not in target and "FuzzynavLauncher" not in target) or launcher.get("n_jobs") is None:
         return
     n = launcher.get("n_jobs")
@@ -177,6 +180,18 @@ def check_launcher(hydra_node: Any) -> None:
     check_number(n, "hydra.launcher.n_jobs", rng)
     if n == 0:
         raise ValueError("hydra.launcher.n_jobs: must not be 0 (a number of worker processes; -1 = all cores)")
+
+
+def check_sweeper(hydra_node: Any) -> None:
+    """``hydra.sweeper.max_batch_size`` (how many jobs the sweeper hands the launcher at once): null (all) or a
+    positive integer; Hydra's sweeper asserted or raised a TypeError on 0, -1, 1e9 or text."""
+    sweeper = hydra_node.get("sweeper") if hydra_node is not None else None
+    size = sweeper.get("max_batch_size") if sweeper else None
+    if size is None:
+        return
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise ValueError(f"hydra.sweeper.max_batch_size: {size!r:.40} is not a number of jobs (a positive integer, "
+                         "or null for all of them at once)")
 
 
 def check_job_dir(hydra_node: Any) -> None:
@@ -230,6 +245,7 @@ def load_run(cfg: DictConfig, runtime: Any = None, all_seeds: bool = True) -> Ru
     check_data_nodes(cfg, runtime)
     if "hydra" in cfg:
         check_launcher(cfg.hydra)
+        check_sweeper(cfg.hydra)
         check_job_dir(cfg.hydra)
         check_output_dirs(cfg.hydra)
     plain = plain_config(cfg)

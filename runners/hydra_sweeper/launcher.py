@@ -16,8 +16,10 @@ three differences, each there because a job of a few episodes cost more than its
 from __future__ import annotations
 
 import logging
+import os
 import pickle
 from collections.abc import Iterable, Sequence
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
@@ -37,9 +39,20 @@ log = logging.getLogger(__name__)
 
 
 def parallel_settings(n_jobs: int) -> dict[str, Any]:
-    """joblib ``Parallel`` settings of the sweep's pool. With the same settings loky hands back the pool it already
-    has (``runners.sweep.prewarm_workers`` starts it early; the end of the sweep reads the logs in it)."""
-    return {"n_jobs": int(n_jobs), "backend": "loky", "max_nbytes": None}
+    """joblib ``Parallel`` settings of the sweep's pool, used inside :func:`worker_pool`. With the same settings
+    loky hands back the pool it already has (``runners.sweep.prewarm_workers`` starts it early)."""
+    return {"n_jobs": int(n_jobs), "max_nbytes": None}
+
+
+def worker_pool() -> AbstractContextManager:
+    """joblib's ``parallel_config`` of the sweep's pool: loky's processes, each starting with
+    :func:`runners.sweeping.process_tree.worker_started` (it ends with this launching process, even one killed
+    before the worker had a job)."""
+    from joblib import parallel_config
+
+    from runners.sweeping.process_tree import worker_started
+
+    return parallel_config(backend="loky", initializer=worker_started, initargs=(os.getpid(),))
 
 
 class FuzzynavLauncher(Launcher):
@@ -81,7 +94,8 @@ class FuzzynavLauncher(Launcher):
                 yield delayed(execute_job)(ref, overrides, idx)
 
         try:
-            runs = Parallel(**parallel_settings(self.n_jobs))(jobs())
+            with worker_pool():
+                runs = Parallel(**parallel_settings(self.n_jobs))(jobs())
         finally:
             launch_state.remove(ref)
         assert isinstance(runs, list) and all(isinstance(r, JobReturn) for r in runs)
@@ -105,7 +119,9 @@ class FuzzynavLauncher(Launcher):
         except OSError:
             return None
         try:
-            configs = Parallel(**parallel_settings(self.n_jobs))(delayed(compose_job)(ref, list(o)) for o in jobs)
+            with worker_pool():
+                configs = Parallel(**parallel_settings(self.n_jobs))(delayed(compose_job)(ref, list(o))
+                                                                      for o in jobs)
         except Exception:
             return None
         finally:

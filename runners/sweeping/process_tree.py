@@ -55,7 +55,7 @@ _WATCHDOG: list[threading.Thread] = []
 PARENT_POLL_S = 0.5  # how often a worker looks for its launcher (s): it is gone at most this long after it died
 
 
-def exit_with_parent(poll_s: float = PARENT_POLL_S) -> None:
+def exit_with_parent(poll_s: float = PARENT_POLL_S, expected_parent: int | None = None) -> None:
     """End this process (SIGKILL) as soon as its parent has died; started once per process, in a sweep's worker.
 
     A launcher killed with SIGKILL cannot stop its workers, and loky's idle workers ignore SIGINT/SIGTERM (see
@@ -66,10 +66,12 @@ def exit_with_parent(poll_s: float = PARENT_POLL_S) -> None:
     (``runners.sweep.prewarm_workers``, its executor manager), so workers would die with them. The same test works
     on macOS and other POSIX systems; not on Windows, where a process keeps its parent's pid. The episode in flight
     is killed like by a second signal to the launcher: its log stays ``.*.mcap.partial`` and the next sweep into
-    the directory removes it (``resume=true`` runs it again)."""
+    the directory removes it (``resume=true`` runs it again). ``expected_parent``: the pid the parent had when it
+    started this process (a worker whose launcher died before this runs has init's pid for a parent: it ends at
+    once)."""
     if _WATCHDOG or os.name != "posix":
         return
-    parent = os.getppid()
+    parent = os.getppid() if expected_parent is None else expected_parent
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -79,3 +81,10 @@ def exit_with_parent(poll_s: float = PARENT_POLL_S) -> None:
     thread = threading.Thread(target=watch, name="fuzzynav-exit-with-parent", daemon=True)
     _WATCHDOG.append(thread)
     thread.start()
+
+
+def worker_started(launcher_pid: int) -> None:
+    """The sweep's worker processes run this first (loky's initializer: before they wait for a job), so that a
+    launcher killed while they start leaves none behind: an idle worker that never got a job used to wait for
+    loky's idle timeout, five minutes, holding the caller's stdout and stderr."""
+    exit_with_parent(expected_parent=launcher_pid)
