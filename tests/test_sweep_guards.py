@@ -333,3 +333,28 @@ def test_a_time_limit_warning_between_two_episodes_ends_the_next_one_as_interrup
     finally:
         stop._TIME_LIMIT.clear()
         stop._PENDING.clear()
+
+
+def test_a_resume_into_a_folder_holding_other_sweeps_and_runs_leaves_them_whole(tmp_path):
+    """``resume=true`` into ``parent/`` that holds an earlier sweep (``parent/old``) and a single run
+    (``parent/run``) of the same episodes: it took their logs as its own (moved into parent/0, parent/1) and their
+    summary and report named files that had gone. Their logs stay; this sweep runs and counts its own."""
+    from runners.sweeping.paths import is_other_output, job_logs, other_outputs
+
+    def command(module: str, *args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", module, "scenario=head_on", *args], cwd=ROOT,
+                              capture_output=True, text=True, timeout=600)
+
+    parent = tmp_path / "parent"
+    assert command("runners.sweep", "planner=auto,wait", "episodes=1", f"hydra.sweep.dir={parent / 'old'}",
+                   "hydra.launcher.n_jobs=1").returncode == 0
+    assert command("runners.run", "planner=wait", f"hydra.run.dir={parent / 'run'}").returncode == 0
+    before = {p: p.read_bytes() for p in parent.rglob("*.mcap")}
+    assert len(before) == 3 and other_outputs(parent) == [parent / "old", parent / "run"]
+    res = command("runners.sweep", "planner=auto,wait", "episodes=1", f"hydra.sweep.dir={parent}", "resume=true",
+                  "hydra.launcher.n_jobs=1")
+    assert res.returncode == 0, res.stderr
+    assert {p: p.read_bytes() for p in before} == before  # every earlier log where it was, as it was
+    assert "0 complete episode(s) kept, 2 run" in res.stdout and "2 episode logs in" in res.stdout
+    assert [p.relative_to(parent).parts[0] for p in job_logs(parent)] == ["0", "1"]
+    assert not is_other_output(parent / "0") and is_other_output(parent / "old") and is_other_output(parent / "run")

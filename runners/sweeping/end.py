@@ -21,7 +21,7 @@ from analysis.interrupts import SIGNAL_NAMES
 from runners.sweeping import control as sweep_control
 from runners.sweeping import resume as sweep_resume
 from runners.sweeping.outputs import write_report
-from runners.sweeping.paths import holding_dir, job_logs, partial_logs
+from runners.sweeping.paths import holding_dir, job_logs, other_outputs, partial_logs
 from runners.sweeping.size import count_episodes
 from runners.sweeping.summary import write_summary
 
@@ -58,7 +58,9 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
     # a complete sweep gets its report: matplotlib (~0.3 s) is imported while the forked readers read, so that the
     # figures' workers, forked after it, do not each import it again
     report_next = run.stop_signal() is None and not run.errors
-    analysis = analyse_logs([sweep_dir], jobs=-1, traces=True, meanwhile=plots.pyplot if report_next else None)
+    # another sweep's or run's folder inside this one is not this sweep's: its logs stay out of the summary
+    sources = job_logs(sweep_dir) if other_outputs(sweep_dir) else [sweep_dir]
+    analysis = analyse_logs(sources, jobs=-1, traces=True, meanwhile=plots.pyplot if report_next else None)
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
     if signum is None and not run.errors:

@@ -10,7 +10,9 @@ they run (worker processes, Submitit processes, cluster nodes on a shared file s
 from __future__ import annotations
 
 import os
+import re
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 CONTROL_DIR = ".fuzzynav"
@@ -33,20 +35,60 @@ def holding_dir(sweep_dir: Path) -> Path:
     return control_dir(sweep_dir) / "resume"
 
 
-def _outside_control(sweep_dir: Path, paths) -> list[Path]:
-    return sorted(p for p in paths if CONTROL_DIR not in p.relative_to(sweep_dir).parts[:-1])
-
-
 def job_logs(sweep_dir: Path) -> list[Path]:
     """The logs the sweep's jobs wrote (``*.mcap`` under the job directories, at any depth: ``hydra.sweep.subdir``
-    may nest), in order; not the logs set aside in the control directory."""
-    return _outside_control(sweep_dir, sweep_dir.rglob("*.mcap")) if sweep_dir.is_dir() else []
+    may nest), in order; not the logs set aside in the control directory, nor those of another command's folder
+    inside this one (:func:`is_other_output`)."""
+    return _logs_below(sweep_dir, lambda name: name.endswith(".mcap"))
 
 
 def partial_logs(sweep_dir: Path) -> list[Path]:
     """Logs whose writing never finished (their process died): ``.<name>.mcap.partial`` next to where the log
-    would be."""
-    return _outside_control(sweep_dir, sweep_dir.rglob(f".*.mcap{PARTIAL_SUFFIX}")) if sweep_dir.is_dir() else []
+    would be (not in another command's folder inside this one)."""
+    return _logs_below(sweep_dir, lambda name: name.startswith(".") and name.endswith(f".mcap{PARTIAL_SUFFIX}"))
+
+
+def is_other_output(directory: Path) -> bool:
+    """Whether ``directory``, inside a sweep's folder, holds another command's output: another sweep's (its control
+    folder, or Hydra's ``multirun.yaml``) or a single run's (its ``.hydra/hydra.yaml`` says ``mode: RUN``). A resume
+    into ``multirun/`` took the logs of every earlier sweep there (as the same episodes), and their summaries and
+    reports then named files that had moved."""
+    if (directory / CONTROL_DIR).is_dir() or (directory / "multirun.yaml").is_file():
+        return True
+    try:
+        with open(directory / ".hydra" / "hydra.yaml", encoding="utf-8", errors="replace") as f:
+            text = f.read(1_000_000)
+    except OSError:
+        return False
+    return _SINGLE_RUN.search(text) is not None
+
+
+_SINGLE_RUN = re.compile(r"^  mode: RUN\s*$", re.MULTILINE)  # Hydra's snapshot of a single run's hydra node
+
+
+def _logs_below(sweep_dir: Path, wanted: Callable[[str], bool], others: list[Path] | None = None) -> list[Path]:
+    """The files ``wanted`` names below ``sweep_dir``, sorted, outside its control folder and other commands'
+    folders (appended to ``others``; symbolic links to folders are not followed)."""
+    found: list[Path] = []
+    for root, dirs, files in os.walk(sweep_dir):
+        here = Path(root)
+        kept = []
+        for d in dirs:
+            if d != CONTROL_DIR and is_other_output(here / d):
+                if others is not None:
+                    others.append(here / d)
+            elif d != CONTROL_DIR:
+                kept.append(d)
+        dirs[:] = kept
+        found += [here / name for name in files if wanted(name)]
+    return sorted(found)
+
+
+def other_outputs(sweep_dir: Path) -> list[Path]:
+    """The folders inside ``sweep_dir`` that hold another command's output (:func:`is_other_output`)."""
+    others: list[Path] = []
+    _logs_below(sweep_dir, lambda name: False, others)
+    return sorted(others)
 
 
 class LogScan:
