@@ -355,6 +355,12 @@ def test_the_bench_says_first_which_forms_it_times_and_why():
     ("runners.sweep", ["planner=auto", "hydra.sweeper.max_batch_size=abc"], "error: config: hydra.sweeper.max_batch"),
     ("runners.sweep", ["planner=auto", "hydra.launcher.n_jobs=null"],
      "error: config: hydra.launcher.n_jobs: must be an integer"),
+    ("runners.sweep", ["planner=auto", "hydra.launcher.n_jobs=1,2"],
+     "error: config: hydra.launcher.n_jobs: Hydra's own settings cannot be swept"),
+    ("runners.sweep", ["planner=auto", "+hydra.launcher.bogus=1"],
+     "error: config: hydra.launcher: got an unexpected keyword argument 'bogus'"),
+    ("runners.sweep", ["planner=auto", "+hydra.sweeper.bogus=1"],
+     "error: config: hydra.sweeper: got an unexpected keyword argument 'bogus'"),
 ])
 def test_arguments_a_command_cannot_take_are_one_line_before_anything_runs(tmp_path, command, args, expect):
     """Hostile review of the sweep: each was accepted (a typo with '+', a multirun that wrote into ./multirun), or a

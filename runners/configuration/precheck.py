@@ -246,6 +246,23 @@ def check_callbacks(cfg: DictConfig) -> tuple[str, str] | None:
     return None
 
 
+def check_plugins(cfg: DictConfig) -> tuple[str, str] | None:
+    """The sweeper's or launcher's settings that its class does not take (``+hydra.launcher.bogus=1``) as (its key,
+    the problem), or None: Hydra reported them on several lines once the sweep had started."""
+    for key in ("hydra.launcher", "hydra.sweeper"):
+        spec = OmegaConf.select(cfg, key, default=None)
+        if not isinstance(spec, DictConfig) or not isinstance(spec.get("_target_"), str):
+            continue
+        try:
+            target = _locate(spec["_target_"])
+            inspect.signature(target).bind(**{str(k): None for k in spec if not str(k).startswith("_")})
+        except TypeError as err:
+            return key, str(err)
+        except Exception:  # a target that does not import or has no signature: Hydra's to report
+            continue
+    return None
+
+
 def file_setting(overrides: Sequence[str], key: str) -> Path | None:
     """The last of the files the overrides compose that sets the dotted ``key`` at its top level (a ``_global_``
     file: sweep presets, ``config.yaml``), or None."""
@@ -393,6 +410,9 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
         if not o.is_sweep_override():
             base.append(o.input_line)
             continue
+        if o.key_or_group.startswith("hydra.") or o.key_or_group.startswith("hydra/"):
+            return (f"config: {o.key_or_group[:80]}: Hydra's own settings cannot be swept (one value per sweep: run "
+                    "one sweep per value)")
         if o.value_type == ValueType.GLOB_CHOICE_SWEEP:
             continue  # globs only select existing options
         if o.value_type == ValueType.INTERVAL_SWEEP:  # Hydra's basic sweeper cannot list it: a traceback later
@@ -446,6 +466,9 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                 return unavailable
             if cfg is None:
                 return problem
+            plugin = check_plugins(cfg)
+            if plugin:
+                return f"config: {plugin[0]}: {plugin[1]}"
             callback = check_callbacks(cfg)
             if callback:
                 where = file_setting(overrides, callback[0].removesuffix("._target_"))
