@@ -202,7 +202,7 @@ def _compare(k: int, recorded: dict[str, Any], d: Decision) -> Divergence | None
         return Divergence(k, "mode", recorded["mode"], d.mode)
     for name, value in (("dtheta_deg", d.dtheta_deg), ("v_cm_s", d.v_cm_s)):
         if abs(recorded[name] - value) > TOLERANCE:
-            return Divergence(k, name, recorded[name], round(value, 4))
+            return Divergence(k, name, recorded[name], round(float(value), 4))  # (a numpy float printed as such)
     if recorded["new_plan"] != d.new_plan:
         return Divergence(k, "new_plan", recorded["new_plan"], d.new_plan)
     fields = recorded.get("policy_fields")
@@ -215,7 +215,7 @@ def _compare(k: int, recorded: dict[str, Any], d: Decision) -> Divergence | None
             same = (abs(float(now) - value) <= TOLERANCE if isinstance(value, float) and not isinstance(now, str | bool)
                     else now == value)
             if not same:
-                return Divergence(k, f"policy_fields.{key}", value, now)
+                return Divergence(k, f"policy_fields.{key}", value, now.item() if hasattr(now, "item") else now)
     if d.new_plan and d.plan is not None and recorded.get("planning"):
         p = recorded["planning"]
         for name in ("strategy", "tc", "tS", "tG"):

@@ -212,3 +212,20 @@ def test_a_number_hydra_reads_is_a_number_in_a_replay(capsys, tmp_path, good):
     code, out, err = run_replay(capsys, tmp_path, good, "navigator.static_near_cm=8e1")
     assert code == 0 and err == "" and "decisions differ" in out
     assert replay.parse_override("dt=1e-3") == ("dt", 0.001)
+
+
+def test_a_difference_is_printed_as_a_plain_number():
+    """A replayed value from numpy printed as ``now np.float64(-19.7065)``."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    recorded = {"mode": "direct", "dtheta_deg": 0.0, "v_cm_s": 40.0, "new_plan": False, "policy_fields": {"g": 1.0}}
+    d = SimpleNamespace(mode="direct", dtheta_deg=np.float64(-19.70651), v_cm_s=np.float64(40.0), new_plan=False,
+                        fields={"g": 1.0}, plan=None)
+    found = replay._compare(3, recorded, d)
+    assert found is not None and repr(found.replayed) == "-19.7065"
+    d = SimpleNamespace(mode="direct", dtheta_deg=0.0, v_cm_s=40.0, new_plan=False, fields={"g": np.float64(2.5)},
+                        plan=None)
+    found = replay._compare(3, recorded, d)
+    assert found is not None and repr(found.replayed) == "2.5"
