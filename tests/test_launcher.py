@@ -143,3 +143,22 @@ def test_a_sweep_leaves_no_launch_file(tmp_path: Path) -> None:
     assert res.returncode == 0, res.stderr[-2000:]
     assert set(Path(tempfile.gettempdir()).glob(f"{launch_state.PREFIX}*")) <= before
     assert sorted(p.name for p in (tmp_path / "s" / ".fuzzynav").iterdir()) == ["lock"]
+
+
+def test_a_job_log_file_that_cannot_be_made_raises_the_file_systems_error(tmp_path: Path, monkeypatch) -> None:
+    """A job folder the job may not write into (chattr +i): logging's "Unable to configure handler 'file'" ended
+    the sweep as "a worker process was lost (ValueError ...)", naming no file; the OSError behind it names it."""
+    JobRuntime.instance().set("name", "run")
+    cfg = sweep_config(tmp_path, ["seed=2"], chdir=False, env={})
+    context = HydraContext(config_loader=None, callbacks=Recorder())  # type: ignore[arg-type]
+
+    def refused(*args, **kwargs):
+        try:
+            raise PermissionError(1, "Operation not permitted", str(tmp_path / "3" / "run.log"))
+        except PermissionError as err:
+            raise ValueError("Unable to configure handler 'file'") from err
+
+    monkeypatch.setattr(job_run, "configure_log", refused)
+    with pytest.raises(PermissionError) as err:
+        job_run.run_job(cfg, context, task_noting({}, fail=False))
+    assert err.value.filename == str(tmp_path / "3" / "run.log")

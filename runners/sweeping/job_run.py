@@ -68,7 +68,13 @@ def run_job(config: DictConfig, hydra_context: HydraContext, task_function: Task
             ret.working_dir = output_dir
         else:
             ret.working_dir = os.getcwd()
-        configure_log(config.hydra.job_logging, config.hydra.verbose)
+        try:
+            configure_log(config.hydra.job_logging, config.hydra.verbose)
+        except ValueError as err:  # logging's "Unable to configure handler 'file'": the file system's error names it
+            cause = err.__cause__ or err.__context__
+            if isinstance(cause, OSError):
+                raise cause from None
+            raise
         if config.hydra.output_subdir is not None:
             snapshot = Path(config.hydra.runtime.output_dir) / Path(config.hydra.output_subdir)
             _save(task_cfg, "config.yaml", snapshot)
