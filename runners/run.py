@@ -286,11 +286,13 @@ def task(cfg: DictConfig) -> list[dict[str, Any]]:
         print(f"error: {err if isinstance(err, LogWriteError) else f'{err.filename}: {err.strerror or err}'}",
               file=sys.stderr)
         sys.exit(1)
-    except ConfigFileError as err:
-        print(f"error: {err}", file=sys.stderr)
-        sys.exit(2)
-    except ValueError as err:
-        print(f"error: config: {err}", file=sys.stderr)
+    except (ConfigFileError, ValueError) as err:
+        if HydraConfig.get().mode == RunMode.MULTIRUN:
+            # a sweep's job whose combination of values is invalid (each value alone passed the check): the job
+            # fails and the sweep goes on, then says which job and how to resume; SystemExit ended the whole sweep
+            # at once, with no summary
+            raise
+        print(f"error: {err}" if isinstance(err, ConfigFileError) else f"error: config: {err}", file=sys.stderr)
         sys.exit(2)
     if HydraConfig.get().mode != RunMode.MULTIRUN:
         for r in results:

@@ -372,3 +372,17 @@ def test_arguments_a_command_cannot_take_are_one_line_before_anything_runs(tmp_p
                          capture_output=True, text=True, timeout=300)
     assert one_error_line(res).startswith(expect), res.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_job_whose_combination_of_values_is_invalid_fails_alone(tmp_path):
+    """Each swept value passes the check, one combination does not (v_max 30 with a successor speed of 40): that
+    job ended the whole sweep at once (exit 2, no summary, other jobs' episodes cut as .partial logs); now it fails
+    alone, named, and the others' episodes are in the summary."""
+    sweep = tmp_path / "s"
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on", "planner=auto", "episodes=1",
+                          "robot.v_max=45,30", "planner.successor_speeds=[10,25,30],[10,25,40]",
+                          f"hydra.sweep.dir={sweep}"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
+    assert "error: job 3 failed: ValueError: planner.successor_speeds[2]: 40 cm/s is outside" in res.stderr
+    assert "3 episode(s) finished" in res.stdout and (sweep / "summary.csv").is_file()
+    assert not list(sweep.rglob(".*.partial"))
