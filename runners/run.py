@@ -450,14 +450,15 @@ def argument_problem(args: list[str], sweep: bool) -> str | None:
                     "be read back)")
     if not sweep and ("--multirun" in args or "-m" in args):
         return multirun_problem(args)
-    for arg in args:
-        key, _, value = arg.lstrip("+~").partition("=")
-        if not sweep and key.strip() == "hydra.mode" and value.strip().upper() == "MULTIRUN":
+    keys = [arg.lstrip("+~").partition("=")[0].strip() for arg in args]
+    own, other = ("hydra.sweep.dir", "hydra.run.dir") if sweep else ("hydra.run.dir", "hydra.sweep.dir")
+    for arg, key in zip(args, keys, strict=True):
+        value = arg.partition("=")[2]
+        if not sweep and key == "hydra.mode" and value.strip().upper() == "MULTIRUN":
             return multirun_problem([a for a in args if a != arg])
-        if key.strip() == ("hydra.run.dir" if sweep else "hydra.sweep.dir"):
-            other = "hydra.sweep.dir" if sweep else "hydra.run.dir"
-            return (f"{key.strip()}: {'a single run' if sweep else 'a sweep'}'s folder; "
-                    f"{'a sweep' if sweep else 'a single run'} writes into {other}={value[:80]}")
+        if key == other and own not in keys:  # (both given: the command's own is used, the other harmless)
+            return (f"{other}: {'a single run' if sweep else 'a sweep'}'s folder; "
+                    f"{'a sweep' if sweep else 'a single run'} writes into {own}={value[:80]}")
     for option in ("--experimental-rerun", "--shell-completion", "-sc"):
         if any(a == option or a.startswith(option + "=") for a in args):
             return f"{option}: Hydra's option is not supported by fuzzynav's commands (see --help)"
