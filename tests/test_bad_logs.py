@@ -208,7 +208,7 @@ def test_a_report_that_cannot_be_written_completely_exits_non_zero(capsys, tmp_p
     (["--steps", "5,4000"], "--steps: step 4000 is beyond the episode's"),
     (["planner.h_wait"], "override 'planner.h_wait': expected key=value"),
     (["dt.x=1"], "override dt.x: no such key in the recorded config"),
-    (["planner.h_wait=[1"], "override planner.h_wait: the value is not valid YAML"),
+    (["planner.h_wait=[1"], "override planner.h_wait: not a value Hydra can read"),
     (["--controller", "/dev/null"], "/dev/null: a character device, not a controller file"),
     (["--controller", "no_such_controller"], "controller 'no_such_controller': no such file"),
     (["--nope"], "unrecognized arguments: --nope"),

@@ -383,6 +383,6 @@ def test_a_sweep_job_whose_combination_of_values_is_invalid_fails_alone(tmp_path
                           "robot.v_max=45,30", "planner.successor_speeds=[10,25,30],[10,25,40]",
                           f"hydra.sweep.dir={sweep}"], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
-    assert "error: job 3 failed: ValueError: planner.successor_speeds[2]: 40 cm/s is outside" in res.stderr
+    assert "error: job 3 failed: config: planner.successor_speeds[2]: 40 cm/s is outside" in res.stderr
     assert "3 episode(s) finished" in res.stdout and (sweep / "summary.csv").is_file()
     assert not list(sweep.rglob(".*.partial"))

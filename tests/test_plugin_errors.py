@@ -203,10 +203,11 @@ def test_a_policy_raising_keyboard_interrupt_is_its_error_not_a_ctrl_c(tmp_path,
                            f"hydra.sweep.dir={tmp_path / 'sweep'}", "hydra.launcher.n_jobs=1"],
                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert "Ctrl-C" not in proc.stderr + proc.stdout, proc.stderr[-2000:]
-    if method == "reset":  # as any failure of reset(seed): the configuration's error, before any episode
-        assert proc.returncode == 2 and proc.stderr.strip().splitlines()[-1] == (
-            "error: config: policy odd_policy.P: reset(seed) raised KeyboardInterrupt (no signal was received: "
-            "treated as the code's error)")
+    if method == "reset":  # as any failure of reset(seed): the configuration's error, before any episode of its job
+        assert proc.returncode == 1 and proc.stderr.strip().splitlines()[0] == (
+            "error: job 0 failed: config: policy odd_policy.P: reset(seed) raised KeyboardInterrupt (no signal was "
+            "received: treated as the code's error)"), proc.stderr[-2000:]
+        assert not list((tmp_path / "sweep").rglob("*.mcap"))
         return
     # as for any episode that raised: the sweep goes on, and its summary counts them as errors
     assert proc.returncode == 0, proc.stderr[-2000:]

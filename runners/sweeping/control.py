@@ -213,8 +213,13 @@ def job_failed(run: SweepRun, job_num: Any, err: BaseException) -> None:
     """A job ended with an exception (its episodes' own exceptions are outcomes, so this is not one of them)."""
     if isinstance(err, OSError):
         run.fail(io_line(err))
+        return
+    text = (str(err).strip().splitlines() or [""])[0][:300]
+    if type(err).__name__ == "ConfigFileError":  # (a file named, as runners.run says it)
+        run.fail(f"job {job_num} failed: {text}")
+    elif isinstance(err, ValueError):  # the job's config did not pass the checks a run makes (runners.run.task)
+        run.fail(f"job {job_num} failed: config: {text.removeprefix('config: ')}")
     else:
-        text = (str(err).strip().splitlines() or [""])[0][:300]
         run.fail(f"job {job_num} failed: {type(err).__name__}: {text}")
 
 
