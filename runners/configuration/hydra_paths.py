@@ -40,7 +40,8 @@ def _resolved(cfg: DictConfig, key: str) -> tuple[object, str | None]:
 
 def run_paths_problem(cfg: DictConfig) -> str | None:
     """The first setting of ``cfg`` (composed with Hydra's node) that would write outside the run's or a job's
-    folder, or None: ``hydra.output_subdir``, ``hydra.job.name``, the file handler's ``filename``."""
+    folder, or None: ``hydra.output_subdir``, ``hydra.job.name``, the file handler's ``filename``; and a logging
+    level that is none (Hydra's logging set-up raised it as two tracebacks)."""
     if "hydra" not in cfg:
         return None
     subdir, problem = _resolved(cfg, "hydra.output_subdir")
