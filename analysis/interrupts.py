@@ -75,7 +75,7 @@ def guard_startup() -> None:
     previous = sys.excepthook
 
     def excepthook(kind: type[BaseException], value: BaseException, tb: Any) -> None:
-        interrupt = interrupt_in_chain(value)
+        interrupt = interrupt_in_chain(value) or (Interrupted(_RECEIVED[0]) if _RECEIVED else None)
         if interrupt is None:
             previous(kind, value, tb)
             return
@@ -123,7 +123,13 @@ def _ignore_signals() -> None:
 
 
 def _raise_interrupted(signum: int, frame: Any) -> None:
+    _RECEIVED.append(signum)
     raise Interrupted(signum)
+
+
+#: signals the start-up guard raised: an error that ends the command after one (a library whose import it cut
+#: short caught it or was left half-loaded: pyarrow without ``large_string``) is the interrupt's consequence
+_RECEIVED: list[int] = []
 
 
 # -- a library that must not be interrupted midway -----------------------------------------------------------------

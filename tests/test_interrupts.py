@@ -154,3 +154,20 @@ def test_an_interrupt_inside_the_precheck_composition_is_not_reported_as_a_confi
     monkeypatch.setattr(precheck, "compose", compose)
     with pytest.raises(Interrupted):
         precheck.precheck(["planner=wait"])
+
+
+def test_an_error_after_an_interrupt_that_was_swallowed_still_exits_as_interrupted():
+    """SIGINT while pandas imported pyarrow (0.2 s into a report): the interrupt was lost inside the imports, and
+    the half-loaded pyarrow made pandas raise AttributeError later, printed as a traceback with exit 1."""
+    code = ("from analysis import interrupts\n"
+            "interrupts.guard_startup()\n"
+            "import os, signal\n"
+            "try:\n"
+            "    os.kill(os.getpid(), signal.SIGINT)\n"
+            "    import time; time.sleep(5)\n"
+            "except BaseException:\n"
+            "    pass  # a library that swallowed it\n"
+            "raise AttributeError(\"module 'pyarrow' has no attribute 'large_string'\")\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130, proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
