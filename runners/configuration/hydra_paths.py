@@ -11,7 +11,6 @@ one. Each is one line here, and the command stops before any folder is made.
 
 from __future__ import annotations
 
-import copy
 import logging
 import re
 from pathlib import PurePath
@@ -83,11 +82,18 @@ def sweep_paths(cfg: DictConfig) -> tuple[str, str] | str:
     _, problem = _resolved(cfg, "hydra.sweep.dir")  # the sweep's folder is made before any job has a number
     if problem:
         return f"{problem}: the folder of the whole sweep cannot depend on the job"
-    job = copy.deepcopy(cfg)
-    with read_write(job.hydra), open_dict(job.hydra):
-        job.hydra.job.num = 0
-        job.hydra.job.id = "0"
-    return sweep_paths_of_job(job)
+    job = cfg.hydra.job
+    before = {key: OmegaConf.to_container(job, resolve=False).get(key) for key in ("num", "id")}
+    with read_write(job), open_dict(job):  # (set for the check and put back: a copy of the config took ~10 ms)
+        job.num, job.id = 0, "0"
+        try:
+            return sweep_paths_of_job(cfg)
+        finally:
+            for key, value in before.items():
+                if value is None:
+                    del job[key]
+                else:
+                    job[key] = value
 
 
 def one_sweep_dir(dirs: dict[str, list[str]]) -> str | None:
