@@ -30,7 +30,8 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from analysis.episode_log import load_episode
-from analysis.logs import RUN_METADATA, LogError, LogFile, RejectedLog, file_kind, printable
+from analysis.file_names import is_utf8
+from analysis.logs import RUN_METADATA, LogError, LogFile, RejectedLog, file_kind
 from analysis.mcap_verify import peek_metadata
 from fuzzynav.episode_identity import episode_key_of
 
@@ -52,7 +53,7 @@ def find_logs(paths: Iterable[str | Path]) -> list[Path]:
     for path in _expand(paths):
         if isinstance(path, RejectedLog):
             key: tuple[int, int] | str = str(path)
-        elif printable(str(path)) != str(path):
+        elif not is_utf8(str(path)):
             path = RejectedLog.with_reason(path, "the file name is not UTF-8 text: skipped, not opened (rename the "
                                                  "file)", "bad-name")
             key = str(path)

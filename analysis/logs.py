@@ -52,14 +52,6 @@ LEFT_OUT_KINDS = {
 SKIPPED_KINDS = ("not-regular-file", "bad-name", "duplicate", "conflict")  # left out without being read
 
 
-def printable(text: str) -> str:
-    """``text`` (a path as the file system gave it, or a message naming one) as UTF-8 text: the bytes of a name
-    that are not UTF-8 as ``\\xNN`` escapes (the tables' writers refuse the surrogates Python reads them as)."""
-    try:
-        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
-    except UnicodeEncodeError:  # a surrogate that no file name gave
-        return text.encode("utf-8", "backslashreplace").decode("utf-8")
-
 
 class LogError(Exception):
     """A log cannot be read as a fuzzynav episode; the message names the file and what is wrong, ``kind`` says

@@ -24,9 +24,10 @@ import shapely
 
 from analysis.deferred import deferred, load
 from analysis.episode_log import EpisodeLog, load_episode
+from analysis.file_names import printable
 from analysis.horizon_errors import COLUMN_PATTERN, horizon_errors
 from analysis.log_inputs import find_logs
-from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, printable, read_logs
+from analysis.logs import SKIPPED_KINDS, LogError, RejectedLog, collector_paused, read_logs
 from analysis.run_parameters import EPISODE_PARAMETERS, Grouping, find_grouping, is_success, parameters_of
 from analysis.tpt_errors import ADE_PREFIX, FDE_PREFIX, STANDING_MODELS, model_columns, obstacle_models, tpt_errors
 from analysis.trace import KeptTraces, Trace

@@ -38,7 +38,7 @@ from analysis.cli_args import OneLineParser, jobs, number_in, path_problem, unwr
 from analysis.deferred import deferred
 from analysis.density import density_figure, density_table
 from analysis.drawing import Figure, FigureError, Figures
-from analysis.logs import printable
+from analysis.file_names import printable
 from analysis.metrics import STANDARD_METRICS, Analysis, MetricOptions, analyse_logs, left_out_counts
 from analysis.overview import overview
 from analysis.recorded_people import horizon_figure, horizon_table, shown_table

@@ -441,13 +441,12 @@ def argument_problem(args: list[str], sweep: bool) -> str | None:
     output folder (``hydra.run.dir`` in a sweep, ``hydra.sweep.dir`` in a run: Hydra ignores it, and the logs went to
     ./multirun/ or ./outputs/), and Hydra's options that fuzzynav does not support (``--experimental-rerun``
     unpickles the file it is given; ``--shell-completion``)."""
+    from analysis.file_names import is_utf8, printable
+
     for i, arg in enumerate(args, start=1):
-        try:
-            arg.encode("utf-8")
-        except UnicodeEncodeError:  # bytes that are not UTF-8, which Python reads as lone surrogates
-            shown = arg.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
-            return (f"argument {i} ({shown[:60]}): not UTF-8 text (the run's config is logged as UTF-8 and could not "
-                    "be read back)")
+        if not is_utf8(arg):
+            return (f"argument {i} ({printable(arg)[:60]}): not UTF-8 text (the run's config is logged as UTF-8 and "
+                    "could not be read back)")
     if not sweep and ("--multirun" in args or "-m" in args):
         return multirun_problem(args)
     keys = [arg.lstrip("+~").partition("=")[0].strip() for arg in args]

@@ -23,8 +23,9 @@ SWEEP = ["sweep=default", "scenario=head_on", "planner=auto,wait", "episodes=1"]
     (["hydra.sweep.subdir=${hydra.job.override_dirname}", "hydra.job.config.override_dirname.kv_sep=/../../kv_"],
      "config: hydra.sweep.subdir: resolves to 'episodes/../../kv_1"),
     (["hydra.sweep.subdir=/abs/${hydra.job.num}"], "config: hydra.sweep.subdir: '/abs/${hydra.job.num}' is not a"),
-    (["hydra.output_subdir=../hydra_outside"], "config: hydra.output_subdir: '../hydra_outside' is outside"),
-    (["hydra.output_subdir=/tmp/abs"], "config: hydra.output_subdir: '/tmp/abs' is outside"),
+    (["hydra.output_subdir=../hydra_outside"],
+     "config: hydra.output_subdir: resolves to '../hydra_outside', outside the job's folder"),
+    (["hydra.output_subdir=/tmp/abs"], "config: hydra.output_subdir: resolves to '/tmp/abs', outside the job's folder"),
     (["hydra.job.name=../x"], "config: hydra.job.name: '../x' is not a plain name"),
     (["hydra.job_logging.handlers.file.filename=/tmp/abs.log"],
      "config: hydra.job_logging.handlers.file.filename: '/tmp/abs.log' is outside the job's folder"),
@@ -46,7 +47,8 @@ def test_settings_inside_the_folder_pass(overrides):
 
 
 def test_a_single_runs_settings_are_checked_too():
-    assert precheck(["hydra.output_subdir=../out"]).startswith("config: hydra.output_subdir: '../out' is outside")
+    assert precheck(["hydra.output_subdir=../out"]).startswith(
+        "config: hydra.output_subdir: resolves to '../out', outside")
     assert precheck(["hydra.job.name=a/b"]).startswith("config: hydra.job.name: 'a/b' is not a plain name")
     assert precheck([]) is None
 

@@ -70,6 +70,14 @@ def test_sigterm_during_start_up_is_one_line_and_exit_143(entry, tmp_path):
     assert len(lines) == 1 and "terminated (SIGTERM)" in lines[0], err[-3000:]
 
 
+def ends_as_interrupted(code: str) -> subprocess.CompletedProcess:
+    """Run ``code`` in a fresh interpreter: it must end with exit 130 and one line on stderr, no traceback."""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130, proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    return proc
+
+
 def test_an_error_raised_while_an_interrupt_unwinds_still_exits_as_interrupted():
     """A signal landing inside a library's clean-up (OmegaConf restoring its flags while Hydra stores the config
     schema) can leave it half-done, so another error follows with the interrupt as its context: still one line
@@ -80,9 +88,7 @@ def test_an_error_raised_while_an_interrupt_unwinds_still_exits_as_interrupted()
             "    raise KeyboardInterrupt()\n"
             "except KeyboardInterrupt:\n"
             "    raise AttributeError('half-done clean-up')\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 130, proc.stderr
-    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    ends_as_interrupted(code)
 
 
 def test_an_interrupt_where_python_ignores_exceptions_still_ends_the_command():
@@ -98,9 +104,8 @@ def test_an_interrupt_where_python_ignores_exceptions_still_ends_the_command():
             "ref = weakref.ref(thing, callback)\n"
             "del thing\n"
             "print('went on')\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 130 and "went on" not in proc.stdout, (proc.stdout, proc.stderr)
-    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    proc = ends_as_interrupted(code)
+    assert "went on" not in proc.stdout, proc.stdout
 
 
 def test_a_signal_while_deferred_is_raised_when_resumed_and_a_second_one_ends_at_once():
@@ -168,6 +173,4 @@ def test_an_error_after_an_interrupt_that_was_swallowed_still_exits_as_interrupt
             "except BaseException:\n"
             "    pass  # a library that swallowed it\n"
             "raise AttributeError(\"module 'pyarrow' has no attribute 'large_string'\")\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 130, proc.stderr
-    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    ends_as_interrupted(code)

@@ -37,18 +37,25 @@ def _resolved(cfg: DictConfig, key: str) -> tuple[object, str | None]:
         return None, f"config: {key}: cannot be resolved before the jobs run ({detail})"
 
 
+def _folder_problem(cfg: DictConfig, key: str, outside: str) -> tuple[object, str | None]:
+    """(the value of ``key``, a folder relative to the run's or job's folder, None), or (None, one line: it does
+    not resolve, or it resolves outside; ``outside`` says why that matters and how to write it)."""
+    value, problem = _resolved(cfg, key)
+    if problem is None and value is not None and not _inside(str(value)):
+        problem = f"config: {key}: resolves to {str(value)[:80]!r}, outside {outside}"
+    return value, problem
+
+
 def run_paths_problem(cfg: DictConfig) -> str | None:
     """The first setting of ``cfg`` (composed with Hydra's node) that would write outside the run's or a job's
     folder, or None: ``hydra.output_subdir``, ``hydra.job.name``, the file handler's ``filename``; and a logging
     level that is none (Hydra's logging set-up raised it as two tracebacks)."""
     if "hydra" not in cfg:
         return None
-    subdir, problem = _resolved(cfg, "hydra.output_subdir")
+    _, problem = _folder_problem(cfg, "hydra.output_subdir", "the job's folder (Hydra's .hydra/ snapshot goes "
+                                 "there): give a relative folder such as .hydra, or null for none")
     if problem:
         return problem
-    if subdir is not None and not _inside(str(subdir)):
-        return (f"config: hydra.output_subdir: {str(subdir)[:80]!r} is outside the job's folder (Hydra's .hydra/ "
-                "snapshot goes there): give a relative folder such as .hydra, or null for none")
     name, problem = _resolved(cfg, "hydra.job.name")
     if problem:
         return problem
@@ -79,7 +86,7 @@ def run_paths_problem(cfg: DictConfig) -> str | None:
 def sweep_paths(cfg: DictConfig) -> tuple[str, str] | str:
     """(``hydra.sweep.dir``, ``hydra.sweep.subdir``) of a job's composed config, resolved as the job will (its
     number and id set to 0), or one line on why they would put the job outside its sweep's folder."""
-    _, problem = _resolved(cfg, "hydra.sweep.dir")  # the sweep's folder is made before any job has a number
+    sweep_dir, problem = _resolved(cfg, "hydra.sweep.dir")  # made before any job has a number
     if problem:
         return f"{problem}: the folder of the whole sweep cannot depend on the job"
     job = cfg.hydra.job
@@ -87,7 +94,8 @@ def sweep_paths(cfg: DictConfig) -> tuple[str, str] | str:
     with read_write(job), open_dict(job):  # (set for the check and put back: a copy of the config took ~10 ms)
         job.num, job.id = 0, "0"
         try:
-            return sweep_paths_of_job(cfg)
+            subdir, problem = _folder_problem(cfg, "hydra.sweep.subdir", _SWEEP_FOLDER)
+            return problem or (str(sweep_dir), str(subdir))
         finally:
             for key, value in before.items():
                 if value is None:
@@ -126,10 +134,9 @@ def sweep_paths_of_job(cfg: DictConfig) -> tuple[str, str] | str:
     sweep_dir, problem = _resolved(cfg, "hydra.sweep.dir")
     if problem:
         return problem
-    subdir, problem = _resolved(cfg, "hydra.sweep.subdir")
-    if problem:
-        return problem
-    if subdir is not None and not _inside(str(subdir)):
-        return (f"config: hydra.sweep.subdir: resolves to {str(subdir)[:80]!r}, outside the sweep's folder; each job "
-                "writes into a folder of the sweep's: include ${hydra.job.num}, and no value that holds '..' or '/'")
-    return str(sweep_dir), str(subdir)
+    subdir, problem = _folder_problem(cfg, "hydra.sweep.subdir", _SWEEP_FOLDER)
+    return problem or (str(sweep_dir), str(subdir))
+
+
+_SWEEP_FOLDER = ("the sweep's folder; each job writes into a folder of the sweep's: include ${hydra.job.num}, and "
+                 "no value that holds '..' or '/'")
