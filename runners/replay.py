@@ -304,12 +304,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", help="comma-separated steps to draw snapshots at")
     parser.add_argument("--out", help="output path stem for the PNG/GIF (default: beside the log)")
     parser.add_argument("--quiet", action="store_true", help="no timeline")
-    args = parser.parse_intermixed_args(argv)
+    args = parser.parse_intermixed_args(_after_double_dash(sys.argv[1:] if argv is None else list(argv)))
     try:
         return _run(args)
     except ReplayError as err:
         print("error: " + str(err).replace("\n", "\\n"), file=sys.stderr)  # one line, even for odd file names
         return 2
+
+
+def _after_double_dash(argv: list[str]) -> list[str]:
+    """``argv`` with the arguments after ``--`` (positional, whatever they start with) made unmistakable for
+    argparse's intermixed parsing, which drops ``--`` and then read ``-x.mcap`` as an unknown option (or said the
+    log was missing): a file name that starts with a dash is given as ``./-x.mcap``, the same file."""
+    if "--" not in argv:
+        return argv
+    cut = argv.index("--")
+    return [*argv[:cut], *(f"./{a}" if a.startswith("-") else a for a in argv[cut + 1:])]
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -407,8 +407,9 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
     composed: list[DictConfig] = []  # a plain single run: the config the check composed, run as it is
     if not debug_requested(args) and "--help" not in args and "-h" not in args:
         overrides, problem, plain_run = hydra_overrides(args)
+        problem = problem or primary_config_problem(args)
         if not problem and "--multirun" not in args and "-m" not in args:
-            problem = single_run_sweep(overrides)
+            problem = single_run_sweep(overrides, shown=sweep)
         keep = composed.append if plain_run and not sweep and on_config is None else on_config
         problem = problem or precheck(overrides, keep, multirun="--multirun" in args or "-m" in args)
         if problem:
@@ -476,9 +477,10 @@ def multirun_problem(args: list[str]) -> str:
             f"report) use: {command[:300]}")
 
 
-def single_run_sweep(overrides: list[str]) -> str | None:
+def single_run_sweep(overrides: list[str], shown: bool = False) -> str | None:
     """One line about the first override that sweeps (``planner=auto,wait``, ``seed=range(3)``) in a single run:
-    Hydra answered with five lines of options; ``runners.sweep`` is the command for it."""
+    Hydra answered with five lines of options; ``runners.sweep`` is the command for it. ``shown``: the command is
+    ``runners.sweep --cfg``/``--info``, which shows one configuration (Hydra's options do not sweep)."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     parser = OverridesParser.create()
@@ -489,6 +491,9 @@ def single_run_sweep(overrides: list[str]) -> str | None:
             continue
         if override.is_sweep_override():
             key = override.get_key_element()
+            if shown:
+                return (f"config: {key[:80]}: {text.partition('=')[2][:80]!r} is a sweep; --cfg and --info show one "
+                        "configuration of the sweep: give one value")
             return (f"config: {key[:80]}: {text.partition('=')[2][:80]!r} is a sweep and runners.run runs one "
                     f"configuration: use python -m runners.sweep (or quote the value for a string: "
                     f"{key[:80]}='...')")
@@ -519,6 +524,35 @@ def hydra_overrides(args: list[str]) -> tuple[list[str], str | None, bool]:
     options = not any(value for name, value in vars(known).items() if name not in ("overrides", "run"))
     mode = any(o.lstrip("+~").partition("=")[0].strip() == "hydra.mode" for o in overrides)
     return overrides, None, options and not mode
+
+
+def primary_config_problem(args: list[str]) -> str | None:
+    """One line when ``--config-dir`` is not a folder or ``--config-name`` names no YAML file in fuzzynav's
+    ``conf/``, that folder or another package's config folder (Hydra answered with its search path, five lines),
+    else None."""
+    import io
+
+    from hydra._internal.utils import get_args_parser
+
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            known, _ = get_args_parser().parse_known_args(args)
+    except SystemExit:  # a malformed option: Hydra's own message follows
+        return None
+    try:
+        folders = [CONF_DIR, *(folder for _, folder in config_plugins.plugin_config_dirs())]
+    except config_plugins.PluginConfigError:  # the precheck reports a broken entry point
+        return None
+    if known.config_dir is not None:
+        extra = Path(known.config_dir).expanduser()
+        if not extra.is_dir():
+            return f"--config-dir {str(known.config_dir)[:120]}: not a folder"
+        folders.insert(0, extra)
+    name = known.config_name
+    if name is None or any((Path(folder) / f"{name.removesuffix('.yaml')}.yaml").is_file() for folder in folders):
+        return None
+    where = "conf/" + (f" or {str(known.config_dir)[:120]}" if known.config_dir is not None else "")
+    return f"--config-name {str(name)[:80]}: no such config in {where} (fuzzynav's is config)"
 
 
 def register_sweeper() -> None:

@@ -319,12 +319,42 @@ def default_preset(args: list[str]) -> str:
     return "default"
 
 
+SHOW_OPTIONS = ("--cfg", "-c", "--info", "-i")  # Hydra's options that print the config instead of running it
+
+
+def with_preset(args: list[str], preset: str) -> list[str]:
+    """``args`` with the ``preset`` override where Hydra's command-line parser reads it as one of the overrides:
+    just before the first override, or first where there is none. Overrides are one group of positional arguments
+    for that parser; in front of options followed by overrides (``--cfg job planner=wait``), the preset made a
+    second group, and Hydra refused the command ("unrecognized arguments")."""
+    import io
+
+    from hydra._internal.utils import get_args_parser  # the parser Hydra reads these arguments with (pinned)
+
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):  # a malformed option: Hydra's own message follows
+            known, _ = get_args_parser().parse_known_args(args)
+    except SystemExit:
+        return [preset, *args]
+    overrides = list(known.overrides)
+    for i in range(len(args)):
+        if overrides and args[i:i + len(overrides)] == overrides:
+            return [*args[:i], preset, *args[i:]]
+    return [preset, *args]
+
+
 def main() -> None:
     sweep_control.install_handlers()  # from the start: a signal before the sweep begins kills its prewarmed workers
     args = sys.argv[1:]
     if not any(a.startswith("sweep=") for a in args):
-        args = [f"sweep={default_preset(args)}", *args]
-    sys.argv = [sys.argv[0], "--multirun", *args]
+        args = with_preset(args, f"sweep={default_preset(args)}")
+    if "--run" in args or "-r" in args:
+        print("error: --run: runners.sweep runs a sweep; one configuration is python -m runners.run with the same "
+              "overrides", file=sys.stderr)
+        sys.exit(2)
+    # Hydra's --cfg and --info show the sweep's config (one configuration) instead of running it: not a multirun
+    shows = any(a in SHOW_OPTIONS or a.startswith(("--cfg=", "--info=")) for a in args)
+    sys.argv = [sys.argv[0], *([] if shows else ["--multirun"]), *args]
     from runners import run
 
     task = [a for a in args if not a.startswith("-")]

@@ -361,6 +361,12 @@ def test_the_bench_says_first_which_forms_it_times_and_why():
      "error: config: hydra.launcher: got an unexpected keyword argument 'bogus'"),
     ("runners.sweep", ["planner=auto", "+hydra.sweeper.bogus=1"],
      "error: config: hydra.sweeper: got an unexpected keyword argument 'bogus'"),
+    ("runners.sweep", ["--run"], "error: --run: runners.sweep runs a sweep; one configuration is python -m"),
+    ("runners.sweep", ["--config-name", "nope"], "error: --config-name nope: no such config in conf/"),
+    ("runners.run", ["--config-name", "nope"], "error: --config-name nope: no such config in conf/"),
+    ("runners.run", ["--config-dir", "/nonexistent/d"], "error: --config-dir /nonexistent/d: not a folder"),
+    ("runners.sweep", ["--cfg", "job", "planner=auto,wait"],
+     "error: config: planner: 'auto,wait' is a sweep; --cfg and --info show one configuration of the sweep"),
 ])
 def test_arguments_a_command_cannot_take_are_one_line_before_anything_runs(tmp_path, command, args, expect):
     """Hostile review of the sweep: each was accepted (a typo with '+', a multirun that wrote into ./multirun), or a
@@ -386,3 +392,42 @@ def test_a_sweep_job_whose_combination_of_values_is_invalid_fails_alone(tmp_path
     assert "error: job 3 failed: config: planner.successor_speeds[2]: 40 cm/s is outside" in res.stderr
     assert "3 episode(s) finished" in res.stdout and (sweep / "summary.csv").is_file()
     assert not list(sweep.rglob(".*.partial"))
+
+
+@pytest.mark.parametrize("args, expect", [(["--cfg", "job", "planner=wait"], "strategy: wait"),
+                                          (["-c", "hydra"], "sweeper:"),
+                                          (["--info", "searchpath", "scenario=head_on"], "Config search path")])
+def test_hydras_show_options_before_overrides_show_the_sweeps_config(args, expect):
+    """The sweep put its preset in front of the arguments: before options followed by overrides it was a second group
+    of overrides, and Hydra refused the command ("unrecognized arguments: planner=wait"); with ``--cfg`` the added
+    ``--multirun`` was a traceback (only one of --multirun and --cfg)."""
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", *args], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0 and expect in res.stdout and not res.stderr.strip(), res.stderr
+
+
+def test_the_sweeps_preset_goes_where_hydra_reads_overrides():
+    from runners.sweep import with_preset
+
+    assert with_preset(["--cfg", "job", "planner=wait"], "sweep=default") == ["--cfg", "job", "sweep=default",
+                                                                             "planner=wait"]
+    assert with_preset(["planner=wait", "--cfg", "job"], "sweep=default") == ["sweep=default", "planner=wait",
+                                                                             "--cfg", "job"]
+    assert with_preset(["--info"], "sweep=default") == ["sweep=default", "--info"]
+    assert with_preset([], "sweep=default") == ["sweep=default"]
+
+
+@pytest.mark.parametrize("params, says", [
+    ("{planner: 'nope,wait'}", "error: config: no config 'planner/nope' (available: auto, "),
+    ("+hydra.sweeper.params.seed='1,abc'", "error: config: seed: Value 'abc' of type 'str' could not be converted"),
+])
+def test_a_swept_value_of_the_sweepers_params_that_does_not_compose_is_one_line(tmp_path, params, says):
+    """A value swept by ``hydra.sweeper.params`` (a preset's, or given whole on the command line) is composed by the
+    sweeper, not by the command's check: Hydra printed a dozen lines (the group's options, the search path)."""
+    sweep = tmp_path / "s"
+    given = params if params.startswith("+") else f"hydra.sweeper.params={params}"
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "episodes=1", given,
+                          f"hydra.sweep.dir={sweep}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    line = one_error_line(res)
+    assert line.startswith(says) and "(the sweep's job " in line, line
+    assert not list(sweep.rglob("*.mcap*")) and not list(sweep.glob("[0-9]*"))

@@ -229,3 +229,15 @@ def test_a_difference_is_printed_as_a_plain_number():
                         plan=None)
     found = replay._compare(3, recorded, d)
     assert found is not None and repr(found.replayed) == "2.5"
+
+
+def test_a_log_whose_name_starts_with_a_dash_is_read_after_double_dash(capsys, tmp_path, good, monkeypatch):
+    """``runners.replay -- -x.mcap``: argparse's intermixed parsing dropped ``--`` and said the log was missing."""
+    (tmp_path / "-x.mcap").write_bytes(good.read_bytes())
+    monkeypatch.chdir(tmp_path)
+    assert replay.main(["--quiet", "--out", str(tmp_path / "x"), "--", "-x.mcap"]) == 0
+    assert (tmp_path / "x.png").is_file()
+    assert replay.main(["--verify", "--", "-x.mcap"]) == 0
+    assert "all" in capsys.readouterr().out
+    assert replay.main(["--", "-missing.mcap"]) == 2
+    assert capsys.readouterr().err.strip() == "error: -missing.mcap: no such file"

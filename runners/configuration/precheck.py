@@ -74,7 +74,7 @@ def debug_requested(argv: list[str]) -> bool:
     return "--debug" in argv or os.environ.get("HYDRA_FULL_ERROR") == "1"
 
 
-def _one_line(err: BaseException) -> str:
+def one_line(err: BaseException) -> str:
     """The most useful single line of a (possibly chained) composition error."""
     texts = [str(e) for e in (err, err.__cause__, err.__context__) if e is not None and str(e)]
     full = "\n".join(texts)
@@ -385,7 +385,7 @@ def _base_problem(base: list[str], swept: set[str]) -> str | None:
             raise interrupt from None
         culprits = [t for t in base if "." in (key := t.lstrip("+~").partition("=")[0]) and key.split(".")[0] in swept]
         hint = (f"; write ++{culprits[0].lstrip('+')} to set it in every job where it applies" if culprits else "")
-        return f"{_one_line(err)} (the sweep's own config, with each swept group at its default){hint}"
+        return f"{one_line(err)} (the sweep's own config, with each swept group at its default){hint}"
     return None
 
 
@@ -459,7 +459,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                     interrupt = interrupts.interrupt_in_chain(err)
                     if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
                         raise interrupt from None
-                    cfg, problem = None, _one_line(err)
+                    cfg, problem = None, one_line(err)
                     problem = _in_one_job(problem, overrides, base, swept_keys)
             unavailable = _unavailable_search_path(caught)
             if unavailable:  # a typo in hydra.searchpath: the config it should have provided is "missing"

@@ -98,11 +98,31 @@ class FuzzynavSweeper(FaultTolerantSweeper):
         compose_in_workers = getattr(self.launcher, "compose_in_workers", None)
         composed = compose_in_workers(jobs) if compose_in_workers is not None else None
         for i, overrides in enumerate(jobs):
-            config = (composed[i] if composed is not None
-                      else self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides)))
+            try:
+                config = (composed[i] if composed is not None
+                          else self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides)))
+            except Exception as err:  # a swept value of hydra.sweeper.params (a preset's) that does not compose
+                if sweep_control.debug_requested():
+                    raise
+                refuse_job(overrides, err)
             if configs is not None:
                 configs.add_composed(overrides, config)
         log.debug(f"Validated {len(jobs)} of {len(batch)} job configs in {time.perf_counter() - tic:.2f} s")
+
+
+def refuse_job(overrides: Sequence[str], err: Exception) -> None:
+    """One line naming the job's overrides and what Hydra found wrong in them, exit 2 (before any job ran: the
+    sweeper's :meth:`~FaultTolerantSweeper.sweep` puts a resume's set-aside logs back on the way out). Hydra printed
+    its error over a dozen lines (the options of the group, the search path)."""
+    import sys
+
+    from runners.configuration.precheck import one_line
+
+    interrupt = next((e for e in (err, err.__cause__, err.__context__) if isinstance(e, KeyboardInterrupt)), None)
+    if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
+        raise interrupt from None
+    print(f"error: {one_line(err)} (the sweep's job {' '.join(overrides)[:200]})", file=sys.stderr)
+    sys.exit(2)
 
 
 def _finish(run: sweep_control.SweepRun, config: Any, returns: list[Sequence[Any]]) -> list[Sequence[Any]]:
