@@ -45,7 +45,13 @@ def mutable_mirror(cls: type) -> type:
         # OmegaConf turns any integer into a boolean for a bool field (``swept_tpt=3`` became true): such
         # fields stay untyped here and fuzzynav's own parser (fuzzynav.config) accepts only true or false
         fields.append((f.name, Any if hint is bool else hint, dataclasses.field(default=default)))
-    mirror = dataclasses.make_dataclass(f"{cls.__name__}Schema", fields)
+    # a class of this module, found by its name (as pickle finds a class): the configs a sweep sends to its workers
+    # and copies for each job refer to it instead of carrying its definition (in module ``types``, made by
+    # make_dataclass, cloudpickle wrote the class into every pickle and read it back each time: ~8 ms a config)
+    name = f"{cls.__name__}Schema"
+    mirror = dataclasses.make_dataclass(name, fields, namespace={"__module__": __name__})
+    if globals().setdefault(name, mirror) is not mirror:
+        raise RuntimeError(f"two schemas named {name}")
     _MIRRORS[cls] = mirror
     return mirror
 
