@@ -500,21 +500,30 @@ def single_run_sweep(overrides: list[str], shown: bool = False) -> str | None:
     return None
 
 
+def hydra_arguments(args: list[str]) -> tuple[Any, list[str]] | None:
+    """The command-line arguments as Hydra's own parser reads them (its options, ``overrides``) and those it does
+    not know; None for a malformed option of Hydra's (Hydra's own message follows when Hydra reads them)."""
+    import io
+
+    from hydra._internal.utils import get_args_parser
+
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            return get_args_parser().parse_known_args(args)
+    except SystemExit:
+        return None
+
+
 def hydra_overrides(args: list[str]) -> tuple[list[str], str | None, bool]:
     """The config overrides among the command-line arguments (as Hydra's own parser reads them: ``--cfg job`` is
     an option and its value), one line about the first argument that looks like an option but is none of
     Hydra's (Hydra printed its 8-line usage for ``--planner.h_wait=2``, a config override written with dashes),
     and whether the command is a plain run: overrides only (``--run`` at most: no ``--cfg``, ``--info``,
     ``--config-dir`` ...) and none of ``hydra.mode``."""
-    import io
-
-    from hydra._internal.utils import get_args_parser
-
-    try:
-        with contextlib.redirect_stderr(io.StringIO()):  # a malformed Hydra option: Hydra's own message follows
-            known, unknown = get_args_parser().parse_known_args(args)
-    except SystemExit:
+    parsed = hydra_arguments(args)
+    if parsed is None:
         return [a for a in args if not a.startswith("-")], None, False
+    known, unknown = parsed
     for arg in unknown:
         if arg.startswith("-"):
             bare = arg.lstrip("-")
@@ -530,15 +539,10 @@ def primary_config_problem(args: list[str]) -> str | None:
     """One line when ``--config-dir`` is not a folder or ``--config-name`` names no YAML file in fuzzynav's
     ``conf/``, that folder or another package's config folder (Hydra answered with its search path, five lines),
     else None."""
-    import io
-
-    from hydra._internal.utils import get_args_parser
-
-    try:
-        with contextlib.redirect_stderr(io.StringIO()):
-            known, _ = get_args_parser().parse_known_args(args)
-    except SystemExit:  # a malformed option: Hydra's own message follows
+    parsed = hydra_arguments(args)
+    if parsed is None:
         return None
+    known, _ = parsed
     try:
         folders = [CONF_DIR, *(folder for _, folder in config_plugins.plugin_config_dirs())]
     except config_plugins.PluginConfigError:  # the precheck reports a broken entry point

@@ -327,16 +327,12 @@ def with_preset(args: list[str], preset: str) -> list[str]:
     just before the first override, or first where there is none. Overrides are one group of positional arguments
     for that parser; in front of options followed by overrides (``--cfg job planner=wait``), the preset made a
     second group, and Hydra refused the command ("unrecognized arguments")."""
-    import io
+    from runners.run import hydra_arguments
 
-    from hydra._internal.utils import get_args_parser  # the parser Hydra reads these arguments with (pinned)
-
-    try:
-        with contextlib.redirect_stderr(io.StringIO()):  # a malformed option: Hydra's own message follows
-            known, _ = get_args_parser().parse_known_args(args)
-    except SystemExit:
+    parsed = hydra_arguments(args)
+    if parsed is None:  # a malformed option: Hydra's own message follows
         return [preset, *args]
-    overrides = list(known.overrides)
+    overrides = list(parsed[0].overrides)
     for i in range(len(args)):
         if overrides and args[i:i + len(overrides)] == overrides:
             return [*args[:i], preset, *args[i:]]
