@@ -116,9 +116,10 @@ def refuse_job(overrides: Sequence[str], err: Exception) -> None:
     its error over a dozen lines (the options of the group, the search path)."""
     import sys
 
+    from analysis.interrupts import interrupt_in_chain
     from runners.configuration.precheck import one_line
 
-    interrupt = next((e for e in (err, err.__cause__, err.__context__) if isinstance(e, KeyboardInterrupt)), None)
+    interrupt = interrupt_in_chain(err)
     if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
         raise interrupt from None
     print(f"error: {one_line(err)} (the sweep's job {' '.join(overrides)[:200]})", file=sys.stderr)
