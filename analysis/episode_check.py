@@ -39,6 +39,7 @@ def check_episode(log: EpisodeLog, times: Mapping[str, list[int]], config_dt: fl
     for topic in (*per_step, "/laser"):
         _check_times(topic, times.get(topic, ()), log.dt)
     _check_world(log, times)
+    _check_scenario_is_the_configs(log)
     _check_against_scenario(log)
     _check_robot_path(log)
     _check_obstacle_paths(log)
@@ -139,6 +140,49 @@ def _check_outcome(log: EpisodeLog) -> None:
                                                  f"max_steps is {max_steps}")
 
 
+_FIXED_KEYS = ("name", "bounds", "max_steps", "goal_tolerance")
+_ROBOT_KEYS = ("start", "goal", "heading", "radius")
+_OBSTACLE_KEYS = ("id", "radius", "start", "velocity")
+
+
+def _check_scenario_is_the_configs(log: EpisodeLog) -> None:
+    """A fixed scenario (the config's ``scenario`` section has its robot: not generated per seed) is the world the
+    metadata ``scenario_yaml`` logs. The config is covered by ``config_hash``, ``scenario_yaml`` is not: edited, an
+    episode of one scenario was counted in another's group; deleted, the checks against the scenario were skipped
+    and a collision could be relabelled a goal."""
+    scenario = log.config.get("scenario")
+    if not isinstance(scenario, dict) or not isinstance(scenario.get("robot"), dict):
+        return  # generated per seed (its world is the generator's), or a hand-written log with no scenario
+    world = parse_world(log.meta.get("scenario_yaml", ""))
+    if not isinstance(world, dict) or not isinstance(world.get("robot"), dict):
+        raise CheckError("metadata scenario_yaml", "missing or not a scenario, but the config's scenario "
+                                                   f"{str(scenario.get('name'))[:64]!r} is a fixed one")
+    pairs = [(f"robot.{key}", scenario["robot"].get(key), world["robot"].get(key)) for key in _ROBOT_KEYS]
+    pairs += [(key, scenario.get(key), world.get(key)) for key in _FIXED_KEYS]
+    ours, logged = scenario.get("dynamic_obstacles") or [], world.get("dynamic_obstacles") or []
+    if not isinstance(ours, list) or not isinstance(logged, list) or len(ours) != len(logged):
+        raise CheckError("metadata scenario_yaml dynamic_obstacles", "not the config's scenario's moving obstacles")
+    pairs += [(f"dynamic_obstacles[{i}].{key}", a.get(key) if isinstance(a, dict) else a,
+               b.get(key) if isinstance(b, dict) else b) for i, (a, b) in enumerate(zip(ours, logged, strict=True))
+              for key in _OBSTACLE_KEYS]
+    for where, expected, got in pairs:
+        if not _same_value(expected, got):
+            raise CheckError(f"metadata scenario_yaml {where}", f"{str(got)[:80]} is not the config's scenario's "
+                                                                f"{str(expected)[:80]}")
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    """Equal as the scenario's values: numbers by value (the config writes 600, the world 600.0), lists item by
+    item, anything else by equality."""
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return float(a) == float(b)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same_value(x, y) for x, y in zip(a, b, strict=True))
+    return a == b
+
+
 def _check_against_scenario(log: EpisodeLog) -> None:
     """The exact world of the episode (the ``scenario_yaml`` metadata that ``runners.run`` writes; hand-written
     logs have none, or a placeholder that is not a scenario): the robot starts at its start pose with its
@@ -197,6 +241,62 @@ def _check_robot_path(log: EpisodeLog) -> None:
                                                            f"{k}'s next_x_cm/next_y_cm/next_heading_deg")
     if states and any(s["radius_cm"] != states[0]["radius_cm"] for s in states):
         raise CheckError("/robot/state radius_cm", "changes during the episode")
+    _check_robot_moves(log)
+
+
+def _check_robot_moves(log: EpisodeLog) -> None:
+    """Each step moves the robot as :func:`fuzzynav.kinematics.step_unicycle` does: ``next_v_cm_s`` × dt along
+    ``next_heading_deg``, a speed within the config's ``robot`` limits (0 or [v_min, v_max]) and a turn of at most
+    ``max_turn_deg``, for a log whose config has the ``robot`` section runners.run writes. A robot moved 490 cm in
+    one step of 25 cm/s (and back) was counted as a faster success."""
+    robot = log.config.get("robot")
+    if not isinstance(robot, dict):  # a hand-written log (tests): its poses are whatever it says
+        return
+    limits = {key: robot.get(key) for key in ("v_min", "v_max", "max_turn_deg")}
+    limits = {k: float(v) for k, v in limits.items() if isinstance(v, int | float) and not isinstance(v, bool)}
+    decisions = log.decisions if len(log.decisions) == len(log.states) else [None] * len(log.states)
+    for k, (st, decision) in enumerate(zip(log.states, decisions, strict=True)):
+        v = st["next_v_cm_s"]
+        if v != 0.0 and not limits.get("v_min", 0.0) - _TOL <= v <= limits.get("v_max", math.inf) + _TOL:
+            raise CheckError(f"/robot/state step {k} next_v_cm_s", f"{v!r} is not 0 and outside the config's robot "
+                                                                   f"speed limits [{limits.get('v_min', 0.0):g}, "
+                                                                   f"{limits.get('v_max', math.inf):g}] cm/s")
+        turn = abs((st["next_heading_deg"] - st["heading_deg"] + 180.0) % 360.0 - 180.0)
+        if turn > limits.get("max_turn_deg", 180.0) + 1e-6:
+            raise CheckError(f"/robot/state step {k}", f"turns {turn:.3f}°, more than the config's robot "
+                                                       f"max_turn_deg {limits['max_turn_deg']:g}")
+        length = v * log.dt
+        sin, cos = math.sin(math.radians(st["next_heading_deg"])), math.cos(math.radians(st["next_heading_deg"]))
+        dx, dy = st["next_x_cm"] - st["x_cm"], st["next_y_cm"] - st["y_cm"]
+        if math.hypot(dx - length * cos, dy - length * sin) > _TOL * max(1.0, length, abs(st["x_cm"]),
+                                                                          abs(st["y_cm"])):
+            raise CheckError(f"/robot/state step {k}", f"moves ({dx:.3f}, {dy:.3f}) cm, not next_v_cm_s × dt = "
+                                                       f"{length:.3f} cm along next_heading_deg "
+                                                       f"{st['next_heading_deg']:.3f}")
+        if decision is not None and "v_min" in limits and "v_max" in limits and "max_turn_deg" in limits:
+            _check_command(k, st, decision, limits)
+
+
+def _check_command(k: int, st: dict, decision: dict, limits: dict[str, float]) -> None:
+    """The step's move is its decision's, as the simulator applies it: the speed 0 for a decision of 0 or less,
+    else clamped to [v_min, v_max]; the heading turned by ``dtheta_deg`` clamped to ±max_turn_deg. Decisions
+    rewritten to wait while the robot kept moving were counted as waiting."""
+    v = decision["v_cm_s"]
+    speed = 0.0 if v <= 0.0 else max(limits["v_min"], min(limits["v_max"], v))
+    if abs(st["next_v_cm_s"] - speed) > _TOL * max(1.0, speed):
+        raise CheckError(f"/robot/state step {k} next_v_cm_s", f"{st['next_v_cm_s']!r}, but the step's decision "
+                                                               f"v_cm_s {v!r} moves the robot at {speed:g} cm/s")
+    turn = max(-limits["max_turn_deg"], min(limits["max_turn_deg"], decision["dtheta_deg"]))
+    off = abs((st["heading_deg"] + turn - st["next_heading_deg"] + 180.0) % 360.0 - 180.0)
+    if off > 1e-6:
+        raise CheckError(f"/robot/state step {k} next_heading_deg", f"{st['next_heading_deg']!r}, but the step's "
+                                                                    f"decision turns {decision['dtheta_deg']!r}° "
+                                                                    f"from {st['heading_deg']!r}°")
+
+
+_TOL = 1e-6
+"""Relative slack of the robot's kinematics check: the simulator's own (portable) sine and cosine differ from
+``math``'s in the last bits."""
 
 
 def _check_obstacle_paths(log: EpisodeLog) -> None:

@@ -7,8 +7,8 @@ Each raises :class:`CheckError` (:mod:`analysis.json_checks`) with the field and
   with ``.``, at most 64 characters), the strategy and perception are known values, the config is
   a YAML mapping of plain values (finite numbers, string keys, at most ``MAX_CONFIG_NODES`` nodes: no alias
   bombs) whose step length ``dt`` (s) is positive, and whose copies of the shown parameters agree with the
-  record; a ``config_hash`` that is a SHA-256 must be the hash of the config and seed (as ``runners.run``
-  computes it), so a damaged or edited record is caught even in logs without a data-section CRC.
+  record; ``config_hash`` (present, a SHA-256) must be the hash of the config, seed and ``fuzzynav_version`` (as
+  ``runners.run`` computes it), so a damaged or edited record is caught even in logs without a data-section CRC.
 * :func:`check_message` — per topic, the fields of a message that the analysis reads (:data:`READ`): present, of
   the JSON type the topic's schema gives (:mod:`analysis.log_format`, the schemas the writer embeds in every log),
   finite, and in their range (:data:`RANGES`: cm quantities within ±``MAX_CM``, headings in [0, 360] degrees,
@@ -356,11 +356,18 @@ def check_metadata(meta: Mapping[str, str]) -> tuple[dict[str, Any], float | Non
         except CheckError as err:
             raise err.inside("config dt") from None
         dt = float(dt)
-    digest = meta.get("config_hash", "")
-    if digest and "config" not in meta:  # else the hash check below blamed the hash for the config's absence
-        raise CheckError("config", "missing (the metadata has a config_hash but no config)")
-    if _SHA256.fullmatch(digest) and "fuzzynav_version" in meta and \
-            digest != config_hash(meta.get("config", ""), meta["seed"], meta["fuzzynav_version"]):
+    if "config" not in meta:  # else the hash check below blamed the hash for the config's absence
+        raise CheckError("config", "missing (the metadata has a config_hash but no config)" if "config_hash" in meta
+                         else "missing")
+    # every log runners.run writes has both: without them the check of the record could be switched off by
+    # deleting a key, and an edited config (another run's parameters) was pooled into the wrong group
+    digest, version = meta.get("config_hash"), meta.get("fuzzynav_version")
+    if digest is None or version is None:
+        raise CheckError("config_hash" if digest is None else "fuzzynav_version",
+                         "missing (every log fuzzynav writes has it: edited metadata or not fuzzynav's log)")
+    if not _SHA256.fullmatch(digest):
+        raise CheckError("config_hash", f"{digest[:80]!r} is not a SHA-256 digest")
+    if digest != config_hash(meta["config"], meta["seed"], version):
         raise CheckError("config_hash", "is not the hash of the config and seed (edited or damaged metadata)")
     return config, dt
 

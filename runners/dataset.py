@@ -501,10 +501,36 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
             out.problems.append((file, episode_line(file, expected, got, diff, location)))
         for file in sorted(set(results) - set(manifest["episodes"])):
             out.problems.append((file, f"{file}: produced but not in the manifest"))
+        for file, expected in sorted(manifest["episodes"].items()):
+            problem = committed_log_problem(log_dir / file, expected["sha256"])
+            if problem:
+                out.problems.append((file, f"{file}: the committed log {problem}"))
         if not out.problems and seeds is None:
             problems, out.notes = compare_metrics(manifest, dataset_metrics(sorted(Path(tmp).glob("*.mcap"))), name)
             out.problems.extend(("", text) for text in problems)
     return out
+
+
+def committed_log_problem(path: Path, sha256: str) -> str | None:
+    """What is wrong with a dataset's committed log ``path``, or None: it is the episode the manifest records (the
+    content digest ``sha256``) and passes every check of the analysis (a replaced, damaged or edited log was never
+    looked at while the regenerated episode matched the manifest). None too when the dataset commits no log of this
+    episode."""
+    if not os.path.lexists(path):
+        return None
+    if path.is_symlink() or not path.is_file():
+        return f"{path} is not a regular file"
+    from analysis.episode_log import load_episode
+
+    try:
+        load_episode(path)  # the metadata (its config_hash), the scenario, the messages together
+        digest = content_digests(path)["sha256"]
+    except (LogError, OSError) as err:
+        return f"cannot be read: {' '.join(str(err).split())[:300]}"
+    if digest != sha256:
+        return (f"{path} is not the episode the manifest records (the SHA-256 of its messages differs: damaged, edited "
+                "or replaced; python -m runners.dataset build writes it again)")
+    return None
 
 
 def check_root(root: Path) -> None:

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import zlib
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
 from analysis.log_format import SCHEMAS, TOPICS
+from fuzzynav.episode_identity import config_hash
 
 GOAL = (500.0, 500.0)
 
@@ -50,7 +52,13 @@ def write_log(path: Path, poses, *, radius: float = 20.0, statics=(), obstacles=
                                             "/episode")}
     metadata = {"config": "dt: 1.0\n", "seed": "0", "scenario": "handmade", "strategy": "auto", "h_wait": "2",
                 "controller": "table1", "perception": "laser"}
+    # a seed of its own per file name: logs of one config and seed with other content are one episode in conflict
+    metadata["seed"] = str(zlib.crc32(path.name.encode()) % 1_000_000)
     metadata.update(meta or {})
+    # as runners.run records them: the analysis leaves out a log without them
+    metadata.setdefault("fuzzynav_version", "0.0.0+handmade")
+    metadata.setdefault("config_hash", config_hash(metadata.get("config", ""), metadata.get("seed", "0"),
+                                                   metadata["fuzzynav_version"]))
     w.add_metadata("fuzzynav.run", metadata)
 
     def put(topic, t, msg):

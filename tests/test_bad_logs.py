@@ -122,7 +122,7 @@ def test_a_copy_of_an_episode_is_counted_once_and_listed(sweep_dir, good):
 def test_two_different_logs_of_one_episode_are_both_left_out(sweep_dir, good):
     def nudge(topic, index, msg):  # same config hash and seed, different content
         if topic == "/planner/decision" and index == 2:
-            msg["v_cm_s"] += 1.0
+            msg["left_cm"] -= 1.0  # (its speed is the robot's move: the analysis checks it)
         return msg
 
     rewrite(good, sweep_dir / "other.mcap", message=nudge)
@@ -304,3 +304,68 @@ def test_chunks_that_decompress_to_more_than_any_log_are_refused_at_once(tmp_pat
     assert df.empty and left_out["kind"].tolist() == ["too-large"]
     assert "the chunks decompress to more than 1024 MB" in left_out["reason"].iloc[0]
     assert replay.main([str(bomb)]) == 2
+
+
+def _other_world(meta: dict[str, str]) -> dict[str, str]:
+    """The ``scenario_yaml`` of another scenario (head_on's), the config left as it was."""
+    world = yaml.safe_load(meta["scenario_yaml"])
+    world.update(name="head_on", robot={"start": [100.0, 300.0], "goal": [1100.0, 300.0], "heading": 0.0,
+                                        "radius": 20.0})
+    return {**meta, "scenario_yaml": yaml.safe_dump(world, sort_keys=False)}
+
+
+def _moved_start(meta: dict[str, str]) -> dict[str, str]:
+    world = yaml.safe_load(meta["scenario_yaml"])
+    world["robot"]["start"] = [world["robot"]["start"][0] + 1.0, world["robot"]["start"][1]]
+    return {**meta, "scenario_yaml": yaml.safe_dump(world, sort_keys=False)}
+
+
+@pytest.mark.parametrize("edit, expect", [
+    (lambda m: {k: v for k, v in m.items() if k != "scenario_yaml"}, "metadata scenario_yaml: missing or not a "
+                                                                      "scenario"),
+    (lambda m: {**m, "scenario_yaml": "a placeholder"}, "metadata scenario_yaml: missing or not a scenario"),
+    (_other_world, "metadata scenario_yaml robot.start"),
+    (_moved_start, "metadata scenario_yaml robot.start"),
+], ids=["deleted", "placeholder", "another_scenario", "moved_start"])
+def test_a_fixed_scenarios_logged_world_is_its_configs(edit, expect, tmp_path, good):
+    """``scenario_yaml`` is not covered by ``config_hash``: deleted, the checks against the scenario were skipped (a
+    collision relabelled a goal counted as a success); replaced, an episode was counted in another scenario's
+    group. For a fixed scenario (the config's ``scenario`` has its robot) it must be the config's scenario."""
+    log = rewrite(good, tmp_path / "bad.mcap", metadata=edit)
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
+    assert expect in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+
+
+@pytest.mark.parametrize("next_v, expect", [
+    (39.0, "/robot/state step 5: moves ("),
+    (55.0, "/robot/state step 5 next_v_cm_s: 55.0 is not 0 and outside the config's robot speed limits [10, 40]"),
+])
+def test_a_robot_that_does_not_move_as_the_simulator_moves_it_is_refused(next_v, expect, tmp_path, good):
+    """The robot's moves are the simulator's kinematics (``next_v_cm_s`` × dt along ``next_heading_deg``, within the
+    config's robot limits): a robot moved 490 cm in one step of 25 cm/s was counted as a faster success."""
+    def edit(topic, index, msg):
+        if topic == "/robot/state" and index == 5:
+            assert msg["next_v_cm_s"] not in (0.0, next_v)
+            msg["next_v_cm_s"] = next_v
+        return msg
+
+    log = rewrite(good, tmp_path / "bad.mcap", message=edit)
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
+    assert expect in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+
+
+def test_a_decision_that_is_not_the_robots_move_is_refused(tmp_path, good):
+    """Decisions rewritten to wait (v 0) while the robot kept moving were counted as waiting steps."""
+    def edit(topic, index, msg):
+        if topic == "/planner/decision" and index == 5:
+            assert msg["v_cm_s"] > 0
+            msg["v_cm_s"] = 0.0
+        return msg
+
+    log = rewrite(good, tmp_path / "bad.mcap", message=edit)
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
+    assert "/robot/state step 5 next_v_cm_s" in left_out["reason"].iloc[0] and "decision v_cm_s 0.0" in \
+        left_out["reason"].iloc[0], left_out["reason"].iloc[0]

@@ -23,6 +23,7 @@ from runners import dataset
 from runners.datasets.verify_report import summary_lines
 from runners.logs.diff import SUM_FIELD, UNCLASSIFIED, diff_logs, diff_records
 from runners.logs.fields import BEHAVIOUR, DISCRETE, FLOAT, SUMMED_TOPICS, compare, expand_runs, parse_sums
+from tests.conftest import ROOT
 
 TINY = {"name": "tiny", "description": "two short episodes for the verify tests", "version": 1,
         "sweep": {"scenarios": ["paper_fig5"], "variants": ["planner=auto_h2"], "seeds": [0, 2], "overrides": []},
@@ -481,6 +482,38 @@ def test_a_wrong_manifest_steps_or_outcome_is_a_difference(root, tmp_path, capsy
     assert code == 1, (out, err)
     line = episode_line(out, UNLOGGED)
     assert "the manifest entry differs from the regenerated episode" in line and said in line, out
+
+
+def _flip_a_byte(log: Path) -> None:
+    data = bytearray(log.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    log.write_bytes(bytes(data))
+
+
+def _another_episode(log: Path) -> None:
+    """Replaced by another valid episode: seed 1 of the same configuration, from the committed paper_fig5 dataset."""
+    shutil.copyfile(ROOT / "datasets" / "paper_fig5" / "logs" / UNLOGGED, log)
+
+
+def _a_folder(log: Path) -> None:
+    log.unlink()
+    log.mkdir()
+
+
+@pytest.mark.parametrize("damage, said", [
+    (_flip_a_byte, "the committed log"),
+    (_another_episode, "is not the episode the manifest records"),
+    (_a_folder, "is not a regular file"),
+], ids=["bit_flip", "replaced", "a_folder"])
+def test_a_damaged_or_replaced_committed_log_fails_verify(root, tmp_path, capsys, damage, said):
+    """The committed logs were looked at only when a regenerated episode differed: one replaced by another episode
+    (or damaged, or a folder in its place) verified as matching."""
+    shutil.copytree(root / "tiny", tmp_path / "tiny")
+    damage(tmp_path / "tiny" / "logs" / LOGGED)
+    code, out, err = run(capsys, "verify", "tiny", "--seeds", "0:1", "--root", str(tmp_path))
+    assert code == 1, (out, err)
+    line = episode_line(out, LOGGED)
+    assert f"{LOGGED}: the committed log" in line and said in line, out
 
 
 # -- metrics hashed per column --------------------------------------------------------------------------------

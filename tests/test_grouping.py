@@ -26,6 +26,7 @@ from analysis.run_parameters import (
     provenance_warning,
     short_names,
 )
+from fuzzynav.episode_identity import config_hash
 from runners.sweeping.summary import summarise
 from tests.conftest import ROOT
 from tests.handmade import write_log
@@ -48,9 +49,10 @@ def meta(edit=None, seed: int = 0, **extra) -> dict[str, str]:
     out = {"config": yaml.safe_dump(config, sort_keys=False), "seed": str(seed),
            "scenario": config["scenario"]["name"], "strategy": config["planner"]["strategy"],
            "h_wait": str(config["planner"]["h_wait"]), "controller": config["controller"]["name"],
-           "perception": config["perception"]["mode"], "scenario_yaml": f"seed {seed}", "config_hash": f"h{seed}",
-           **PROVENANCE}
+           "perception": config["perception"]["mode"], "scenario_yaml": f"seed {seed}", **PROVENANCE}
     out.update(extra)
+    if "config_hash" not in extra:  # as runners.run computes it: the analysis checks it
+        out["config_hash"] = config_hash(out["config"], out["seed"], out["fuzzynav_version"])
     return out
 
 

@@ -343,3 +343,27 @@ def test_a_goal_disc_other_than_the_scenarios_tolerance_is_left_out(tmp_path, re
     analysis = analyse_logs([rewrite(recorded_logs[0], tmp_path / "goal.mcap", message=resize)])
     assert analysis.episodes.empty and analysis.excluded["kind"].tolist() == ["episode"]
     assert "/scene goal: a disc of radius" in analysis.excluded["reason"].iloc[0]
+
+
+@pytest.mark.parametrize(("edit", "field"), [
+    (lambda m: m.pop("config_hash"), "config_hash"),
+    (lambda m: m.update(config_hash="not-a-digest"), "config_hash"),
+    (lambda m: m.update(config_hash="0" * 64), "config_hash"),
+    (lambda m: m.pop("fuzzynav_version"), "fuzzynav_version"),
+    (lambda m: m.update(fuzzynav_version="9.9.9"), "config_hash"),
+])
+def test_the_record_cannot_be_unchecked_by_deleting_or_spoiling_its_hash(edit, field):
+    """A log whose config was edited (another run's parameters: it was pooled into the wrong group) and whose
+    ``config_hash`` or ``fuzzynav_version`` was deleted or spoiled is refused, naming the field: every log
+    ``runners.run`` writes has both, so their absence is no reason to skip the check."""
+    from analysis.log_check import check_metadata
+
+    log = ROOT / "datasets" / "paper_fig5" / "logs" / "paper_fig5__planner-auto_h2__s0.mcap"
+    meta = dict(LogFile(log).metadata())
+    check_metadata(meta)  # the log as written passes
+    meta["config"] = meta["config"].replace("safety_margin_cm: 10", "safety_margin_cm: 20")
+    assert "safety_margin_cm: 20" in meta["config"]
+    edit(meta)
+    with pytest.raises(CheckError) as err:
+        check_metadata(meta)
+    assert err.value.where == field, str(err.value)

@@ -23,7 +23,9 @@ def test_parquet_tables_equal_the_csv_tables_and_carry_units(tmp_path):
         for offset in (0, 1):  # two variants (h_wait 2 and 3), distinct paths: identical logs count once
             line = [(0, 0, 0), (25, offset, 0), (50, 0, 0), (75, offset, 0), (100, 0, 0)]
             write_log(logs / f"h{offset}_{seed}.mcap", line[: 3 + seed], goal=(100.0, 0.0), tolerance=20.0 + offset,
-                      meta={"seed": str(seed), "h_wait": str(2 + offset)}, outcome="goal" if seed == 2 else "timeout")
+                      meta={"seed": str(seed), "h_wait": str(2 + offset),
+                            "config": f"dt: 1.0\nplanner:\n  h_wait: {2 + offset}\n"},
+                      outcome="goal" if seed == 2 else "timeout")
     out = tmp_path / "report"
     build_report([logs], out)
     for table in ("episodes", "groups", "paired"):
