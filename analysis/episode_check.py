@@ -224,12 +224,19 @@ def _check_obstacle_ids(log: EpisodeLog, world: dict) -> None:
     log moved is not this log's."""
     entries = world.get("dynamic_obstacles") or []
     ids = [e.get("id") if isinstance(e, dict) else None for e in entries] if isinstance(entries, list) else None
+    radii = [e.get("radius") if isinstance(e, dict) else None for e in entries] if isinstance(entries, list) else []
     for m in log.truth:
         logged = [o["id"] for o in m["obstacles"]]
         if logged != ids:
             raise CheckError(f"/obstacles/truth step {m['step']}", f"obstacle ids {logged[:5]} are not the "
                                                                    f"scenario's {(ids or [])[:5]} (metadata "
                                                                    "scenario_yaml dynamic_obstacles)")
+        # their sizes too: a walker logged at 5 cm instead of 20 moved every clearance and near miss
+        for o, radius in zip(m["obstacles"], radii, strict=True):
+            if isinstance(radius, int | float) and not isinstance(radius, bool) and o["radius_cm"] != float(radius):
+                raise CheckError(f"/obstacles/truth step {m['step']} {o['id']} radius_cm",
+                                 f"{o['radius_cm']!r} is not the scenario's {radius!r} (metadata scenario_yaml "
+                                 "dynamic_obstacles)")
 
 
 def _check_robot_path(log: EpisodeLog) -> None:

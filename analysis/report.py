@@ -824,7 +824,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {out / 'report.md'} and {out / 'report.html'}")
     if analysis.episodes.empty:  # a report of no episode is no result: it only lists why each log was left out
         n = len(analysis.excluded)
-        first = str(analysis.excluded["reason"].iloc[0]) if n else ""  # names the file and the problem
+        first = str(analysis.excluded["reason"].iloc[0]) if n else ""  # the problem, with the file it is in
+        log = str(analysis.excluded["log"].iloc[0]) if n else ""
+        if log and log not in first:  # (an episode's own error, "episode raised: ...", does not name its log)
+            first = f"{log}: {first}"
         more = f"; and {n - 1} more" if n > 1 else ""
         print(f"error: none of the {n} log(s) could be analysed ({left_out_counts(analysis.excluded)}): "
               f"{first[:300]}{more} (all in 'Logs left out' of {out / 'report.md'})", file=sys.stderr)

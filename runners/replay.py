@@ -335,7 +335,12 @@ def _run(args: argparse.Namespace) -> int:
     if args.verify and (args.controller or overrides):
         raise ReplayError("--verify: re-decides with the recorded config; it cannot be combined with "
                           "--controller/overrides (without --verify they list every step that differs)")
-    if args.out is not None and not (args.verify or args.controller or overrides):
+    if args.out is not None and (args.verify or args.controller or overrides):
+        raise ReplayError("--out: --verify, --controller and overrides list the steps that differ and draw no "
+                          "picture; --out names the picture of a plain replay")
+    if args.out is not None:
+        if args.out.endswith(("/", os.sep)):  # Path() drops the slash: the picture went beside the folder named
+            raise ReplayError(f"--out: {args.out}: names a folder; --out is a path stem (e.g. {args.out}replay)")
         check_out_stem(Path(args.out))
     if not path.exists() and not path.is_symlink():
         raise ReplayError(f"{path}: no such file")

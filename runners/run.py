@@ -393,9 +393,14 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
     ``sweep``: called by ``runners.sweep``, which adds ``--multirun``; a user's own ``-m`` is refused in one line
     naming the ``runners.sweep`` command (Hydra's multirun of ``runners.run`` wrote logs but printed no outcome,
     summary or report)."""
+    from runners.configuration.command_line import canonical_arguments
     from runners.configuration.precheck import debug_requested, precheck
 
-    args = sys.argv[1:]
+    args, problem = canonical_arguments(sys.argv[1:])
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        sys.exit(2)
+    sys.argv = [sys.argv[0], *args]
     problem = argument_problem(args, sweep)
     if problem:
         print(f"error: {problem}", file=sys.stderr)
@@ -411,7 +416,10 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
         if not problem and "--multirun" not in args and "-m" not in args:
             problem = single_run_sweep(overrides, shown=sweep)
         keep = composed.append if plain_run and not sweep and on_config is None else on_config
-        problem = problem or precheck(overrides, keep, multirun="--multirun" in args or "-m" in args)
+        primary = hydra_arguments(args)
+        problem = problem or precheck(overrides, keep, multirun="--multirun" in args,
+                                      config_dir=primary[0].config_dir if primary else None,
+                                      config_name=primary[0].config_name if primary else None)
         if problem:
             print(f"error: {problem}", file=sys.stderr)
             sys.exit(2)
@@ -456,12 +464,18 @@ def argument_problem(args: list[str], sweep: bool) -> str | None:
         value = arg.partition("=")[2]
         if not sweep and key == "hydra.mode" and value.strip().upper() == "MULTIRUN":
             return multirun_problem([a for a in args if a != arg])
+        if sweep and key == "hydra.mode" and value.strip().upper() == "RUN":
+            return ("hydra.mode=RUN: runners.sweep runs a sweep; one configuration is python -m runners.run with the "
+                    "same overrides")
         if key == other and own not in keys:  # (both given: the command's own is used, the other harmless)
             return (f"{other}: {'a single run' if sweep else 'a sweep'}'s folder; "
                     f"{'a sweep' if sweep else 'a single run'} writes into {own}={value[:80]}")
     for option in ("--experimental-rerun", "--shell-completion", "-sc"):
         if any(a == option or a.startswith(option + "=") for a in args):
             return f"{option}: Hydra's option is not supported by fuzzynav's commands (see --help)"
+    if any(a == "--config-path" or a.startswith("--config-path=") for a in args):  # (written out in full before)
+        return ("--config-path: the folder of an application's primary config, fixed for fuzzynav's commands; add a "
+                "folder of configs with --config-dir DIR (and --config-name NAME for one of its files)")
     return None
 
 

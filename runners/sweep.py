@@ -34,6 +34,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from analysis.drawing import FigureError
 from analysis.logs import is_complete
+from fuzzynav.params.limits import MAX_SWEEP_JOBS
 from runners.progress import EpisodeProgress
 from runners.sweeping import control as sweep_control
 from runners.sweeping import end as sweep_end
@@ -127,7 +128,7 @@ def short_jobs_tip(total_episodes: int | None, episodes_per_job: int) -> str | N
     if total_episodes is None or episodes_per_job >= SHORT_JOB_EPISODES:
         return None
     jobs = total_episodes // max(episodes_per_job, 1)
-    if jobs < SHORT_JOBS:
+    if jobs < SHORT_JOBS or jobs > MAX_SWEEP_JOBS:  # (more: the sweeper refuses it, saying how to batch)
         return None
     return (f"tip: {jobs} jobs of {episodes_per_job} episode(s) each; every job costs about 0.15-0.2 s of CPU "
             "besides its episodes. Batch seeds into longer jobs, e.g. seed='range(0,1000,250)' episodes=250")
@@ -322,6 +323,26 @@ def default_preset(args: list[str]) -> str:
 SHOW_OPTIONS = ("--cfg", "-c", "--info", "-i")  # Hydra's options that print the config instead of running it
 
 
+def preset_problem(args: list[str]) -> str | None:
+    """One line when the command line sweeps, deletes or globs the ``sweep`` preset (``sweep=quick,policies``,
+    ``~sweep``): a sweep is run by its preset (conf/sweep/), and without one Hydra's basic sweeper and launcher ran
+    the jobs with no summary or report, exit 0."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parser = OverridesParser.create()
+    for arg in args:
+        if arg.startswith("-") or arg.lstrip("+~").partition("=")[0].strip() != "sweep":
+            continue
+        try:
+            (override,) = parser.parse_overrides([arg])
+        except Exception:  # the precheck names a malformed override
+            continue
+        if override.is_delete() or override.is_sweep_override():
+            return (f"{arg[:80]}: a sweep runs one preset of conf/sweep/ (sweep=<name>): run one command per preset "
+                    "(python -m runners.sweep sweep=quick, then sweep=policies)")
+    return None
+
+
 def with_preset(args: list[str], preset: str) -> list[str]:
     """``args`` with the ``preset`` override where Hydra's command-line parser reads it as one of the overrides:
     just before the first override, or first where there is none. Overrides are one group of positional arguments
@@ -341,7 +362,13 @@ def with_preset(args: list[str], preset: str) -> list[str]:
 
 def main() -> None:
     sweep_control.install_handlers()  # from the start: a signal before the sweep begins kills its prewarmed workers
-    args = sys.argv[1:]
+    from runners.configuration.command_line import canonical_arguments
+
+    args, problem = canonical_arguments(sys.argv[1:])  # (--ru is --run, -cjob is --cfg job)
+    problem = problem or preset_problem(args)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        sys.exit(2)
     if not any(a.startswith("sweep=") for a in args):
         args = with_preset(args, f"sweep={default_preset(args)}")
     if "--run" in args or "-r" in args:

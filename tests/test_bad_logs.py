@@ -215,7 +215,8 @@ def test_a_report_that_cannot_be_written_completely_exits_non_zero(capsys, tmp_p
 ])
 def test_replay_arguments_are_checked(args, expect, capsys, tmp_path, good):
     try:
-        code = replay.main([str(good), "--out", str(tmp_path / "x"), *args])
+        draws = not any(a == "--controller" or "=" in a for a in args)  # (the others draw no picture)
+        code = replay.main([str(good), *(["--out", str(tmp_path / "x")] if draws else []), *args])
     except SystemExit as stop:
         code = stop.code
     assert code == 2 and expect in one_error_line(capsys.readouterr().err)
@@ -369,3 +370,28 @@ def test_a_decision_that_is_not_the_robots_move_is_refused(tmp_path, good):
     assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
     assert "/robot/state step 5 next_v_cm_s" in left_out["reason"].iloc[0] and "decision v_cm_s 0.0" in \
         left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+
+
+def test_a_moving_obstacle_of_another_size_than_the_scenarios_is_refused(tmp_path, good):
+    """A walker logged at 5 cm instead of the scenario's 20 moved every clearance, near miss and intrusion time."""
+    def edit(topic, index, msg):
+        if topic == "/obstacles/truth" and index == 3:
+            msg["obstacles"][0]["radius_cm"] = 5.0
+        return msg
+
+    log = rewrite(good, tmp_path / "bad.mcap", message=edit)
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
+    assert "/obstacles/truth step 3" in left_out["reason"].iloc[0] and "radius_cm: 5.0 is not the scenario's" in \
+        left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+
+
+def test_the_line_of_a_report_of_no_episode_names_the_log(tmp_path, capsys):
+    """An episode that raised is left out with its own reason ("episode raised: ..."), which names no file: the
+    command's last line did not say which log it was."""
+    from tests.handmade import write_log
+
+    log = write_log(tmp_path / "raised.mcap", [(0, 0, 0), (50, 0, 0)], outcome="error")
+    assert report.main([str(log), "--out", str(tmp_path / "rep"), "--jobs", "1"]) == 1
+    line = one_error_line(capsys.readouterr().err)
+    assert line.startswith(f"error: none of the 1 log(s) could be analysed (1 error): {log}: "), line

@@ -367,6 +367,29 @@ def test_the_bench_says_first_which_forms_it_times_and_why():
     ("runners.run", ["--config-dir", "/nonexistent/d"], "error: --config-dir /nonexistent/d: not a folder"),
     ("runners.sweep", ["--cfg", "job", "planner=auto,wait"],
      "error: config: planner: 'auto,wait' is a sweep; --cfg and --info show one configuration of the sweep"),
+    # a second hostile review: Hydra's parser takes options abbreviated, the commands' checks looked for them whole
+    ("runners.run", ["--multi"], "error: -m/--multirun: runners.run runs one configuration"),
+    ("runners.sweep", ["--ru"], "error: --run: runners.sweep runs a sweep"),
+    ("runners.run", ["--run", "--cfg", "job"], "error: --run and --cfg: Hydra takes one of --run, --multirun"),
+    ("runners.sweep", ["--cfg", "job", "--info=all"], "error: --cfg and --info: Hydra takes one of"),
+    ("runners.run", ["--cfg"], "error: argument --cfg/-c: expected one argument (see --help)"),
+    ("runners.run", ["--cfg", "bogus"], "error: argument --cfg/-c: invalid choice: 'bogus'"),
+    ("runners.sweep", ["--multirun=1"], "error: argument --multirun/-m: ignored explicit argument '1'"),
+    ("runners.sweep", ["sweep=quick,policies"], "error: sweep=quick,policies: a sweep runs one preset of conf/sweep/"),
+    ("runners.sweep", ["~sweep"], "error: ~sweep: a sweep runs one preset"),
+    ("runners.sweep", ["sweep=glob(q*)"], "error: sweep=glob(q*): a sweep runs one preset"),
+    ("runners.sweep", ["seed=range(0,4,0)"], "error: config: seed: range(0,4,0) cannot be listed (a range's step"),
+    ("runners.sweep", ["planner=auto", "planner.h_wait=range(1,3,0.0)"], "error: config: planner.h_wait: range(1,3"),
+    ("runners.sweep", ["seed=range(0,100000000)"], "error: config: seed: range(0,100000000): the sweep has more than "
+                                                   "100,000 jobs"),
+    ("runners.sweep", ["planner=glob(zzz*)"], "error: config: planner: glob(zzz*) selects no option (an empty sweep)"),
+    ("runners.sweep", ["planner=wait", "planner.safety_margin_cm=5.0,nan,20.0"],
+     "error: config: planner.safety_margin_cm: must be finite, got nan"),
+    ("runners.sweep", ["+hydra.sweeper.params.planner.h_wait='1,2'"],
+     "error: config: hydra.sweeper.params.planner.h_wait: a swept setting with dots cannot be added"),
+    ("runners.run", ["~planner", "planner=wait"], "error: config: ~planner: deletes the choice of the config group"),
+    ("runners.run", ["-cp", "nope"], "error: --config-path: the folder of an application's primary config"),
+    ("runners.sweep", ["hydra.mode=RUN"], "error: hydra.mode=RUN: runners.sweep runs a sweep"),
 ])
 def test_arguments_a_command_cannot_take_are_one_line_before_anything_runs(tmp_path, command, args, expect):
     """Hostile review of the sweep: each was accepted (a typo with '+', a multirun that wrote into ./multirun), or a
@@ -431,3 +454,66 @@ def test_a_swept_value_of_the_sweepers_params_that_does_not_compose_is_one_line(
     line = one_error_line(res)
     assert line.startswith(says) and "(the sweep's job " in line, line
     assert not list(sweep.rglob("*.mcap*")) and not list(sweep.glob("[0-9]*"))
+
+
+@pytest.mark.parametrize("params, says", [
+    ("+hydra.sweeper.params.seed='range(0,4,0)'", "error: config: seed: range(0,4,0) cannot be listed"),
+    ("+hydra.sweeper.params.seed='range(0,-2)'", "error: config: seed: range(0,-2) selects no value"),
+    ("+hydra.sweeper.params.seed='range(0,10000000)'", "error: config: the sweep has 10,000,000 jobs, more than"),
+])
+def test_a_sweep_of_the_sweepers_params_that_cannot_run_is_one_line(tmp_path, params, says):
+    """The preset's sweeps are listed by Hydra's sweeper, after the command's check: a zero step was a traceback, an
+    empty range ran no job, ten million jobs spent minutes before the first (a first SIGTERM did not end it)."""
+    sweep = tmp_path / "s"
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "episodes=1", "scenario=head_on", "planner=wait",
+                          params, f"hydra.sweep.dir={sweep}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and one_error_line(res).startswith(says), res.stderr
+    assert not list(sweep.rglob("*.mcap*"))
+
+
+@pytest.mark.parametrize("args", [["planner=wait", "--cfg", "job", "seed=3"], ["planner=wait", "-cjob", "seed=3"],
+                                  ["planner=wait", "--cf", "job", "seed=3"]])
+@pytest.mark.parametrize("command", ["runners.run", "runners.sweep"])
+def test_options_among_the_overrides_are_read_as_hydras(command, args):
+    """Overrides on both sides of an option were refused with Hydra's eight lines of usage; ``-cjob`` and ``--cf``
+    (Hydra's parser takes them) were given ``--multirun`` by the sweep: a traceback."""
+    res = subprocess.run([sys.executable, "-m", command, *args], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0 and not res.stderr.strip(), res.stderr
+    assert "strategy: wait" in res.stdout and "seed: 3" in res.stdout
+
+
+def test_a_config_dir_provides_options_of_the_groups(tmp_path):
+    """``--config-dir`` with a scenario of the user's: the command's check composed from conf/ alone and refused it
+    ("no config 'scenario/mine'"), which Hydra itself runs."""
+    (tmp_path / "mine" / "scenario").mkdir(parents=True)
+    text = (ROOT / "conf" / "scenario" / "head_on.yaml").read_text().replace("name: head_on", "name: mine")
+    (tmp_path / "mine" / "scenario" / "mine.yaml").write_text(text)
+    res = subprocess.run([sys.executable, "-m", "runners.run", "--config-dir", str(tmp_path / "mine"),
+                          "scenario=mine", "episodes=1", f"hydra.run.dir={tmp_path / 'out'}"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.startswith("mine policy=fuzzy") and list((tmp_path / "out").glob("mine__*.mcap"))
+
+
+def test_the_canonical_command_line_keeps_the_overrides_in_their_order():
+    from runners.configuration.command_line import canonical_arguments
+
+    args, problem = canonical_arguments(["a=1", "--debug", "b=2", "-cjob", "c=3", "--resolve", "d=4"])
+    assert problem is None and args == ["--resolve", "--cfg", "job", "--debug", "a=1", "b=2", "c=3", "d=4"]
+    args, problem = canonical_arguments(["a=1", "--debug", "b=2", "--multi", "c=3"])
+    assert problem is None and args == ["--multirun", "--debug", "a=1", "b=2", "c=3"]
+    assert canonical_arguments(["--help", "x=1"]) == (["--help", "x=1"], None)
+    assert canonical_arguments(["--version"]) == (["--version"], None)
+
+
+def test_a_swept_value_of_the_sweepers_params_that_a_run_refuses_is_one_line(tmp_path):
+    """Composed, but out of range: the jobs of ``episodes=1`` ran, the ``episodes=0`` one failed, exit 1 and a resume
+    command that could never complete the sweep."""
+    sweep = tmp_path / "s"
+    res = subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on", "planner=wait",
+                          "+hydra.sweeper.params.episodes='0,1'", f"hydra.sweep.dir={sweep}"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and one_error_line(res).startswith(
+        "error: config: episodes: must be in [1, 10,000], got 0 (the sweep's job "), res.stderr
+    assert not list(sweep.rglob("*.mcap*"))

@@ -30,9 +30,11 @@ def good(recorded_logs) -> Path:  # noqa: F811 - the fixture imported above
 
 
 def run_replay(capsys, tmp_path: Path, log: Path, *args: str) -> tuple[int, str, str]:
-    """(exit code, stdout, stderr) of ``runners.replay LOG --quiet --out TMP/x ARGS``."""
+    """(exit code, stdout, stderr) of ``runners.replay LOG --quiet ARGS``, with ``--out TMP/x`` for a replay that
+    draws its picture (not --verify, --controller or overrides)."""
+    draws = not any(a in ("--verify", "--controller") or "=" in a for a in args)
     try:
-        code = replay.main([str(log), "--quiet", "--out", str(tmp_path / "x"), *args])
+        code = replay.main([str(log), "--quiet", *(["--out", str(tmp_path / "x")] if draws else []), *args])
     except SystemExit as stop:
         code = int(stop.code or 0)
     out = capsys.readouterr()
@@ -187,6 +189,23 @@ def test_an_out_stem_that_cannot_be_a_file_stem_is_refused(kind, capsys, tmp_pat
     assert one_error_line(out.err).startswith(f"error: --out: {stem}: ")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["work"]
     assert sorted(p.name for p in work.iterdir()) == before
+
+
+def test_an_out_stem_naming_a_folder_is_refused(capsys, tmp_path, good):
+    """``--out outdir/`` (a folder that does not exist yet) wrote ``outdir.png`` beside it."""
+    code = replay.main([str(good), "--quiet", "--out", f"{tmp_path / 'outdir'}/"])
+    out = capsys.readouterr()
+    assert code == 2 and one_error_line(out.err).startswith(f"error: --out: {tmp_path / 'outdir'}/: names a folder")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["--verify"], ["planner.h_wait=3"]])
+def test_out_with_a_replay_that_draws_nothing_is_refused(args, capsys, tmp_path, good):
+    """``--out`` was ignored without a word by ``--verify`` and by counterfactual replays, which draw no picture."""
+    code = replay.main([str(good), "--quiet", "--out", str(tmp_path / "x"), *args])
+    out = capsys.readouterr()
+    assert code == 2 and one_error_line(out.err).startswith("error: --out: --verify, --controller and overrides")
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("override, expect", [

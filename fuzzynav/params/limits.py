@@ -105,6 +105,7 @@ MAX_SPEED_CM_S = 1_000.0  # speeds: robot limits, the speed output's universe, p
 MAX_EPISODES_PER_RUN = 10_000
 MAX_SEED = 9_007_199_254_740_991  # 2^53 - 1: seeds stay exact as float64 (pandas tables of the analysis)
 MAX_LAUNCHER_JOBS = 256
+MAX_SWEEP_JOBS = 100_000
 
 # -- policies -------------------------------------------------------------------------------------------------------
 MAX_POLICY_FIELDS = 64  # a policy's own values per step (Action.fields)
@@ -161,6 +162,9 @@ SIZE_LIMITS: tuple[Limit, ...] = (
           "every scenario of a run is validated before its first episode; split bigger runs into jobs"),
     Limit("seed + episodes", MAX_SEED, "2^53 - 1: seeds stay exact in the analysis' float64 tables"),
     Limit("hydra.launcher.n_jobs, absolute value (0 is refused)", MAX_LAUNCHER_JOBS, "one worker process each"),
+    Limit("jobs of one sweep", MAX_SWEEP_JOBS,
+          "Hydra lists and checks every job before the first runs (a million took minutes); batch seeds into "
+          "longer jobs: episodes=K seed='range(0,N,K)'"),
 )
 
 _CM = "cm"

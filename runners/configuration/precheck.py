@@ -21,6 +21,8 @@ from __future__ import annotations
 import contextlib
 import importlib
 import inspect
+import itertools
+import math
 import os
 import re
 import warnings
@@ -36,6 +38,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from analysis import interrupts
 from fuzzynav.conf import CONF_DIR as CONF
+from fuzzynav.params.limits import MAX_SWEEP_JOBS
 from runners.configuration import hydra_paths, schema
 from runners.configuration import plugins as config_plugins
 from runners.configuration.data_files import (
@@ -46,10 +49,14 @@ from runners.configuration.data_files import (
     check_data_file,
 )
 from runners.configuration.run_inputs import DATA_GROUPS, ConfigFileError, load_run
+from runners.configuration.sweep_size import sweep_size
 
 
 def _value_kind(value: object) -> object:
-    """What composing a value depends on: the type for numbers, booleans and null; the value otherwise."""
+    """What composing a value depends on: the type for finite numbers, booleans and null; the value otherwise (nan
+    and inf too: among finite values they were never composed, and a sweep ran its jobs until the nan one failed)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
     if value is None or isinstance(value, bool | int | float):
         return type(value).__name__
     return repr(value)
@@ -316,14 +323,14 @@ def _unreadable(parser: OverridesParser, overrides: list[str], err: Exception) -
     return f"config: cannot read the overrides: {str(err).splitlines()[0]}"
 
 
-def _new_top_level_key(added: Sequence[Override], overrides: list[str]) -> str | None:
+def _new_top_level_key(added: Sequence[Override], overrides: list[str], primary: str) -> str | None:
     """One line for the first ``+key=value`` that adds a top-level key the run's config does not have (nothing
     reads it: ``+episode=5`` ran one episode, and the log recorded ``episode: 5``), or None."""
     import difflib
 
     without = [t for t in overrides if t not in {o.input_line for o in added}]
     try:
-        known = set(compose("config", overrides=without))
+        known = set(compose(primary, overrides=without))
     except Exception:  # the config without them does not compose: composing with them reported it
         return None
     for o in added:
@@ -373,12 +380,12 @@ def _in_one_job(problem: str, job: list[str], base: list[str], swept: set[str]) 
     return f"{text}: sweep the options that have it in a sweep of their own, or give each its own {group} YAML"
 
 
-def _base_problem(base: list[str], swept: set[str]) -> str | None:
+def _base_problem(base: list[str], swept: set[str], primary: str) -> str | None:
     """Hydra composes a sweep's own config with the command line's plain overrides and every swept group at its
     default (``scenario=a,b scenario.params.n=4`` sets ``params`` in the default scenario, which has none): one
     line, with the override that adds or sets a key wherever it applies (``++``)."""
     try:
-        compose("config", overrides=base)
+        compose(primary, overrides=base)
     except Exception as err:
         interrupt = interrupts.interrupt_in_chain(err)
         if interrupt is not None:
@@ -390,11 +397,17 @@ def _base_problem(base: list[str], swept: set[str]) -> str | None:
 
 
 def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = None,
-             multirun: bool = False) -> str | None:
+             multirun: bool = False, config_dir: str | None = None, config_name: str | None = None) -> str | None:
     """One-line description of why these command-line overrides cannot be composed, or None.
 
     ``on_config`` is called with the first composed config, Hydra's node included (the sweep uses it to start
-    its worker processes while the rest is checked and Hydra starts)."""
+    its worker processes while the rest is checked and Hydra starts). ``config_dir``, ``config_name``: the command
+    line's ``--config-dir`` (its configs are composed from there too: ``scenario=mine`` of a user's folder was
+    refused as no config) and ``--config-name``."""
+    primary = (config_name or "config").removesuffix(".yaml")
+    if config_dir is not None and not any(a.lstrip("+").startswith("hydra.searchpath=") for a in args):
+        # after conf/ where Hydra puts it before: the same configs, but for one of the same name in both
+        args = [f"hydra.searchpath=[file://{Path(config_dir).expanduser().resolve()}]", *args]
     try:  # other packages' config folders: a broken entry point is one line here, not a traceback inside Hydra
         config_plugins.plugin_config_dirs()
     except config_plugins.PluginConfigError as err:
@@ -406,23 +419,47 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     except Exception as err:
         return _unreadable(parser, overrides, err)
     base, variants = [], []
+    jobs = 1  # of the command line's sweeps (the preset's own are counted by the sweeper)
     for o in parsed:
+        if o.is_delete() and "." not in o.key_or_group and any((d / o.key_or_group).is_dir()
+                                                                for d in _search_dirs(parsed)):
+            # Hydra then composes the group's default, whatever else the command line chose (~planner planner=wait
+            # ran auto): every run needs one option of each group
+            return (f"config: {o.input_line[:80]}: deletes the choice of the config group {o.key_or_group!r}, which a "
+                    f"run needs; choose an option instead ({o.key_or_group}=<name>)")
+        swept = o.key_or_group.removeprefix("hydra.sweeper.params.")
+        if swept != o.key_or_group and "." in swept:  # Hydra nests it ({planner: {h_wait: ...}}): 4 lines of grammar
+            value = o.input_line.partition("=")[2].strip("'\"")
+            return (f"config: {o.key_or_group[:80]}: a swept setting with dots cannot be added to the preset's params "
+                    f"on the command line; sweep it directly: {swept[:60]}={value[:60]}")
         if not o.is_sweep_override():
             base.append(o.input_line)
             continue
         if o.key_or_group.startswith("hydra.") or o.key_or_group.startswith("hydra/"):
             return (f"config: {o.key_or_group[:80]}: Hydra's own settings cannot be swept (one value per sweep: run "
                     "one sweep per value)")
-        if o.value_type == ValueType.GLOB_CHOICE_SWEEP:
-            continue  # globs only select existing options
+        if o.value_type == ValueType.GLOB_CHOICE_SWEEP:  # globs only select existing options ...
+            if not _options(o.value(), o.key_or_group, _search_dirs(parsed)):  # ... but may select none
+                return (f"config: {o.get_key_element()}: {o.input_line.partition('=')[2][:60]} selects no option "
+                        "(an empty sweep)")
+            continue
         if o.value_type == ValueType.INTERVAL_SWEEP:  # Hydra's basic sweeper cannot list it: a traceback later
             return (f"config: {o.get_key_element()}: {o.input_line.partition('=')[2][:60]} is a continuous range "
                     "(for an optimiser's sweeper); a sweep runs listed values: a list (0.5,0.75,1) or range()")
-        values = list(o.sweep_string_iterator())
-        if not values:  # range(5,0): a sweep of no job, exit 0
+        size = sweep_size(o)
+        if size is None:  # range(0,4,0)
+            return (f"config: {o.get_key_element()}: {o.input_line.partition('=')[2][:60]} cannot be listed (a "
+                    "range's step must be a finite number other than 0)")
+        if size == 0:  # range(5,0): a sweep of no job, exit 0
             return f"config: {o.get_key_element()}: {o.input_line.partition('=')[2]} selects no value (an empty sweep)"
-        if o.value_type == ValueType.RANGE_SWEEP:
-            values = values[:1]  # numbers of one type: the first stands for all (without listing them all)
+        jobs *= size
+        if jobs > MAX_SWEEP_JOBS:
+            return (f"config: {o.get_key_element()}: {o.input_line.partition('=')[2][:60]}: the sweep has more than "
+                    f"{MAX_SWEEP_JOBS:,} jobs; batch seeds into longer jobs (episodes=K seed='range(0,N,K)')")
+        if o.value_type == ValueType.RANGE_SWEEP:  # numbers of one type: the first stands for all (not listed)
+            values = list(itertools.islice(o.sweep_string_iterator(), 1))
+        else:
+            values = list(o.sweep_string_iterator())
         prefix = "+" if o.is_add() else ""
         variants.append([f"{prefix}{o.get_key_element()}={v}" for v in values])
     firsts = [v[0] for v in variants if v]
@@ -454,7 +491,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 try:
-                    cfg = compose("config", overrides=overrides, return_hydra_config=True)
+                    cfg = compose(primary, overrides=overrides, return_hydra_config=True)
                 except Exception as err:
                     interrupt = interrupts.interrupt_in_chain(err)
                     if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
@@ -486,7 +523,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
                     return paths
                 sweep_dirs.setdefault(paths[0], overrides)
             if k == 0 and added:
-                problem = _new_top_level_key(added, overrides)
+                problem = _new_top_level_key(added, overrides, primary)
                 if problem:
                     return problem
             if k == 0 and on_config is not None:
@@ -495,7 +532,7 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
         if problem:
             return problem
         if multirun and variants:
-            problem = _base_problem(base, {o.get_key_element() for o in parsed if o.is_sweep_override()})
+            problem = _base_problem(base, {o.get_key_element() for o in parsed if o.is_sweep_override()}, primary)
             if problem:
                 return problem
     return None

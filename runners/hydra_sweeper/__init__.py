@@ -25,6 +25,7 @@ and a lost worker is still one line, the summary and the resume command, never a
 from __future__ import annotations
 
 import logging
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -36,7 +37,9 @@ from hydra.core.utils import JobStatus
 from omegaconf import OmegaConf
 
 from runners.configuration.plugins import PluginConfigSearchPath  # found here by Hydra's scan of hydra_plugins
-from runners.configuration.precheck import representative_jobs
+from runners.configuration.precheck import check_composed, representative_jobs
+from runners.configuration.sweep_size import sweep_problem
+from runners.hydra_sweeper.launcher import RefusedJob
 from runners.sweeping import control as sweep_control
 from runners.sweeping import resume as sweep_resume
 
@@ -52,10 +55,14 @@ class FaultTolerantSweeper(BasicSweeper):
     def sweep(self, arguments: list[str]) -> Any:
         assert self.config is not None and self.launcher is not None and self.hydra_context is not None
         sweep_dir = Path(self.config.hydra.sweep.dir)
-        run = sweep_control.begin_or_exit(sweep_dir)
         parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
-        self.overrides = self.split_arguments(parser.parse_overrides([*self._parse_config(), *arguments]),
-                                              self.max_batch_size)
+        parsed = parser.parse_overrides([*self._parse_config(), *arguments])
+        problem = sweep_problem(parsed)  # (a preset's params: the command line's were checked before Hydra started)
+        if problem:
+            print(f"error: config: {problem}", file=sys.stderr)
+            sys.exit(2)
+        run = sweep_control.begin_or_exit(sweep_dir)
+        self.overrides = self.split_arguments(parsed, self.max_batch_size)
         returns: list[Sequence[Any]] = []
         try:  # the sweep's own config, as Hydra saves it
             sweep_dir.mkdir(parents=True, exist_ok=True)
@@ -96,13 +103,21 @@ class FuzzynavSweeper(FaultTolerantSweeper):
         jobs = representative_jobs(batch)
         configs = getattr(self.launcher, "job_configs", None)  # fuzzynav's launcher makes jobs' configs from these
         compose_in_workers = getattr(self.launcher, "compose_in_workers", None)
-        composed = compose_in_workers(jobs) if compose_in_workers is not None else None
+        try:
+            composed = compose_in_workers(jobs) if compose_in_workers is not None else None
+        except RefusedJob as err:  # a composed config a run would refuse (a preset's episodes=0)
+            refuse_job(err.overrides, err)
         for i, overrides in enumerate(jobs):
             try:
-                config = (composed[i] if composed is not None
-                          else self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides)))
+                if composed is not None:
+                    config = composed[i]
+                else:
+                    config = self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
+                    problem = check_composed(config)
+                    if problem is not None:
+                        raise RefusedJob(overrides, problem)
             except Exception as err:  # a swept value of hydra.sweeper.params (a preset's) that does not compose
-                if sweep_control.debug_requested():
+                if sweep_control.debug_requested() and not isinstance(err, RefusedJob):
                     raise
                 refuse_job(overrides, err)
             if configs is not None:
@@ -122,7 +137,8 @@ def refuse_job(overrides: Sequence[str], err: Exception) -> None:
     interrupt = interrupt_in_chain(err)
     if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
         raise interrupt from None
-    print(f"error: {one_line(err)} (the sweep's job {' '.join(overrides)[:200]})", file=sys.stderr)
+    problem = err.problem if isinstance(err, RefusedJob) else one_line(err)
+    print(f"error: {problem} (the sweep's job {' '.join(overrides)[:200]})", file=sys.stderr)
     sys.exit(2)
 
 

@@ -122,6 +122,8 @@ class FuzzynavLauncher(Launcher):
             with worker_pool():
                 configs = Parallel(**parallel_settings(self.n_jobs))(delayed(compose_job)(ref, list(o))
                                                                       for o in jobs)
+        except RefusedJob:
+            raise
         except Exception:
             return None
         finally:
@@ -134,9 +136,25 @@ def compose_job(ref: launch_state.LaunchStateFile, overrides: list[str]) -> byte
     pickled with cloudpickle (the schema's dataclasses are made at run time)."""
     import cloudpickle
 
+    from runners.configuration.precheck import check_composed
+
     state = launch_state.worker_state(ref)
     config = state.hydra_context.config_loader.load_sweep_config(state.master, overrides)
+    problem = check_composed(config)  # as a job loads it: a preset's swept value out of range (episodes=0)
+    if problem is not None:
+        raise RefusedJob(overrides, problem)
     return cloudpickle.dumps(config, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+class RefusedJob(ValueError):
+    """A job whose composed config a run would refuse: its overrides and the one-line problem."""
+
+    def __init__(self, overrides: Sequence[str], problem: str) -> None:
+        super().__init__(problem)
+        self.overrides, self.problem = list(overrides), problem
+
+    def __reduce__(self) -> tuple[type, tuple[list[str], str]]:  # back from a worker process whole
+        return RefusedJob, (self.overrides, self.problem)
 
 
 def execute_job(ref: launch_state.LaunchStateFile, overrides: list[str], idx: int) -> JobReturn:

@@ -10,6 +10,7 @@ from omegaconf import DictConfig
 
 from fuzzynav.conf import CONF_DIR
 from runners.configuration.plugins import plugin_config_dirs
+from runners.configuration.sweep_size import sweep_size
 
 
 def count_episodes(config: DictConfig) -> int | None:
@@ -40,7 +41,11 @@ def count_jobs(config: DictConfig, task: list[str]) -> int | None:
             names = sorted({p.stem for d in dirs if d.is_dir() for p in d.glob("*.yaml")})
             sizes[key] = len(o.value().filter(names))
         else:
-            sizes[key] = len(list(o.sweep_string_iterator()))
+            size = sweep_size(o)
+            if size is None:
+                return None
+            sizes[key] = size
     for n in sizes.values():
         total *= max(n, 1)
     return total
+
