@@ -18,7 +18,7 @@ import yaml
 
 from analysis.json_checks import CheckError, array, number, obj
 from analysis.log_check import FINISHED, MAX_CONFIG_BYTES, POSITIVE_CM, TIME_TOLERANCE_NS, YAML_LOADER
-from fuzzynav.params.names import DEFAULT_POLICY
+from fuzzynav.params.names import DEFAULT_POLICY, ROBOT_DEFAULTS, SCENARIO_DEFAULTS
 
 if TYPE_CHECKING:
     from analysis.episode_log import EpisodeLog
@@ -147,9 +147,10 @@ _OBSTACLE_KEYS = ("id", "radius", "start", "velocity")
 
 def _check_scenario_is_the_configs(log: EpisodeLog) -> None:
     """A fixed scenario (the config's ``scenario`` section has its robot: not generated per seed) is the world the
-    metadata ``scenario_yaml`` logs. The config is covered by ``config_hash``, ``scenario_yaml`` is not: edited, an
-    episode of one scenario was counted in another's group; deleted, the checks against the scenario were skipped
-    and a collision could be relabelled a goal."""
+    metadata ``scenario_yaml`` logs, keys a scenario leaves out at their defaults (:mod:`fuzzynav.params.names`).
+    The config is covered by ``config_hash``, ``scenario_yaml`` is not: edited, an episode of one scenario was
+    counted in another's group; deleted, the checks against the scenario were skipped and a collision could be
+    relabelled a goal."""
     scenario = log.config.get("scenario")
     if not isinstance(scenario, dict) or not isinstance(scenario.get("robot"), dict):
         return  # generated per seed (its world is the generator's), or a hand-written log with no scenario
@@ -157,8 +158,11 @@ def _check_scenario_is_the_configs(log: EpisodeLog) -> None:
     if not isinstance(world, dict) or not isinstance(world.get("robot"), dict):
         raise CheckError("metadata scenario_yaml", "missing or not a scenario, but the config's scenario "
                                                    f"{str(scenario.get('name'))[:64]!r} is a fixed one")
-    pairs = [(f"robot.{key}", scenario["robot"].get(key), world["robot"].get(key)) for key in _ROBOT_KEYS]
-    pairs += [(key, scenario.get(key), world.get(key)) for key in _FIXED_KEYS]
+    # what the run read (fuzzynav.scenarios.scenario.scenario_from_dict): a key left out is its default there
+    pairs = [(f"robot.{key}", scenario["robot"].get(key, ROBOT_DEFAULTS.get(key)),
+              world["robot"].get(key, ROBOT_DEFAULTS.get(key))) for key in _ROBOT_KEYS]
+    pairs += [(key, scenario.get(key, SCENARIO_DEFAULTS.get(key)), world.get(key, SCENARIO_DEFAULTS.get(key)))
+              for key in _FIXED_KEYS]
     ours, logged = scenario.get("dynamic_obstacles") or [], world.get("dynamic_obstacles") or []
     if not isinstance(ours, list) or not isinstance(logged, list) or len(ours) != len(logged):
         raise CheckError("metadata scenario_yaml dynamic_obstacles", "not the config's scenario's moving obstacles")

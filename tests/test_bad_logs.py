@@ -395,3 +395,16 @@ def test_the_line_of_a_report_of_no_episode_names_the_log(tmp_path, capsys):
     assert report.main([str(log), "--out", str(tmp_path / "rep"), "--jobs", "1"]) == 1
     line = one_error_line(capsys.readouterr().err)
     assert line.startswith(f"error: none of the 1 log(s) could be analysed (1 error): {log}: "), line
+
+
+def test_a_scenario_that_leaves_keys_to_their_defaults_is_analysed(tmp_path):
+    """The check of the logged world against the config's scenario compared a key the scenario leaves out (None)
+    with the default the run used (heading 0, radius 20, max_steps 300, name 'unnamed'): every such log, a tuning
+    study's whole, was left out."""
+    res = subprocess.run([sys.executable, "-m", "runners.run", "scenario=head_on", "~scenario.robot.heading",
+                          "~scenario.robot.radius", "~scenario.max_steps", "~scenario.name",
+                          f"hydra.run.dir={tmp_path}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    df, left_out = metrics_table([tmp_path])
+    assert len(df) == 1 and left_out.empty, left_out.to_dict("records")
+    assert df["scenario"].iloc[0] == "unnamed"

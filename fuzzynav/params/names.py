@@ -6,6 +6,7 @@ registry, :mod:`fuzzynav.policies.base`; the crowd, :mod:`fuzzynav.pedestrians`)
 from __future__ import annotations
 
 import re
+from typing import Any
 
 #: the policy of a run when its ``navigator`` section names none: the paper's fuzzy controller
 DEFAULT_POLICY = "fuzzy"
@@ -37,3 +38,10 @@ def reads_h_wait(strategy: object) -> bool:
 def is_policy_id(text: object) -> bool:
     """Whether ``text`` names a policy as a configuration and a log do: a registered name or an import path."""
     return isinstance(text, str) and bool(NAME.fullmatch(text) or IMPORT_PATH.fullmatch(text))
+
+
+SCENARIO_DEFAULTS: dict[str, Any] = {"name": "unnamed", "description": "", "max_steps": 300, "goal_tolerance": None}
+"""A scenario's values for the keys it leaves out (:func:`fuzzynav.scenarios.scenario.scenario_from_dict`; the
+analysis compares a logged world with the config's scenario by them)."""
+ROBOT_DEFAULTS: dict[str, Any] = {"heading": 0.0, "radius": 20.0}
+"""The robot's heading (degrees) and radius (cm) where a scenario's ``robot`` leaves them out."""

@@ -35,6 +35,7 @@ from shapely.validation import explain_validity
 from fuzzynav.numerics.portable_math import dist
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_count, check_key, check_name, check_text, key_text, kind_of, show
+from fuzzynav.params.names import ROBOT_DEFAULTS, SCENARIO_DEFAULTS
 
 Vec2 = tuple[float, float]
 
@@ -178,8 +179,8 @@ def _robot(data: Any) -> RobotSpec:
     data = _mapping(data, "robot")
     _keys(data, {"start", "goal", "heading", "radius"}, {"start", "goal"}, "robot")
     return RobotSpec(start=_vec2(data["start"], "robot.start"), goal=_vec2(data["goal"], "robot.goal"),
-                     heading=_finite(data.get("heading", 0.0), "robot.heading"),
-                     radius=_positive(data.get("radius", 20.0), "robot.radius"))
+                     heading=_finite(data.get("heading", ROBOT_DEFAULTS["heading"]), "robot.heading"),
+                     radius=_positive(data.get("radius", ROBOT_DEFAULTS["radius"]), "robot.radius"))
 
 
 def _static(data: Any, path: str) -> StaticObstacle:
@@ -282,8 +283,9 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
     data = _mapping(data, "scenario")
     _keys(data, {"name", "description", "bounds", "robot", "static_obstacles", "dynamic_obstacles",
                  "max_steps", "goal_tolerance"}, {"bounds", "robot"}, "")
-    name = check_name(data.get("name", "unnamed"), "name", ScenarioError)
-    description = check_text(data.get("description", ""), "description", ScenarioError)
+    name = check_name(data.get("name", SCENARIO_DEFAULTS["name"]), "name", ScenarioError)
+    description = check_text(data.get("description", SCENARIO_DEFAULTS["description"]), "description",
+                             ScenarioError)
     b = data["bounds"]
     if not _is_list(b) or len(b) != 4:
         raise ScenarioError(f"bounds: expected [xmin, ymin, xmax, ymax], got {show(b)}")
@@ -295,11 +297,11 @@ def scenario_from_dict(data: Mapping[str, Any]) -> Scenario:
             raise ScenarioError(f"{key}: expected a list")
     check_count(len(statics), "static_obstacles", limits.MAX_STATIC_OBSTACLES, ScenarioError, "obstacles")
     check_dynamic_count([o.get("model") if isinstance(o, Mapping) else None for o in dynamics])
-    max_steps = data.get("max_steps", 300)
+    max_steps = data.get("max_steps", SCENARIO_DEFAULTS["max_steps"])
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
         raise ScenarioError(f"max_steps: expected a positive integer, got {show(max_steps)}")
     check_count(max_steps, "max_steps", limits.MAX_STEPS, ScenarioError, "steps")
-    tol = data.get("goal_tolerance")
+    tol = data.get("goal_tolerance", SCENARIO_DEFAULTS["goal_tolerance"])
     return Scenario(
         name=name, description=description,
         bounds=bounds, robot=_robot(data["robot"]),  # type: ignore[arg-type]
