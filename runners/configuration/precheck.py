@@ -405,6 +405,8 @@ def precheck(args: list[str], on_config: Callable[[DictConfig], None] | None = N
     line's ``--config-dir`` (its configs are composed from there too: ``scenario=mine`` of a user's folder was
     refused as no config) and ``--config-name``."""
     primary = (config_name or "config").removesuffix(".yaml")
+    if not (CONF / f"{primary}.yaml").is_file():  # a primary config of the user's folder: checked against ours
+        primary = "config"
     if config_dir is not None and not any(a.lstrip("+").startswith("hydra.searchpath=") for a in args):
         # after conf/ where Hydra puts it before: the same configs, but for one of the same name in both
         args = [f"hydra.searchpath=[file://{Path(config_dir).expanduser().resolve()}]", *args]

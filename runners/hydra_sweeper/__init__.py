@@ -39,9 +39,10 @@ from omegaconf import OmegaConf
 from runners.configuration.plugins import PluginConfigSearchPath  # found here by Hydra's scan of hydra_plugins
 from runners.configuration.precheck import check_composed, representative_jobs
 from runners.configuration.sweep_size import sweep_problem
-from runners.hydra_sweeper.launcher import RefusedJob
 from runners.sweeping import control as sweep_control
 from runners.sweeping import resume as sweep_resume
+
+from .launcher import RefusedJob  # (relative: installed, this package is hydra_plugins.fuzzynav_sweeper)
 
 __all__ = ["FaultTolerantSweeper", "FuzzynavSweeper", "PluginConfigSearchPath", "representative_jobs"]
 
@@ -105,8 +106,10 @@ class FuzzynavSweeper(FaultTolerantSweeper):
         compose_in_workers = getattr(self.launcher, "compose_in_workers", None)
         try:
             composed = compose_in_workers(jobs) if compose_in_workers is not None else None
-        except RefusedJob as err:  # a composed config a run would refuse (a preset's episodes=0)
-            refuse_job(err.overrides, err)
+        except Exception as err:  # a composed config a run would refuse (a preset's episodes=0): the launcher's
+            if not hasattr(err, "problem"):  # RefusedJob, of whichever name its package was loaded under
+                raise
+            refuse_job(getattr(err, "overrides", []), err)
         for i, overrides in enumerate(jobs):
             try:
                 if composed is not None:
@@ -137,7 +140,7 @@ def refuse_job(overrides: Sequence[str], err: Exception) -> None:
     interrupt = interrupt_in_chain(err)
     if interrupt is not None:  # a signal inside OmegaConf's clean-up: not a config problem
         raise interrupt from None
-    problem = err.problem if isinstance(err, RefusedJob) else one_line(err)
+    problem = getattr(err, "problem", None) or one_line(err)  # (a RefusedJob says it in one line)
     print(f"error: {problem} (the sweep's job {' '.join(overrides)[:200]})", file=sys.stderr)
     sys.exit(2)
 
