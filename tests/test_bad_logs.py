@@ -332,10 +332,15 @@ def test_a_fixed_scenarios_logged_world_is_its_configs(edit, expect, tmp_path, g
     """``scenario_yaml`` is not covered by ``config_hash``: deleted, the checks against the scenario were skipped (a
     collision relabelled a goal counted as a success); replaced, an episode was counted in another scenario's
     group. For a fixed scenario (the config's ``scenario`` has its robot) it must be the config's scenario."""
-    log = rewrite(good, tmp_path / "bad.mcap", metadata=edit)
+    reason = _left_out_episode(rewrite(good, tmp_path / "bad.mcap", metadata=edit))
+    assert expect in reason, reason
+
+
+def _left_out_episode(log: Path) -> str:
+    """The reason the analysis leaves ``log`` out, asserting that it does, as an episode that fails its checks."""
     df, left_out = metrics_table([log])
     assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
-    assert expect in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+    return str(left_out["reason"].iloc[0])
 
 
 @pytest.mark.parametrize("next_v, expect", [
@@ -351,10 +356,8 @@ def test_a_robot_that_does_not_move_as_the_simulator_moves_it_is_refused(next_v,
             msg["next_v_cm_s"] = next_v
         return msg
 
-    log = rewrite(good, tmp_path / "bad.mcap", message=edit)
-    df, left_out = metrics_table([log])
-    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
-    assert expect in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+    reason = _left_out_episode(rewrite(good, tmp_path / "bad.mcap", message=edit))
+    assert expect in reason, reason
 
 
 def test_a_decision_that_is_not_the_robots_move_is_refused(tmp_path, good):
@@ -365,11 +368,8 @@ def test_a_decision_that_is_not_the_robots_move_is_refused(tmp_path, good):
             msg["v_cm_s"] = 0.0
         return msg
 
-    log = rewrite(good, tmp_path / "bad.mcap", message=edit)
-    df, left_out = metrics_table([log])
-    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
-    assert "/robot/state step 5 next_v_cm_s" in left_out["reason"].iloc[0] and "decision v_cm_s 0.0" in \
-        left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+    reason = _left_out_episode(rewrite(good, tmp_path / "bad.mcap", message=edit))
+    assert "/robot/state step 5 next_v_cm_s" in reason and "decision v_cm_s 0.0" in reason, reason
 
 
 def test_a_moving_obstacle_of_another_size_than_the_scenarios_is_refused(tmp_path, good):
@@ -379,11 +379,8 @@ def test_a_moving_obstacle_of_another_size_than_the_scenarios_is_refused(tmp_pat
             msg["obstacles"][0]["radius_cm"] = 5.0
         return msg
 
-    log = rewrite(good, tmp_path / "bad.mcap", message=edit)
-    df, left_out = metrics_table([log])
-    assert df.empty and list(left_out["kind"]) == ["episode"], left_out.to_dict("records")
-    assert "/obstacles/truth step 3" in left_out["reason"].iloc[0] and "radius_cm: 5.0 is not the scenario's" in \
-        left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+    reason = _left_out_episode(rewrite(good, tmp_path / "bad.mcap", message=edit))
+    assert "/obstacles/truth step 3" in reason and "radius_cm: 5.0 is not the scenario's" in reason, reason
 
 
 def test_the_line_of_a_report_of_no_episode_names_the_log(tmp_path, capsys):
