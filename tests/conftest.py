@@ -92,12 +92,32 @@ def listing() -> ControllerSpec:
     return load_controller("listing")
 
 
+@pytest.fixture(autouse=True)
+def _slurm_cluster_named(request: pytest.FixtureRequest) -> None:
+    """A test on the Slurm cluster records the cluster in its report (shown by :func:`pytest_terminal_summary`:
+    on pytest-xdist's workers the fixture's own line is not printed)."""
+    if "slurm" in request.fixturenames:
+        request.node.user_properties.append(("slurm_cluster", request.getfixturevalue("slurm").describe()))
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The files marked ``long`` (minutes each) first, otherwise in their order: pytest-xdist hands out whole files
+    in this order, and a long file handed out last kept one worker busy alone at the end (6 of the suite's 30 min)."""
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+
+
 def pytest_terminal_summary(terminalreporter) -> None:
-    """Show which CPU configurations the datasets were verified under (tests/test_cpu_independence.py), so a
-    CI log proves they ran."""
-    lines = [value for report in terminalreporter.stats.get("passed", [])
-             for name, value in getattr(report, "user_properties", []) if name == "verified_under"]
+    """Show which CPU configurations the datasets were verified under (tests/test_cpu_independence.py) and the Slurm
+    cluster the Slurm tests passed on, so a CI log proves they ran."""
+    passed = [(name, value) for report in terminalreporter.stats.get("passed", [])
+              for name, value in getattr(report, "user_properties", [])]
+    lines = [value for name, value in passed if name == "verified_under"]
     if lines:
         terminalreporter.section("portable numerics: datasets verified under other CPU configurations")
         for line in lines:
             terminalreporter.write_line(line)
+    clusters = [value for name, value in passed if name == "slurm_cluster"]
+    if clusters:
+        terminalreporter.section("slurm: tests passed on a one-node cluster started on this machine")
+        for cluster in sorted(set(clusters)):
+            terminalreporter.write_line(f"{cluster}: {clusters.count(cluster)} test(s)")

@@ -68,6 +68,9 @@ class Cluster:
     def run(self, *args: str, check: bool = True) -> subprocess.CompletedProcess:
         return subprocess.run(list(args), env=self.env, capture_output=True, text=True, timeout=60, check=check)
 
+    def describe(self) -> str:
+        return f"{self.version}, one node ({self.node}, {self.cpus} CPUs)"
+
     def jobs(self) -> dict[str, str]:
         """Every job the controller knows (finished ones too, for MinJobAge): id -> state."""
         out = self.run("squeue", "--noheader", "--states=all", "--format=%i %T").stdout

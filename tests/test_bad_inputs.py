@@ -11,6 +11,8 @@ import yaml
 
 from tests.conftest import ROOT
 
+pytestmark = pytest.mark.long  # minutes: started first (tests/conftest.py)
+
 CORPUS = ROOT / "tests" / "bad_inputs"
 CASES = yaml.safe_load((CORPUS / "cases.yaml").read_text())
 

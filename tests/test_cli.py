@@ -10,6 +10,8 @@ import pytest
 
 from tests.conftest import ROOT
 
+pytestmark = pytest.mark.long  # minutes: started first (tests/conftest.py)
+
 
 def run_cli(tmp_path, *overrides):
     return subprocess.run([sys.executable, "-m", "runners.run", f"hydra.run.dir={tmp_path}", *overrides],

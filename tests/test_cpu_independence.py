@@ -7,7 +7,8 @@ paper_fig5 seed 0 (all seven variants, compared message by message with the comm
 seed 0 (all scenarios x strategies, compared by digest), suite_v2 seed 0 (the crowds: reactive pedestrians,
 by digest), suite_v3 seed 0 (every navigator in the situations the paper did not try, by digest) and
 orca_crowds seed 0 (the crowds with ORCA pedestrians, the one model with a compiled kernel, by digest). The
-terminal summary lists what ran.
+terminal summary lists what ran. Run with FUZZYNAV_KERNEL set (CI's second pass), the children keep it: the other
+CPU configurations then verify the Python form.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import textwrap
 from pathlib import Path
 
 import pytest
+
+pytestmark = pytest.mark.long  # minutes: started first (tests/conftest.py)
 
 ROOT = Path(__file__).resolve().parents[1]
 # kernels that run on every CPU of the architecture (the oldest ones OpenBLAS knows)
@@ -55,9 +58,12 @@ def _configurations() -> list[tuple[str, dict[str, str]]]:
     return configs
 
 
-def _child_env(extra: dict[str, str]) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith(("OPENBLAS_", "NPY_", "GLIBC_TUNABLES", "FUZZYNAV_KERNEL"))}
+def _child_env(extra: dict[str, str], kernel_setting: bool = True) -> dict[str, str]:
+    """This environment without CPU settings, plus ``extra``. FUZZYNAV_KERNEL is kept when ``kernel_setting``: in
+    CI's pass with the kernel off every configuration then verifies the Python form, which a machine without a C
+    compiler runs on its own CPU."""
+    dropped = ("OPENBLAS_", "NPY_", "GLIBC_TUNABLES") + (() if kernel_setting else ("FUZZYNAV_KERNEL",))
+    env = {k: v for k, v in os.environ.items() if not k.startswith(dropped)}
     env.update(extra)
     return env
 
@@ -103,7 +109,8 @@ def _check_the_setting_took_effect(label: str, env: dict[str, str]) -> str:
     if "FUZZYNAV_KERNEL" in env:
         assert orca_path == "python", f"{label}: the child still uses the compiled kernel"
         if os.environ.get("CI"):  # else the comparison would be Python path against Python path
-            assert _probe(_child_env({}))[2] == "kernel", f"{label}: fuzzynav.pedestrians._orca was not built"
+            assert _probe(_child_env({}, kernel_setting=False))[2] == "kernel", \
+                f"{label}: fuzzynav.pedestrians._orca was not built"
     if "GLIBC_TUNABLES" in env and _has_fma():
         _, default_libm, _, _ = _probe(_child_env({}))
         assert libm != default_libm, f"{label}: libm's exp gives the same bits as with FMA (setting ignored?)"
@@ -119,6 +126,8 @@ def _has_fma() -> bool:
 
 @pytest.mark.parametrize(("label", "extra"), _configurations(), ids=[c[0] for c in _configurations()])
 def test_datasets_verify_under_another_cpu_configuration(label, extra, record_property):
+    if extra.get("FUZZYNAV_KERNEL") and os.environ.get("FUZZYNAV_KERNEL") == extra["FUZZYNAV_KERNEL"]:
+        pytest.skip(f"{label}: this whole run has it (tests/test_suite_and_datasets.py verifies the datasets so)")
     env = _child_env(extra)
     corename = _check_the_setting_took_effect(label, env)
     for name, seeds in SUBSETS:
@@ -126,5 +135,7 @@ def test_datasets_verify_under_another_cpu_configuration(label, extra, record_pr
                              env=env, capture_output=True, text=True, timeout=900)
         assert out.returncode == 0, f"{label}: {name} --seeds {seeds}\n{out.stdout[-3000:]}{out.stderr[-2000:]}"
         # shown in the terminal summary by conftest.pytest_terminal_summary
-        record_property("verified_under", f"{label} (OpenBLAS kernel {corename}): {name} --seeds {seeds}: "
+        kernel = f", FUZZYNAV_KERNEL={env['FUZZYNAV_KERNEL']}" if "FUZZYNAV_KERNEL" not in extra and env.get(
+            "FUZZYNAV_KERNEL") else ""
+        record_property("verified_under", f"{label} (OpenBLAS kernel {corename}{kernel}): {name} --seeds {seeds}: "
                        f"{out.stdout.strip().splitlines()[0] if out.stdout.strip() else 'match'}")

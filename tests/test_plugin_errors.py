@@ -15,6 +15,8 @@ import pytest
 
 from tests.conftest import ROOT
 
+pytestmark = pytest.mark.long  # minutes: started first (tests/conftest.py)
+
 CASES = {
     "fuzzynav.conf": ("no_such_pkg.conf", []),
     "fuzzynav.policies": ("no_such_mod:Policy", ["navigator.policy=dwa"]),

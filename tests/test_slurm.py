@@ -36,7 +36,7 @@ from runners.sweeping import stop
 from tests.conftest import ROOT
 from tests.slurm_cluster import PARTITION, Cluster, array_tasks, job_processes, wait_for
 
-pytestmark = pytest.mark.slurm
+pytestmark = [pytest.mark.slurm, pytest.mark.long]
 
 # a 20 km corridor (tests/scenarios/scenario/endless_corridor.yaml): an episode that max_steps or a signal ends
 SEARCH = f"hydra.searchpath=[file://{ROOT / 'tests' / 'scenarios'}]"

@@ -32,7 +32,7 @@ from tests.conftest import ROOT
 from tests.slurm_cluster import PARTITION, Cluster, wait_for
 from tests.test_tune import study_file, trials_of
 
-pytestmark = pytest.mark.slurm
+pytestmark = [pytest.mark.slurm, pytest.mark.long]
 
 
 def tune_args(out: Path, path: Path, *args: str) -> list[str]:

@@ -21,6 +21,8 @@ from runners import dataset
 from runners.run import episode_config, load_scenario
 from tests.conftest import CONF, ROOT, load_controller
 
+pytestmark = pytest.mark.long  # minutes: started first (tests/conftest.py)
+
 SCENARIOS = sorted(p.stem for p in (CONF / "scenario").glob("*.yaml"))
 
 
