@@ -54,7 +54,11 @@ def running_task(out: Path) -> str | None:
     """The Slurm task (``<array>_<task>``) of task 0 while one of its trials runs and has written a log."""
     if not (out / "study.journal").exists():
         return None
-    for t in trials_of(out, "journal"):
+    try:
+        trials = trials_of(out, "journal")
+    except KeyError:  # the journal is there, the study not yet in it (optuna: "Record does not exist.")
+        return None
+    for t in trials:
         task = (t.user_attrs.get(WORKER) or {}).get("slurm_task") or ""
         if t.state.name == "RUNNING" and task.endswith("_0") and list((out / "trials" / f"{t.number:05d}").glob("*")):
             return task
