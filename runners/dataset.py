@@ -52,7 +52,7 @@ from analysis.metrics import metrics_table
 from fuzzynav.conf import CONF_DIR as CONF
 from fuzzynav.params import limits
 from runners.configuration import plugins as config_plugins
-from runners.configuration.data_files import MANIFEST, DataFileError, check_data_file
+from runners.configuration.data_files import MANIFEST, SAFE_LOADER, DataFileError, check_data_file
 from runners.datasets import recorded_source
 from runners.datasets.manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.datasets.verify_report import detail_lines, episode_line, summary_lines
@@ -81,7 +81,7 @@ def load_manifest(name: str, root: Path = DATASETS) -> dict[str, Any]:
         # bounded size, no tags (!!python/... would be one traceback or worse), no interpolations, bounded
         # aliases, no key twice; one line naming the line and the field
         raw = check_data_file(path, MANIFEST)
-        data = yaml.load(raw, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: ~10x faster
+        data = yaml.load(raw, Loader=SAFE_LOADER)
     except DataFileError as err:
         raise DatasetError(str(err)) from None
     except yaml.YAMLError as err:

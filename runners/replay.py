@@ -42,6 +42,7 @@ from fuzzynav.params.names import AGENT
 from fuzzynav.planning.layer import ActivePlan, Decision, Observation, PlanningLayer, build_planning_layer
 from fuzzynav.sensing.laser import LaserConfig, beam_directions
 from fuzzynav.sensing.tracking import Track
+from runners.configuration.data_files import SAFE_LOADER
 from runners.run import ConfigFileError, episode_config
 
 ALL_TOPICS = ("/scene", "/robot/state", "/obstacles/truth", "/planner/decision", "/tpt", "/episode", "/tracks",
@@ -261,7 +262,7 @@ def _controller(name: str) -> dict[str, Any]:
             raise ReplayError(f"{path}: {file_kind(st.st_mode)}, not a controller file")
         if st.st_size > MAX_CONTROLLER_BYTES:
             raise ReplayError(f"{path}: {st.st_size} bytes, more than {MAX_CONTROLLER_BYTES} for a controller file")
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=SAFE_LOADER)
     except (OSError, UnicodeDecodeError) as err:
         raise ReplayError(f"{path}: cannot read: {getattr(err, 'strerror', None) or err}") from None
     except yaml.YAMLError as err:

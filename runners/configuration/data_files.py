@@ -31,7 +31,8 @@ import yaml
 from fuzzynav.params import limits
 from fuzzynav.params.checks import key_text
 
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+#: YAML's safe loader, by libyaml where PyYAML has it (about ten times faster; the same data)
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _OPEN = (yaml.BlockMappingStartToken, yaml.BlockSequenceStartToken, yaml.FlowMappingStartToken,
          yaml.FlowSequenceStartToken)
 _CLOSE = (yaml.BlockEndToken, yaml.FlowMappingEndToken, yaml.FlowSequenceEndToken)
@@ -102,7 +103,7 @@ def check_data_text(raw: bytes | str, source: str, kind: DataKind | None = None)
     else:
         text = raw
     try:
-        _Events(source, kind).check(yaml.parse(text, Loader=_LOADER))
+        _Events(source, kind).check(yaml.parse(text, Loader=SAFE_LOADER))
     except yaml.MarkedYAMLError as err:
         raise DataFileError(f"{source}{_yaml_error(err)}") from None
     except yaml.reader.ReaderError as err:  # a character YAML does not allow: say where

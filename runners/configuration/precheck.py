@@ -43,6 +43,7 @@ from runners.configuration import hydra_paths, schema
 from runners.configuration import plugins as config_plugins
 from runners.configuration.data_files import (
     CONFIG_FILE,
+    SAFE_LOADER,
     SCENARIO_OR_CONTROLLER,
     DataFileError,
     DataKind,
@@ -146,7 +147,7 @@ def _defaults_of(path: Path) -> list[tuple[str, str]]:
     """(group, option) pairs of a config file's defaults list; nothing for a file that does not load (Hydra or
     the check of the file as text reports it)."""
     try:
-        loaded = yaml.load(path.read_text(encoding="utf-8"), Loader=_SAFE)  # checked as text first: bounded
+        loaded = yaml.load(path.read_text(encoding="utf-8"), Loader=SAFE_LOADER)  # checked as text first: bounded
     except Exception:
         return []
     pairs = []
@@ -190,7 +191,7 @@ def selected_config_files(overrides: Sequence[str]) -> list[Path]:
         queue += _defaults_of(path) if _checked(path) else []
         if group == "sweep":  # a preset's swept groups
             with contextlib.suppress(Exception):
-                params = (yaml.load(path.read_text(encoding="utf-8"), Loader=_SAFE)
+                params = (yaml.load(path.read_text(encoding="utf-8"), Loader=SAFE_LOADER)
                           or {})["hydra"]["sweeper"]["params"]
                 for key, value in params.items():
                     sub = _group_of(str(key))
@@ -200,7 +201,6 @@ def selected_config_files(overrides: Sequence[str]) -> list[Path]:
     return list(dict.fromkeys(files))
 
 
-_SAFE = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def _kind(path: Path) -> DataKind:
@@ -276,7 +276,7 @@ def file_setting(overrides: Sequence[str], key: str) -> Path | None:
     found = None
     with contextlib.suppress(Exception):
         for path in selected_config_files(overrides):
-            node: Any = yaml.load(path.read_text(encoding="utf-8"), Loader=_SAFE)  # checked as text: bounded
+            node: Any = yaml.load(path.read_text(encoding="utf-8"), Loader=SAFE_LOADER)  # checked as text: bounded
             *parents, last = key.split(".")
             for part in parents:
                 node = node.get(part) if isinstance(node, dict) else None
