@@ -47,18 +47,21 @@ import yaml
 
 from analysis.cli_args import MAX_JOBS, OneLineParser
 from analysis.cli_args import jobs as cli_jobs
-from analysis.logs import LogError, iter_messages
+from analysis.logs import LogError
 from analysis.metrics import metrics_table
-from fuzzynav.conf import CONF_DIR as CONF
 from fuzzynav.params import limits
-from runners.configuration import plugins as config_plugins
 from runners.configuration.data_files import MANIFEST, SAFE_LOADER, DataFileError, check_data_file
 from runners.datasets import recorded_source
+from runners.datasets.episode_recording import (
+    content_digests,
+    forget_assembled,
+    prepare_assembly,
+    record_episode,
+    resolved_config_json,
+)
 from runners.datasets.manifest import EPISODE_FIELDS, FIELDS, DatasetError, check_manifest
 from runners.datasets.verify_report import detail_lines, episode_line, summary_lines
-from runners.logs import yaml_text
 from runners.logs.diff import EpisodeDiff, diff_logs, diff_records
-from runners.logs.fields import TIMING_FIELDS, BehaviourRecord
 
 ROOT = Path(__file__).resolve().parents[1]
 DATASETS = ROOT / "datasets"  # the default place of datasets; ``--root`` (tests: a temporary directory) changes it
@@ -143,14 +146,15 @@ def _check_override(text: Any, where: str) -> None:
 
 
 def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = None,
-                search: list[str] | None = None) -> None:
+                search: list[str] | None = None, n_jobs: int = 1) -> None:
     """Check the manifest's sweep before any episode runs (one line naming the field): every override is one
     ``key=value`` of the run config (see :func:`_check_override`), every scenario a name, and each scenario,
     variant, override and ``extra`` override composes and validates (:func:`runners.configuration.precheck.precheck`, as
     ``runners.run`` checks its command line) with the first scenario, variant and seed. Otherwise a bad entry
     was a traceback from every worker. ``search``: overrides every composition needs (the configuration folder of
-    a dataset built from recordings, :mod:`runners.datasets.recorded_source`), not the manifest's."""
-    from runners.configuration.precheck import precheck
+    a dataset built from recordings, :mod:`runners.datasets.recorded_source`), not the manifest's. ``n_jobs``:
+    processes that compose the entries in parallel (each ~0.3 s; -1: every core); the first failure in the order
+    above is still the one reported."""
 
     sweep = manifest["sweep"]
     common = sweep.get("overrides") or []
@@ -180,22 +184,59 @@ def check_sweep(manifest: dict[str, Any], path: Path, extra: list[str] | None = 
     first = [f"seed={sweep['seeds'][0]}"]
     scenarios, variants = sweep["scenarios"], [_variant_overrides(v) for v in sweep["variants"]]
 
-    def fail_if(where: str, overrides: list[str]) -> None:
-        problem = precheck([*(search or []), *overrides])
-        if problem:
-            raise DatasetError(f"{where}: {problem.removeprefix('config: ')}" if where else problem)
-
     # in this order each check adds one entry to entries already found good, so the first failure is that entry's
-    fail_if(f"{path}: sweep.scenarios[0]", [f"scenario={scenarios[0]}", *first])
-    for i, parts in enumerate(variants):
-        fail_if(f"{path}: sweep.variants[{i}]", [f"scenario={scenarios[0]}", *parts, *first])
-    for i in range(len(common)):
-        fail_if(f"{path}: sweep.overrides[{i}]", [f"scenario={scenarios[0]}", *variants[0], *common[:i + 1], *first])
-    for i in range(len(extra)):  # the command line's: the precheck's message names the override's key
-        fail_if("", [f"scenario={scenarios[0]}", *variants[0], *common, *extra[:i + 1], *first])
-    for i, name in enumerate(scenarios[1:], start=1):
-        fail_if(f"{path}: sweep.scenarios[{i}]", [f"scenario={name}", *variants[0], *common, *extra, *first])
-    _check_distinct_variants(path, [*(search or []), f"scenario={scenarios[0]}"], variants, [*common, *extra, *first])
+    trials = [(f"{path}: sweep.scenarios[0]", [f"scenario={scenarios[0]}", *first])]
+    trials += [(f"{path}: sweep.variants[{i}]", [f"scenario={scenarios[0]}", *parts, *first])
+               for i, parts in enumerate(variants)]
+    trials += [(f"{path}: sweep.overrides[{i}]", [f"scenario={scenarios[0]}", *variants[0], *common[:i + 1], *first])
+               for i in range(len(common))]
+    # the command line's: the precheck's message names the override's key
+    trials += [("", [f"scenario={scenarios[0]}", *variants[0], *common, *extra[:i + 1], *first])
+               for i in range(len(extra))]
+    trials += [(f"{path}: sweep.scenarios[{i}]", [f"scenario={name}", *variants[0], *common, *extra, *first])
+               for i, name in enumerate(scenarios[1:], start=1)]
+    workers = effective_workers(n_jobs, len(trials))  # (one pool for both checks: loky keeps its processes)
+    refused = _first_refused(trials, search or [], workers)
+    if refused is not None:
+        where, problem = refused
+        raise DatasetError(f"{where}: {problem.removeprefix('config: ')}" if where else problem)
+    _check_distinct_variants(path, [*(search or []), f"scenario={scenarios[0]}"], variants, [*common, *extra, *first],
+                             workers)
+
+
+def _first_refused(trials: list[tuple[str, list[str]]], search: list[str], workers: int) -> tuple[str, str] | None:
+    """(where, problem) of the first of ``trials`` (where, overrides) whose overrides after ``search``
+    :func:`runners.configuration.precheck.precheck` refuses, or None: the first alone (a manifest broken from its
+    first entry fails at once, without starting workers), then the others on ``workers`` processes, looked at in
+    order."""
+    import warnings
+
+    from runners.configuration.precheck import precheck
+
+    overrides = [[*search, *o] for _, o in trials]
+    if not overrides:
+        return None
+    problem = precheck(overrides[0])
+    if problem:
+        return trials[0][0], problem
+    if workers < 2 or len(overrides) < 3:
+        for (where, _), o in zip(trials[1:], overrides[1:], strict=True):
+            if problem := precheck(o):
+                return where, problem
+        return None
+    from joblib import Parallel, delayed
+
+    # (as many workers as the recording that follows: loky hands it the same processes)
+    problems = Parallel(n_jobs=workers, return_as="generator")(delayed(precheck)(o) for o in overrides[1:])
+    try:
+        for (where, _), problem in zip(trials[1:], problems, strict=True):
+            if problem:
+                return where, problem
+        return None
+    finally:
+        with warnings.catch_warnings():  # joblib's note that the checks after the failing one were not needed
+            warnings.filterwarnings("ignore", category=UserWarning, module="joblib")
+            problems.close()
 
 
 def _check_repeats(sweep: dict[str, Any], path: Path) -> None:
@@ -209,27 +250,25 @@ def _check_repeats(sweep: dict[str, Any], path: Path) -> None:
             seen[text] = i
 
 
-def _check_distinct_variants(path: Path, before: list[str], variants: list[list[str]], after: list[str]) -> None:
+def _check_distinct_variants(path: Path, before: list[str], variants: list[list[str]], after: list[str],
+                             workers: int = 1) -> None:
     """Two variants composing the same configuration (planner=auto and planner=auto_h2) made the same episodes
-    under two names; the build failed after running them all, naming temporary files."""
-    from hydra import compose, initialize_config_dir
-    from omegaconf import OmegaConf
-
-    from runners.configuration import schema
-
+    under two names; the build failed after running them all, naming temporary files. The variants' configs are
+    composed on ``workers`` processes."""
     if len(variants) < 2:
         return
-    schema.register()
+    todo = [[*before, *parts, *after] for parts in variants]
+    if workers > 1:
+        from joblib import Parallel, delayed
+
+        texts = Parallel(n_jobs=workers)(delayed(resolved_config_json)(o) for o in todo)
+    else:
+        texts = [resolved_config_json(o) for o in todo]
     seen: dict[str, int] = {}
-    config_plugins.register()  # other packages' config folders (entry points)
-    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        for i, parts in enumerate(variants):
-            cfg = compose("config", overrides=[*before, *parts, *after])
-            text = json.dumps(OmegaConf.to_container(cfg, resolve=True), sort_keys=True, default=str)
-            if text in seen:
-                raise DatasetError(f"{path}: sweep.variants[{i}]: the same configuration as "
-                                   f"sweep.variants[{seen[text]}]")
-            seen[text] = i
+    for i, text in enumerate(texts):
+        if text in seen:
+            raise DatasetError(f"{path}: sweep.variants[{i}]: the same configuration as sweep.variants[{seen[text]}]")
+        seen[text] = i
 
 
 def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
@@ -249,29 +288,6 @@ def jobs(manifest: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 # -- content hashes ---------------------------------------------------------------------------------------
-def _canonical(message: dict[str, Any]) -> bytes:
-    clean = {k: v for k, v in message.items() if k not in TIMING_FIELDS}
-    return json.dumps(clean, sort_keys=True, separators=(",", ":")).encode()
-
-
-def content_digests(path: Path) -> dict[str, Any]:
-    """SHA-256 of the message content, 8-hex digests per topic and per log time (step), and the behaviour
-    record (:class:`runners.logs.fields.BehaviourRecord`)."""
-    whole = hashlib.sha256()
-    topics: dict[str, Any] = {}
-    steps: dict[int, Any] = {}
-    behaviour = BehaviourRecord()
-    for topic, t, msg in iter_messages(path):
-        data = _canonical(msg)
-        line = topic.encode() + b"|" + str(t).encode() + b"|" + data + b"\n"
-        whole.update(line)
-        topics.setdefault(topic, hashlib.sha256()).update(line)
-        steps.setdefault(t, hashlib.sha256()).update(line)
-        behaviour.add(topic, t, msg)
-    return {"sha256": whole.hexdigest(), "topics": {k: v.hexdigest()[:8] for k, v in sorted(topics.items())},
-            "step_digests": [steps[t].hexdigest()[:8] for t in sorted(steps)], **behaviour.result()}
-
-
 def dataset_metrics(paths: Iterable[Path]) -> pd.DataFrame:
     """The metrics table of a dataset's logs, one row per episode in the order of the log file names, compute
     times excluded (they are timings, not behaviour); ``log`` holds the file name, not its location."""
@@ -325,30 +341,6 @@ def compare_metrics(manifest: dict[str, Any], table: pd.DataFrame, name: str) ->
 
 
 # -- recording --------------------------------------------------------------------------------------------
-def _record(job: dict[str, Any], out_dir: str) -> dict[str, Any]:
-    """Run one episode (in a worker) and return its digests."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from omegaconf import OmegaConf
-
-    from runners.configuration import schema
-    from runners.run import episode_config, load_evaluator, load_scenario, run_episode, scenario_generator
-
-    schema.register()
-    if GlobalHydra.instance().is_initialized():
-        cfg = compose("config", overrides=job["overrides"])
-    else:  # a context: with one worker this runs in the caller's process, whose later prechecks initialise Hydra
-        config_plugins.register()  # other packages' config folders (entry points)
-        with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-            cfg = compose("config", overrides=job["overrides"])
-    plain = OmegaConf.to_container(cfg, resolve=True)
-    path = Path(out_dir) / job["file"]
-    text = yaml_text.config_text(cfg, resolve=True)
-    summary = run_episode(load_scenario(plain, job["seed"]), load_evaluator(plain), episode_config(plain),
-                          job["seed"], path, text, generator=scenario_generator(plain))
-    return {"file": job["file"], "outcome": summary["outcome"], "steps": summary["steps"], **content_digests(path)}
-
-
 def effective_workers(n_jobs: int, n_episodes: int) -> int:
     """Worker processes for ``n_episodes``: ``--jobs`` (-1: every core), at most one per episode and per core
     (``--jobs 300`` for one episode started 300 workers, hung and left them behind when killed)."""
@@ -357,8 +349,11 @@ def effective_workers(n_jobs: int, n_episodes: int) -> int:
     return max(1, min(wanted, n_episodes, cores))
 
 
-def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: str = "episodes") -> list[dict]:
-    """Record every episode of the dataset into ``out_dir`` in parallel, with a progress bar."""
+def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: str = "episodes",
+               assemble: bool = False) -> list[dict]:
+    """Record every episode of the dataset into ``out_dir`` in parallel, with a progress bar. ``assemble``: make the
+    episodes' configs from a few composed ones where that gives Hydra's config
+    (:func:`runners.datasets.episode_recording.run_config`)."""
     from joblib import Parallel, delayed
 
     from runners.progress import EpisodeProgress
@@ -367,10 +362,15 @@ def record_all(manifest: dict[str, Any], out_dir: Path, n_jobs: int = -1, desc: 
     todo = jobs(manifest)
     results = []
     workers = effective_workers(n_jobs, len(todo))
-    with EpisodeProgress(len(todo), desc) as progress:
-        for res in Parallel(n_jobs=workers, return_as="generator")(delayed(_record)(j, str(out_dir)) for j in todo):
-            results.append(res)
-            progress.update(1)
+    with tempfile.TemporaryDirectory(prefix="fuzzynav-configs-") as shared:
+        state = Path(shared) / "configs.pickle"
+        with EpisodeProgress(len(todo), desc) as progress:
+            token = prepare_assembly(todo, workers, state) if assemble else None
+            for res in Parallel(n_jobs=workers, return_as="generator")(
+                    delayed(record_episode)(j, str(out_dir), token, str(state)) for j in todo):
+                results.append(res)
+                progress.update(1)
+        forget_assembled()  # (this process's, when it recorded: one worker)
     return sorted(results, key=lambda r: r["file"])
 
 
@@ -386,7 +386,7 @@ def build(name: str, n_jobs: int = -1, root: Path = DATASETS, source: Path | Non
         manifest, search, said = recorded_source.prepare(original, manifest_path(name, root), source,
                                                          Path(tmp) / "conf", building=True)
         (notes if notes is not None else []).extend(said)
-        check_sweep(manifest, manifest_path(name, root), search=search)
+        check_sweep(manifest, manifest_path(name, root), search=search, n_jobs=n_jobs)
         manifest["_search"] = search
         results = record_all(manifest, Path(tmp), n_jobs, desc=f"build {name}")
         manifest.pop("metrics_sha256", None)  # the whole-table digest of older manifests: now one per column
@@ -469,13 +469,14 @@ def verify(name: str, overrides: list[str] | None = None, n_jobs: int = -1, seed
     with tempfile.TemporaryDirectory(prefix=f"fuzzynav-{name}-") as tmp:
         manifest, search, _ = recorded_source.prepare(manifest, path, source, Path(tmp) / "conf", building=False)
         # a bad entry or override is one line before any episode runs (not a traceback from every worker)
-        check_sweep(manifest, path, overrides, search=search)
+        check_sweep(manifest, path, overrides, search=search, n_jobs=n_jobs)
         manifest["_search"] = search
         if overrides:
             manifest["sweep"]["overrides"] = [*(manifest["sweep"].get("overrides") or []), *overrides]
         checked = _select_seeds(manifest, seeds, path) if seeds is not None else None
         out = Verification(compared=len(manifest["episodes"]), seeds=checked)
-        results = {r["file"]: r for r in record_all(manifest, Path(tmp), n_jobs, desc=f"verify {name}")}
+        results = {r["file"]: r for r in record_all(manifest, Path(tmp), n_jobs, desc=f"verify {name}",
+                                                          assemble=True)}
         for file, expected in sorted(manifest["episodes"].items()):
             got = results.get(file)
             if got is None:

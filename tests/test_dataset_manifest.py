@@ -56,6 +56,24 @@ def test_the_unmutated_manifest_is_accepted(tmp_path):
     assert len(dataset.jobs(manifest)) == 7
 
 
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_the_first_bad_entry_in_the_manifests_order_is_named_when_checked_in_parallel(tmp_path, n_jobs):
+    """The sweep's entries are composed on ``n_jobs`` processes; the error is the first bad one's in the manifest's
+    order (variants before other scenarios), not the first to finish."""
+    data = base()
+    data["sweep"]["scenarios"] = ["paper_fig5", "head_on", "no_such_scenario", "corridor", "neither_this_one"]
+    data["sweep"]["variants"] = [*data["sweep"]["variants"][:3], "planner.h_wait=-4"]
+    write(tmp_path, data)
+    manifest = dataset.load_manifest(NAME, tmp_path)
+    with pytest.raises(dataset.DatasetError, match=r"manifest\.yaml: sweep\.variants\[3\]: .*h_wait"):
+        dataset.check_sweep(manifest, dataset.manifest_path(NAME, tmp_path), n_jobs=n_jobs)
+    data["sweep"]["variants"] = data["sweep"]["variants"][:3]
+    write(tmp_path, data)
+    manifest = dataset.load_manifest(NAME, tmp_path)
+    with pytest.raises(dataset.DatasetError, match=r"sweep\.scenarios\[2\]: .*no_such_scenario"):
+        dataset.check_sweep(manifest, dataset.manifest_path(NAME, tmp_path), n_jobs=n_jobs)
+
+
 def test_an_entry_without_the_behaviour_record_is_read(tmp_path):
     """Manifests built before the behaviour record existed hold outcome, steps and digests only."""
     data = base()

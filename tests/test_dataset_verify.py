@@ -594,3 +594,30 @@ def test_an_old_manifest_with_one_metrics_digest_says_to_rebuild(root, tmp_path,
         assert "metrics table differs from the manifest's metrics_sha256" in out
         assert "if a metric was added, record a digest per column with python -m runners.dataset build tiny" in out
 
+
+
+def test_verifications_assembled_configs_are_the_configs_hydra_composes(tmp_path):
+    """``verify`` makes most episodes' configs from a few composed ones (runners.datasets.episode_recording); each is
+    Hydra's composition of the episode's overrides, to the last character of its resolved YAML, over scenarios,
+    variants that choose other groups' options (a navigator with its planner), plain values, a variant of two
+    overrides, a common override and seeds."""
+    from runners.datasets import episode_recording
+    from runners.logs import yaml_text
+
+    manifest = {"sweep": {"scenarios": ["head_on", "crowd_crossing"],
+                          "variants": ["planner=wait", "navigator=dwa", "planner.h_wait=3",
+                                       ["navigator=fuzzy_tpt", "planner=auto_h4"]],
+                          "seeds": [0, 2], "overrides": ["terminate_on_collision=false"]}}
+    todo = dataset.jobs(manifest)
+    state = tmp_path / "configs.pickle"
+    token = episode_recording.prepare_assembly(todo, 1, state)
+    assert token is not None
+    try:
+        for job in todo:
+            got = yaml_text.config_text(episode_recording.run_config(job, token, str(state)), resolve=True)
+            assert got == yaml_text.config_text(episode_recording.run_config(job, None), resolve=True), job
+        # assembled: the episodes whose overrides set the first episode's keys (planner=wait) but for the first
+        # episode and the other scenario's first seed (composed up front); the others are composed where they run
+        assert episode_recording._ASSEMBLED[token].assembled == 2
+    finally:
+        episode_recording.forget_assembled()

@@ -1,4 +1,4 @@
-"""The launcher's job configs (runners/hydra_sweeper/job_configs.py): every assembled config is the config Hydra
+"""The launcher's job configs (runners/configuration/job_configs.py): every assembled config is the config Hydra
 composes for the same overrides, to the last character of its YAML (Hydra's node included), over the sweep
 presets and random products of the config groups' options and values."""
 
@@ -16,7 +16,7 @@ from omegaconf import OmegaConf
 
 from fuzzynav.conf import CONF_DIR
 from runners.configuration import schema
-from runners.hydra_sweeper.job_configs import JobConfigs
+from runners.configuration.job_configs import JobConfigs
 
 CONF = Path(CONF_DIR)
 
@@ -109,6 +109,27 @@ def test_configs_composed_in_workers_travel_as_bytes_and_are_unpickled_only_wher
     worker = pickle.loads(cloudpickle.dumps(parent))
     assert [_yaml(worker.config(job)) for job in jobs] == [_yaml(composed(job)) for job in jobs]
     assert calls == [] and worker.assembled == 2 and worker.composed == 0
+
+
+def test_to_compose_lists_what_assembly_needs_and_nothing_is_composed_after(hydra_loader):
+    # a dataset's verification: the reference and each other scenario's and variant's config are composed up front
+    # (in parallel, elsewhere); then no job, whatever its seed, is composed again
+    master, composed = hydra_loader
+    jobs = [[f"scenario={s}", f"planner={p}", f"seed={k}"] for s in ("head_on", "corridor", "doorway")
+            for p in ("auto", "wait", "none") for k in (0, 3)]
+    calls: list[tuple[str, ...]] = []
+    configs = JobConfigs(master, lambda overrides: calls.append(tuple(overrides)) or composed(overrides))
+    needed = configs.to_compose(jobs)
+    assert calls == [tuple(jobs[0])]  # the reference, to tell config groups from values
+    assert needed == [("scenario=head_on", "planner=wait", "seed=0"), ("scenario=head_on", "planner=none", "seed=0"),
+                      ("scenario=corridor", "planner=auto", "seed=0"), ("scenario=doorway", "planner=auto", "seed=0")]
+    for key in needed:
+        configs.add_composed(key, composed(list(key)))
+    assert configs.to_compose(jobs) == []
+    assert [_yaml(configs.config(job)) for job in jobs] == [_yaml(composed(job)) for job in jobs]
+    assert calls == [tuple(jobs[0])] and configs.assembled == len(jobs) - 1 - len(needed)
+    # jobs whose overrides are not the reference's keys are composed whole where they run: nothing to list
+    assert configs.to_compose([["scenario=corridor", "planner=auto", "navigator=dwa", "seed=0"]]) == []
 
 
 def test_seeds_and_numbers_are_applied_without_composing(hydra_loader):

@@ -8,7 +8,7 @@ workers are processes of this machine; ~0.7 MB that must not take the output dis
 job carries only its overrides and number, and each worker reads the file at its first job of the launch and keeps
 it (:func:`worker_state`). The launch removes the file when it returns; one left by a launching process that was
 killed is removed by the next launch. The job configs are then made in the
-workers (:class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs`, from the configs the launching process
+workers (:class:`~runners.configuration.job_configs.JobConfigs`, from the configs the launching process
 composed when it checked each swept value), in parallel.
 """
 
@@ -27,7 +27,7 @@ from hydra.core.utils import setup_globals
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig
 
-from .job_configs import JobConfigs
+from runners.configuration.job_configs import JobConfigs
 
 
 @dataclass

@@ -7,7 +7,7 @@ three differences, each there because a job of a few episodes cost more than its
 1. What all jobs share (Hydra's context and global state, the configs composed when each swept value was checked)
    goes to each worker once, through a temporary file (:mod:`.launch_state`); a job carries
    its overrides and number only. Hydra's launcher pickles ~175 kB per job in the launching process.
-2. Each job's config is made in its worker by :class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs`
+2. Each job's config is made in its worker by :class:`~runners.configuration.job_configs.JobConfigs`
    (assembled from the configs composed once per swept value; the same config), not composed again (~0.1 s).
 3. The job runs through :func:`runners.sweeping.job_run.run_job`: Hydra's ``run_job`` without its second copy of
    the config, and the result comes back without the configs.
@@ -30,10 +30,10 @@ from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from runners.configuration import hydra_paths
+from runners.configuration.job_configs import JobConfigs
 from runners.sweeping import job_run
 
 from . import launch_state
-from .job_configs import JobConfigs
 
 log = logging.getLogger(__name__)
 

@@ -3,7 +3,7 @@
 
 Hydra's ``run_job`` (Hydra 1.3) deep-copies the job's config to make the task's config and deep-copies Hydra's
 node for the job's result, and sets ``HydraConfig`` twice; in a worker of :class:`FuzzynavLauncher` the config
-was made for this job alone (:class:`~hydra_plugins.fuzzynav_sweeper.job_configs.JobConfigs` returns a new
+was made for this job alone (:class:`~runners.configuration.job_configs.JobConfigs` returns a new
 object), so Hydra's node needs no copy of its own, and the result goes back to the launching process without the
 configs (the sweepers read only its status, its return value and ``hydra.job``). All a job can observe is Hydra's:
 

@@ -1,4 +1,8 @@
-"""Each job's config of a sweep, composed by Hydra once per swept value instead of once per job.
+"""Each job's config of a sweep (or each episode's of a dataset's verification), composed by Hydra once per swept
+value instead of once per job.
+
+Used by the sweep's launcher (:mod:`hydra_plugins.fuzzynav_sweeper.launcher`, with Hydra's ``load_sweep_config``)
+and by ``runners.dataset verify`` (:mod:`runners.datasets.episode_recording`, with ``hydra.compose``).
 
 Hydra composes a job's config from its overrides in about 0.1 s (defaults lists, YAML files, merges): in the default
 sweep more than its five episodes cost. A sweep is a product of swept keys, and most of its jobs differ from a
@@ -88,6 +92,33 @@ class JobConfigs:
             return assembled
         self._full(key)
         return self._fresh(key)
+
+    def to_compose(self, jobs: Sequence[Sequence[str]]) -> list[tuple[str, ...]]:
+        """The configs that assembling ``jobs`` needs and this object does not have: the reference (the first of
+        ``jobs`` unless one was set) and, for each config group option among ``jobs`` that is not the reference's,
+        the reference with only that option changed; in ``jobs``' order, each once. Composed elsewhere (in parallel)
+        and given back with :meth:`add_composed`, they spare every later :meth:`config` a composition. The reference
+        is composed here when it is needed to tell groups from values (its ``hydra.runtime.choices``)."""
+        keys = [tuple(j) for j in jobs]
+        if not keys:
+            return []
+        if self._reference is None:
+            self._reference = (keys[0], self._parse(keys[0]))
+        ref_key, ref_parsed = self._reference
+        choices = self._full(ref_key).hydra.runtime.choices
+        wanted: list[tuple[str, ...]] = []
+        for key in keys:
+            parsed = self._parse(key)
+            if [o.get_key_element() for o in parsed] != [o.get_key_element() for o in ref_parsed]:
+                continue  # composed whole where it is needed (as :meth:`config` would)
+            for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
+                if (_plain(o) and _plain(r) and o.key_or_group in choices and isinstance(o.value(), str)
+                        and o.value() != r.value()):
+                    varied = list(ref_key)
+                    varied[i] = o.input_line or f"{o.key_or_group}={o.value()}"
+                    wanted.append(tuple(varied))
+        have = set(self._composed) | set(self._pickled)
+        return [k for k in dict.fromkeys(wanted) if k not in have]
 
     def _fresh(self, key: tuple[str, ...]) -> DictConfig:
         """A new copy of the composed config of ``key``: unpickled from its bytes, pickled once (a quarter of a
