@@ -152,7 +152,9 @@ GROUPS = {g: _options(g) for g in ("scenario", "planner", "controller", "percept
 VALUES = {"seed": st.integers(0, 10**6), "episodes": st.integers(1, 9),
           "planner.safety_margin_cm": st.floats(0, 50, allow_nan=False).map(lambda x: round(x, 3)),
           "planner.h_wait": st.integers(0, 6), "dt": st.sampled_from([0.5, 1.0, 1]),
-          "terminate_on_collision": st.booleans(), "robot.v_max": st.floats(20, 60).map(lambda x: round(x, 1))}
+          "terminate_on_collision": st.booleans(), "robot.v_max": st.floats(20, 60).map(lambda x: round(x, 1)),
+          # a mapping: Hydra merges it onto the composed default
+          "scenario.robot": st.sampled_from(["{start: [100, 250]}", "{goal: [1100, 250]}", "{radius: 25}"])}
 
 
 @st.composite
@@ -171,6 +173,20 @@ def sweeps(draw):
 def test_random_sweeps_are_assembled_as_hydra_composes_them(hydra_loader, jobs):
     master, composed = hydra_loader
     _check(master, composed, jobs)
+
+
+def test_a_mapping_value_is_merged_onto_the_default_not_onto_another_jobs_mapping(hydra_loader):
+    """Found by a hostile test of dataset verification: variants scenario.params={n:4} and ={max_steps:100} were
+    assembled with n=4 in both (merged onto the first job's mapping), where Hydra gives the second the default n."""
+    master, composed = hydra_loader
+    jobs = [["scenario=crowd_crossing", "scenario.params={n:4}"],
+            ["scenario=crowd_crossing", "scenario.params={max_steps:100}"],
+            ["scenario=head_on", "scenario.robot={start: [100, 250]}"],
+            ["scenario=head_on", "scenario.robot={goal: [1100, 250]}"]]
+    _check(master, composed, jobs[:2])
+    _check(master, composed, jobs[2:])
+    configs = _check(master, composed, [jobs[2], ["scenario=corridor", "scenario.robot={start: [100, 250]}"]])
+    assert configs.assembled == 1  # the reference's own mapping: merged again onto its own, the same
 
 
 def test_overrides_of_another_form_are_composed(hydra_loader):

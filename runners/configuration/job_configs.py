@@ -13,7 +13,8 @@ group changed; every other job is *assembled* from those:
 * a config group's option (``scenario=head_on``) contributes the top-level nodes in which its composition differs
   from the reference's (its *delta*), and its entry in ``hydra.runtime.choices``;
 * a plain value (``seed=7``, ``planner.h_wait=3``) is applied as Hydra applies a value override after composing
-  (``OmegaConf.update(cfg, key, value, merge=True)``);
+  (``OmegaConf.update(cfg, key, value, merge=True)``); a mapping (``scenario.params={n: 4}``) only where it is the
+  reference's own (merged onto the reference's, another mapping would keep the reference's keys);
 * ``hydra.overrides.task`` and ``hydra.job.override_dirname`` are the job's, as Hydra computes them.
 
 Assembly is used only where it is the same as composing: every override a plain ``key=value`` (no ``+``, ``~``,
@@ -167,6 +168,10 @@ class JobConfigs:
                     return None
                 if o.value() != r.value():
                     groups.append((i, o))
+            elif isinstance(o.value(), dict) and o.value() != r.value():
+                # Hydra merges a mapping onto the composed default; here it would merge onto the reference's own
+                # mapping (scenario.params={n:4}, then ={max_steps:100}: n stayed 4)
+                return None
             else:
                 values.append(o)
         deltas = []
