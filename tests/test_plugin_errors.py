@@ -225,7 +225,7 @@ def test_a_policy_whose_act_never_returns_is_stopped_by_one_sigterm(tmp_path):
     import signal
     import time
 
-    from runners.dataset import iter_messages
+    from analysis.logs import iter_messages
     from runners.sweeping.stop import STEP_GRACE_S
 
     marker = tmp_path / "acting"
@@ -260,7 +260,7 @@ def test_a_policy_whose_act_never_returns_does_not_hold_a_stopped_sweep(tmp_path
     import signal
     import time
 
-    from runners.dataset import iter_messages
+    from analysis.logs import iter_messages
     from runners.sweeping.stop import STEP_GRACE_S
 
     marker = tmp_path / "acting"
