@@ -231,7 +231,7 @@ def test_same_log_content_as_runners_run(tmp_path: Path, overrides: list[str]) -
 
 
 def test_record_mcap_finishes_an_unfinished_episode(tmp_path: Path) -> None:
-    from runners.dataset import iter_messages
+    from analysis.logs import iter_messages
 
     env = RecordMcap(NavigationEnv(scenario="head_on"), tmp_path)
     env.reset(seed=0)
