@@ -42,7 +42,6 @@ def content_digests(path: Path) -> dict[str, Any]:
             "step_digests": [steps[t].hexdigest()[:8] for t in sorted(steps)], **behaviour.result()}
 
 
-
 #: this worker process's episode configs of the current recording (its token; runners.dataset.record_all), assembled
 #: from the configs Hydra composed once per scenario and variant (runners.configuration.job_configs.JobConfigs)
 _ASSEMBLED: dict[str, Any] = {}
