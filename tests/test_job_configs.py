@@ -132,6 +132,24 @@ def test_to_compose_lists_what_assembly_needs_and_nothing_is_composed_after(hydr
     assert configs.to_compose([["scenario=corridor", "planner=auto", "navigator=dwa", "seed=0"]]) == []
 
 
+def test_to_compose_lists_only_what_an_assembled_job_uses(hydra_loader):
+    # a job composed whole where it runs (a mapping value other than the reference's; an override that is not
+    # plain) needs no delta: listing its group's option would compose a config that no job uses
+    master, composed = hydra_loader
+    jobs = [["scenario=crowd_crossing", "scenario.params={n:4}"],
+            ["scenario=random_walkers", "scenario.params={max_steps:100}"],
+            ["scenario=corridor_flow", "scenario.params={n:4}"]]
+    configs = JobConfigs(master, composed)
+    assert configs.to_compose(jobs) == [("scenario=corridor_flow", "scenario.params={n:4}")]
+    assert configs.to_compose([["+extra=1", "scenario.params={n:4}"]]) == []
+    # what is listed is exactly what the jobs' assembly then composes
+    calls: list[tuple[str, ...]] = []
+    configs = JobConfigs(master, lambda overrides: calls.append(tuple(overrides)) or composed(overrides))
+    needed = configs.to_compose(jobs)
+    assert [_yaml(configs.config(job)) for job in jobs] == [_yaml(composed(job)) for job in jobs]
+    assert set(needed) <= set(calls) and configs.assembled == 1
+
+
 def test_seeds_and_numbers_are_applied_without_composing(hydra_loader):
     master, composed = hydra_loader
     jobs = [[f"seed={s}", f"planner.safety_margin_cm={m}", "episodes=3"] for s in range(0, 100, 10)

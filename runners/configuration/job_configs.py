@@ -105,19 +105,12 @@ class JobConfigs:
             return []
         if self._reference is None:
             self._reference = (keys[0], self._parse(keys[0]))
-        ref_key, ref_parsed = self._reference
-        choices = self._full(ref_key).hydra.runtime.choices
+        ref_key = self._reference[0]
         wanted: list[tuple[str, ...]] = []
         for key in keys:
-            parsed = self._parse(key)
-            if [o.get_key_element() for o in parsed] != [o.get_key_element() for o in ref_parsed]:
-                continue  # composed whole where it is needed (as :meth:`config` would)
-            for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
-                if (_plain(o) and _plain(r) and o.key_or_group in choices and isinstance(o.value(), str)
-                        and o.value() != r.value()):
-                    varied = list(ref_key)
-                    varied[i] = o.input_line or f"{o.key_or_group}={o.value()}"
-                    wanted.append(tuple(varied))
+            match = self._match(key)
+            if match is not None:  # (else composed whole where it is needed, as :meth:`config` would)
+                wanted.extend(_varied_key(ref_key, i, o) for i, o in match[0])
         have = set(self._composed) | set(self._pickled)
         return [k for k in dict.fromkeys(wanted) if k not in have]
 
@@ -150,14 +143,17 @@ class JobConfigs:
             self._parsed = (key, self._parser.parse_overrides(list(key)))
         return self._parsed[1]
 
-    def _assemble(self, key: tuple[str, ...]) -> DictConfig | None:
+    def _match(self, key: tuple[str, ...]) -> tuple[list[tuple[int, Override]], list[Override]] | None:
+        """How the job of ``key`` differs from the reference, where assembling it is the same as composing it: (its
+        config group options that are not the reference's, each with its place among the overrides; its value
+        overrides). None where it is composed whole: other keys than the reference's, an override that is not plain,
+        a group given a non-string value, or a mapping value other than the reference's."""
         assert self._reference is not None
         ref_key, ref_parsed = self._reference
-        reference = self._full(ref_key)
         parsed = self._parse(key)
         if [o.get_key_element() for o in parsed] != [o.get_key_element() for o in ref_parsed]:
             return None
-        choices = reference.hydra.runtime.choices
+        choices = self._full(ref_key).hydra.runtime.choices
         groups: list[tuple[int, Override]] = []
         values: list[Override] = []
         for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
@@ -174,6 +170,15 @@ class JobConfigs:
                 return None
             else:
                 values.append(o)
+        return groups, values
+
+    def _assemble(self, key: tuple[str, ...]) -> DictConfig | None:
+        match = self._match(key)
+        if match is None:
+            return None
+        groups, values = match
+        assert self._reference is not None
+        ref_key = self._reference[0]
         deltas = []
         touched: set[str] = set()
         for i, o in groups:
@@ -213,9 +218,7 @@ class JobConfigs:
             return self._deltas[(group, option)]
         assert self._reference is not None
         reference = self._full(self._reference[0])
-        varied_key = list(ref_key)
-        varied_key[index] = override.input_line or f"{group}={option}"
-        varied = self._full(tuple(varied_key))
+        varied = self._full(_varied_key(ref_key, index, override))
         delta: dict[str, Any] | None = {"group": group, "choice": varied.hydra.runtime.choices.get(group),
                                         "nodes": {}}
         ref_plain = OmegaConf.to_container(reference, resolve=False)
@@ -231,6 +234,14 @@ class JobConfigs:
                 delta = None
         self._deltas[(group, option)] = delta
         return delta
+
+
+def _varied_key(ref_key: tuple[str, ...], index: int, override: Override) -> tuple[str, ...]:
+    """The reference's overrides with the one at ``index`` replaced by ``override`` (a group's other option): the
+    composition a delta is taken from."""
+    varied = list(ref_key)
+    varied[index] = override.input_line or f"{override.key_or_group}={override.value()}"
+    return tuple(varied)
 
 
 def _plain(o: Override) -> bool:
