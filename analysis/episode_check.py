@@ -9,14 +9,16 @@ policy and h_wait are the metadata's; a finished episode has every step and the 
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import yaml
 
-from analysis.json_checks import CheckError, array, number, obj
+from analysis.json_checks import CheckError, accepts_all, array, number, obj, points
 from analysis.log_check import FINISHED, MAX_CONFIG_BYTES, POSITIVE_CM, TIME_TOLERANCE_NS, YAML_LOADER
 from fuzzynav.params.names import DEFAULT_POLICY, ROBOT_DEFAULTS, SCENARIO_DEFAULTS
 
@@ -336,9 +338,65 @@ def _check_beams(log: EpisodeLog) -> None:
 
 
 def _check_tpts(log: EpisodeLog) -> None:
+    """Each table has the episode's step length and, in a log with its scenario, is the table its own first row
+    makes (:func:`_check_tpt_prediction`)."""
+    world = _scenario(log)
+    goal = None
+    if world is not None:
+        with contextlib.suppress(TypeError, ValueError, KeyError):  # (_check_against_scenario names a bad robot)
+            goal = (float(world["robot"]["goal"][0]), float(world["robot"]["goal"][1]))
+    planner = log.config.get("planner")
+    swept = planner.get("swept_tpt") if isinstance(planner, dict) else None
+    sweeps = (swept,) if isinstance(swept, bool) else (True, False)  # a config that does not say: either
+    inputs_checked = goal is not None and accepts_all(_TPT_INPUTS, list(log.tpts.values()))
     for step, t in log.tpts.items():
         if abs(t["dt_s"] - log.dt) > 1e-9 * log.dt:
             raise CheckError(f"/tpt step {step} dt_s", f"{t['dt_s']!r} s, the episode's step is {log.dt!r} s")
+        if goal is not None:
+            try:
+                _check_tpt_prediction(t, goal, sweeps, inputs_checked)
+            except CheckError as err:
+                raise CheckError(f"/tpt step {step} {err.where}".rstrip(), err.problem) from None
+
+
+_TPT_INPUTS = obj(robot_speed_cm_s=number(0.0), safety_margin_cm=number(), obstacle_velocities_cm_s=points())
+
+
+def _check_tpt_prediction(t: dict[str, Any], goal: tuple[float, float], sweeps: tuple[bool, ...],
+                          inputs_checked: bool = False) -> None:
+    """The table is what :func:`fuzzynav.planning.tpt.table_rows` makes of its first row: the robot straight to
+    the goal at ``robot_speed_cm_s``, each obstacle at its velocity, and the collision marks of those positions
+    with the radii and margin it logs (``sweeps``: with the swept marks, without, or either). The same function
+    on the same numbers, so bit for bit: an edited row or flag changed ``tpt_ade_cm`` and
+    ``tpt_collisions_predicted`` without a word. Shapes were checked with the message (:func:`check_tpt`);
+    ``inputs_checked``: the fields only this check reads were, too (over the whole episode at once)."""
+    from fuzzynav.planning.tpt import table_rows
+
+    if not inputs_checked:
+        _TPT_INPUTS(t)
+    n, k = t["n_traj"], len(t["obstacle_ids"])
+    if len(t["obstacle_velocities_cm_s"]) != k:
+        raise CheckError("obstacle_velocities_cm_s", f"{len(t['obstacle_velocities_cm_s'])} values for {k} obstacles")
+    robot = np.array(t["robot_cm"], dtype=float).reshape(n + 1, 2)
+    obstacles = np.array(t["obstacles_cm"], dtype=float).reshape(n + 1, k, 2)
+    collide = np.array(t["collide"], dtype=bool).reshape(n + 1, k)
+    vel = np.array(t["obstacle_velocities_cm_s"], dtype=float).reshape(k, 2)
+    radii = np.array(t["obstacle_radii_cm"], dtype=float)
+    made = [table_rows(robot[0], goal, t["robot_speed_cm_s"], obstacles[0], vel, radii, t["robot_radius_cm"], n,
+                       t["dt_s"], t["safety_margin_cm"], swept) for swept in sweeps]
+    if not np.array_equal(made[0][0], robot):
+        row = int(np.flatnonzero((made[0][0] != robot).any(axis=1))[0])
+        raise CheckError(f"robot_cm[{row}]", f"{robot[row].tolist()}, not row 0 moved straight to the goal at "
+                                             f"robot_speed_cm_s ({made[0][0][row].tolist()})")
+    if not np.array_equal(made[0][1], obstacles):
+        row, col = (int(i) for i in np.argwhere((made[0][1] != obstacles).any(axis=2))[0])
+        raise CheckError(f"obstacles_cm[{row}][{col}]", f"{obstacles[row, col].tolist()}, not row 0 moved at the "
+                                                        f"obstacle's velocity ({made[0][1][row, col].tolist()})")
+    if not any(np.array_equal(marks, collide) for _r, _o, marks in made):
+        row, col = (int(i) for i in np.argwhere(made[0][2] != collide)[0])
+        raise CheckError(f"collide[{row}][{col}]", f"{bool(collide[row, col])}, where the table's own positions, "
+                                                   "radii and safety margin say "
+                                                   f"{bool(made[0][2][row, col])}")
 
 
 def _check_decisions(log: EpisodeLog, times: Mapping[str, list[int]]) -> None:

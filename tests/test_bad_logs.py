@@ -59,6 +59,52 @@ def test_a_truncated_log_is_left_out_as_truncated():
     assert df.empty and left_out["reason"].iloc[0].startswith("truncated:")
 
 
+def test_a_log_cut_before_its_metadata_is_truncated_not_a_foreign_file(good, tmp_path, capsys):
+    """The writer puts the run's metadata first (after the header); a copy cut inside it was "no 'fuzzynav.run'
+    metadata (not a fuzzynav log)", kind metadata, where it is a fuzzynav log cut short. A complete file without
+    the metadata is still not a fuzzynav log (cases.yaml: no_run_metadata.mcap)."""
+    import struct
+
+    data = good.read_bytes()
+    header_end = 8 + 9 + struct.unpack_from("<Q", data, 9)[0]  # magic, then the header record (opcode, length)
+    assert data[header_end] == 0x0C  # the metadata record follows
+    metadata_end = header_end + 9 + struct.unpack_from("<Q", data, header_end + 1)[0]
+    for cut in (8, 20, header_end, header_end + 100, metadata_end - 1):
+        log = tmp_path / f"cut{cut}.mcap"
+        log.write_bytes(data[:cut])
+        df, left_out = metrics_table([log])
+        assert df.empty and list(left_out["kind"]) == ["truncated"], cut
+        reason = left_out["reason"].iloc[0]
+        assert reason.startswith(f"{log}: truncated: the file ends before its 'fuzzynav.run' metadata"), reason
+        assert replay.main([str(log), "--verify"]) == 2
+        assert one_error_line(capsys.readouterr().err) == f"error: {reason}"
+
+
+@pytest.mark.parametrize("field, edit", [
+    ("collide[1][0]", lambda t: t["collide"][1].__setitem__(0, not t["collide"][1][0])),
+    ("obstacles_cm[2][0]", lambda t: t["obstacles_cm"][2][0].__setitem__(0, t["obstacles_cm"][2][0][0] + 0.5)),
+    ("robot_cm[1]", lambda t: t["robot_cm"][1].__setitem__(1, t["robot_cm"][1][1] + 1e-9)),
+])
+def test_a_tpt_that_is_not_what_its_first_row_makes_is_left_out(field, edit, good, tmp_path):
+    """A table's rows and marks follow from its first row (fuzzynav.planning.tpt.table_rows); an edited flag or
+    position changed tpt_collisions_predicted and tpt_ade_cm and was analysed as good."""
+    edited = []
+
+    def change(topic, i, msg):
+        if topic == "/tpt" and not edited and msg["obstacle_ids"]:
+            edit(msg)
+            edited.append(msg["step"])
+        return msg
+
+    log = rewrite(good, tmp_path / "edited.mcap", message=change)
+    assert edited, "the log has no TPT with an obstacle"
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["episode"]
+    assert f"/tpt step {edited[0]} {field}: " in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+    df, left_out = metrics_table([rewrite(good, tmp_path / "same.mcap")])  # the same log, re-written unedited
+    assert len(df) == 1 and left_out.empty
+
+
 @pytest.mark.parametrize("schema, expect", [
     (None, "/robot/state declares no schema, expected 'fuzzynav.RobotState'"),
     (("fuzzynav.Sonar", "jsonschema"), "/robot/state declares schema 'fuzzynav.Sonar', expected 'fuzzynav.RobotState'"),

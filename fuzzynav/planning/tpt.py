@@ -101,7 +101,7 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     pos0 = np.array([[t.x, t.y] for t in tracks], dtype=float).reshape(j, 2)
     vel = np.array([[t.vx, t.vy] for t in tracks], dtype=float).reshape(j, 2)
     radii = np.array([t.radius for t in tracks], dtype=float)
-    robot, obstacles, collide = _tables_numpy(position, goal, speed, pos0, vel, radii, robot_radius, n_traj, dt,
+    robot, obstacles, collide = table_rows(position, goal, speed, pos0, vel, radii, robot_radius, n_traj, dt,
                                               safety_margin, swept)
     return TrajectoryPredictionTable(
         robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
@@ -110,12 +110,12 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
         goal=(float(goal[0]), float(goal[1])))
 
 
-def _tables_numpy(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
-                  vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
-                  safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def table_rows(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
+               vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
+               safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The table's robot rows (n+1, 2) cm, obstacle rows (n+1, J, 2) cm and collision marks (n+1, J), by numpy,
     from the tracks' positions ``pos0`` (J, 2) cm, velocities ``vel`` (J, 2) cm/s and ``radii`` (J,) cm, with ``dt``
-    in s."""
+    in s. The analysis recomputes a logged table with it (:mod:`analysis.episode_check`): one definition."""
     robot = predict_robot(position, goal, speed, dt, n_traj)
     k = np.arange(n_traj + 1)[:, None, None] * dt
     obstacles = pos0[None, :, :] + vel[None, :, :] * k
