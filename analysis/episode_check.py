@@ -364,13 +364,13 @@ _TPT_INPUTS = obj(robot_speed_cm_s=number(0.0), safety_margin_cm=number(), obsta
 
 def _check_tpt_prediction(t: dict[str, Any], goal: tuple[float, float], sweeps: tuple[bool, ...],
                           inputs_checked: bool = False) -> None:
-    """The table is what :func:`fuzzynav.planning.tpt.table_rows` makes of its first row: the robot straight to
+    """The table is what :func:`fuzzynav.numerics.prediction.table_rows` makes of its first row: the robot straight to
     the goal at ``robot_speed_cm_s``, each obstacle at its velocity, and the collision marks of those positions
     with the radii and margin it logs (``sweeps``: with the swept marks, without, or either). The same function
     on the same numbers, so bit for bit: an edited row or flag changed ``tpt_ade_cm`` and
     ``tpt_collisions_predicted`` without a word. Shapes were checked with the message (:func:`check_tpt`);
     ``inputs_checked``: the fields only this check reads were, too (over the whole episode at once)."""
-    from fuzzynav.planning.tpt import table_rows
+    from fuzzynav.numerics.prediction import table_rows
 
     if not inputs_checked:
         _TPT_INPUTS(t)

@@ -86,7 +86,7 @@ def test_a_log_cut_before_its_metadata_is_truncated_not_a_foreign_file(good, tmp
     ("robot_cm[1]", lambda t: t["robot_cm"][1].__setitem__(1, t["robot_cm"][1][1] + 1e-9)),
 ])
 def test_a_tpt_that_is_not_what_its_first_row_makes_is_left_out(field, edit, good, tmp_path):
-    """A table's rows and marks follow from its first row (fuzzynav.planning.tpt.table_rows); an edited flag or
+    """A table's rows and marks follow from its first row (fuzzynav.numerics.prediction.table_rows); an edited flag or
     position changed tpt_collisions_predicted and tpt_ade_cm and was analysed as good."""
     edited = []
 

@@ -21,8 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzynav.numerics.geometry import closest_approach, wrap_360
-from fuzzynav.numerics.portable_math import atan2_deg_array, hypot, norm2
+from fuzzynav.numerics.geometry import wrap_360
+from fuzzynav.numerics.portable_math import atan2_deg_array
+from fuzzynav.numerics.prediction import predict_robot, table_rows
 from fuzzynav.sensing.tracking import Track
 
 
@@ -78,19 +79,6 @@ class TrajectoryPredictionTable:
         return self.obstacles[0] + self.obstacle_velocities * (k * self.dt)
 
 
-def predict_robot(position: Sequence[float], goal: Sequence[float], speed: float, dt: float,
-                  n: int) -> np.ndarray:
-    """Positions (n+1, 2) cm of a robot moving straight to ``goal`` at ``speed`` cm/s, stopping on it."""
-    p = np.asarray(position, dtype=float)
-    g = np.asarray(goal, dtype=float)
-    d = g - p
-    dist = hypot(float(d[0]), float(d[1]))
-    steps = np.arange(n + 1) * speed * dt
-    travel = np.minimum(steps, dist)
-    unit = d / dist if dist > 0 else np.zeros(2)
-    return p + travel[:, None] * unit
-
-
 def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tracks: Sequence[Track],
               robot_radius: float, n_traj: int = 9, dt: float = 1.0, safety_margin: float = 10.0,
               swept: bool = True) -> TrajectoryPredictionTable:
@@ -108,25 +96,3 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
         obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),
         robot_radius=float(robot_radius), safety_margin=float(safety_margin), dt=float(dt),
         goal=(float(goal[0]), float(goal[1])))
-
-
-def table_rows(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
-               vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
-               safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The table's robot rows (n+1, 2) cm, obstacle rows (n+1, J, 2) cm and collision marks (n+1, J), by numpy,
-    from the tracks' positions ``pos0`` (J, 2) cm, velocities ``vel`` (J, 2) cm/s and ``radii`` (J,) cm, with ``dt``
-    in s. The analysis recomputes a logged table with it (:mod:`analysis.episode_check`): one definition."""
-    robot = predict_robot(position, goal, speed, dt, n_traj)
-    k = np.arange(n_traj + 1)[:, None, None] * dt
-    obstacles = pos0[None, :, :] + vel[None, :, :] * k
-    rel = obstacles - robot[:, None, :]  # (n+1, J, 2)
-    limit = robot_radius + radii[None, :] + safety_margin
-    collide = norm2(rel) < limit
-    if swept and len(radii):
-        # the relative motion over each step from the table's rows, not geometry.swept_distance's
-        # (p1 - p0) - (o1 - o0): the two round differently and the recorded tables depend on these bits
-        between = closest_approach(rel[:-1], rel[1:] - rel[:-1]) < limit
-        earlier = collide[:-1].copy()  # a pass that starts in a marked predicted row is already in the table
-        earlier[0] = False  # ... but row 0 is the present, not a prediction
-        collide[1:] |= between & ~earlier
-    return robot, obstacles, collide
