@@ -616,8 +616,8 @@ def test_verifications_assembled_configs_are_the_configs_hydra_composes(tmp_path
         for job in todo:
             got = yaml_text.config_text(episode_recording.run_config(job, token, str(state)), resolve=True)
             assert got == yaml_text.config_text(episode_recording.run_config(job, None), resolve=True), job
-        # assembled: the episodes whose overrides set the first episode's keys (planner=wait) but for the first
-        # episode and the other scenario's first seed (composed up front); the others are composed where they run
-        assert episode_recording._ASSEMBLED[token].assembled == 2
+        # each variant sets other keys: four references (a variant's first episode) and, with each, the other
+        # scenario's first seed are composed up front; the second seed of each is assembled
+        assert episode_recording._ASSEMBLED[token].assembled == 4 * 2
     finally:
         episode_recording.forget_assembled()

@@ -128,8 +128,25 @@ def test_to_compose_lists_what_assembly_needs_and_nothing_is_composed_after(hydr
     assert configs.to_compose(jobs) == []
     assert [_yaml(configs.config(job)) for job in jobs] == [_yaml(composed(job)) for job in jobs]
     assert calls == [tuple(jobs[0])] and configs.assembled == len(jobs) - 1 - len(needed)
-    # jobs whose overrides are not the reference's keys are composed whole where they run: nothing to list
-    assert configs.to_compose([["scenario=corridor", "planner=auto", "navigator=dwa", "seed=0"]]) == []
+    # jobs whose overrides set other keys have their own reference (listed; composed here when it comes first, as
+    # it tells groups from values), and their own options' deltas
+    other = [["scenario=corridor", "planner=auto", "navigator=dwa", "seed=0"],
+             ["scenario=head_on", "planner=auto", "navigator=dwa", "seed=3"]]
+    assert configs.to_compose([jobs[0], *other]) == [tuple(other[0]), ("scenario=head_on", "planner=auto",
+                                                                       "navigator=dwa", "seed=0")]
+
+
+def test_variants_that_set_other_keys_have_their_own_reference(hydra_loader):
+    # a dataset's manifest (suite_v3): a variant of one override beside variants of two; each shape of overrides is
+    # assembled from its own first job, not composed whole
+    master, composed = hydra_loader
+    variants = [["navigator=dwa"], ["navigator=fuzzy_tpt", "planner=auto_h4"], ["navigator=apf"],
+                ["navigator=fuzzy_tpt", "planner=auto_h2"]]
+    jobs = [[f"scenario={s}", *v, f"seed={k}"] for s in ("head_on", "corridor", "crowd_crossing") for v in variants
+            for k in (0, 1)]
+    configs = _check(master, composed, jobs)
+    # two references, their other scenarios (2 each), navigator=apf and planner=auto_h2
+    assert configs.composed == 2 + 2 * 2 + 1 + 1 and configs.assembled == len(jobs) - 2
 
 
 def test_to_compose_lists_only_what_an_assembled_job_uses(hydra_loader):
@@ -141,7 +158,8 @@ def test_to_compose_lists_only_what_an_assembled_job_uses(hydra_loader):
             ["scenario=corridor_flow", "scenario.params={n:4}"]]
     configs = JobConfigs(master, composed)
     assert configs.to_compose(jobs) == [("scenario=corridor_flow", "scenario.params={n:4}")]
-    assert configs.to_compose([["+extra=1", "scenario.params={n:4}"]]) == []
+    odd = ["+scenario.extra=1", "scenario.params={n:4}"]  # a shape of its own, composed whole: no delta
+    assert configs.to_compose([*jobs, odd]) == [("scenario=corridor_flow", "scenario.params={n:4}"), tuple(odd)]
     # what is listed is exactly what the jobs' assembly then composes
     calls: list[tuple[str, ...]] = []
     configs = JobConfigs(master, lambda overrides: calls.append(tuple(overrides)) or composed(overrides))
@@ -190,6 +208,19 @@ def sweeps(draw):
 @given(jobs=sweeps())
 def test_random_sweeps_are_assembled_as_hydra_composes_them(hydra_loader, jobs):
     master, composed = hydra_loader
+    _check(master, composed, jobs)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(parts=st.lists(sweeps(), min_size=2, max_size=3), order=st.randoms(use_true_random=False))
+def test_jobs_of_several_shapes_in_any_order_are_assembled_as_hydra_composes_them(hydra_loader, parts, order):
+    """A manifest's episodes: products over different keys, mixed (each shape has its own reference)."""
+    master, composed = hydra_loader
+    jobs = [job for part in parts for job in part]
+    order.shuffle(jobs)
+    configs = JobConfigs(master, composed)
+    needed = configs.to_compose(jobs)
+    assert len(needed) == len(set(needed))
     _check(master, composed, jobs)
 
 

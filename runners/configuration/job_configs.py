@@ -8,7 +8,9 @@ Hydra composes a job's config from its overrides in about 0.1 s (defaults lists,
 sweep more than its five episodes cost. A sweep is a product of swept keys, and most of its jobs differ from a
 composed one in one or two keys. :class:`JobConfigs` composes (with Hydra's own ``load_sweep_config``) the first job
 of the sweep (the *reference*) and, for each config group that the sweep varies, the reference with only that
-group changed; every other job is *assembled* from those:
+group changed; every other job is *assembled* from those. Jobs whose overrides set other keys (a dataset's variants
+``navigator=dwa`` and ``[navigator=fuzzy_tpt, planner=auto_h4]``) have their own reference, the first job with the
+same keys in the same order:
 
 * a config group's option (``scenario=head_on``) contributes the top-level nodes in which its composition differs
   from the reference's (its *delta*), and its entry in ``hydra.runtime.choices``;
@@ -18,7 +20,7 @@ group changed; every other job is *assembled* from those:
 * ``hydra.overrides.task`` and ``hydra.job.override_dirname`` are the job's, as Hydra computes them.
 
 Assembly is used only where it is the same as composing: every override a plain ``key=value`` (no ``+``, ``~``,
-``@package``), the job's keys those of the reference, and the deltas of the swept groups in different top-level
+``@package``), and the deltas of the swept groups in different top-level
 nodes and nowhere else in Hydra's node. Anything else (or any error while assembling) is composed by Hydra, which
 also reports a bad value in its own words. ``tests/test_job_configs.py`` compares assembled and composed configs
 over the sweep presets and random products of every config group's options.
@@ -50,8 +52,10 @@ class JobConfigs:
         self._parsed: tuple[tuple[str, ...] | None, list[Override]] = (None, [])  # the last job's parsed overrides
         self._composed: dict[tuple[str, ...], DictConfig] = {}
         self._pickled: dict[tuple[str, ...], bytes] = {}  # composed configs' bytes, for new copies (_fresh)
-        self._reference: tuple[tuple[str, ...], list[Override]] | None = None  # its config: _full(key)
-        self._deltas: dict[tuple[str, str], dict[str, Any] | None] = {}  # (group, option) -> delta or not separable
+        # the reference of each shape of overrides (their keys in order): the first job of that shape
+        self._references: dict[tuple[Any, ...], tuple[tuple[str, ...], list[Override]]] = {}
+        # (reference, group, option) -> delta, or None where it is not separable
+        self._deltas: dict[tuple[tuple[str, ...], str, str], dict[str, Any] | None] = {}
         self.composed = 0  # how many configs Hydra composed (for the log and the tests)
         self.assembled = 0
 
@@ -78,9 +82,7 @@ class JobConfigs:
     def config(self, overrides: Sequence[str]) -> DictConfig:
         """The job's config, a new object the caller may change (its ``hydra.job.num`` and ``id``)."""
         key = tuple(overrides)
-        if self._reference is None:  # the sweep's first job (composed by the sweeper's check, usually)
-            self._reference = (key, self._parse(key))
-        if key == self._reference[0] and key not in self._pickled:
+        if key == self._reference_of(key)[0] and key not in self._pickled:
             self._full(key)
         if key in self._composed or key in self._pickled:
             return self._fresh(key)
@@ -95,24 +97,35 @@ class JobConfigs:
         return self._fresh(key)
 
     def to_compose(self, jobs: Sequence[Sequence[str]]) -> list[tuple[str, ...]]:
-        """The configs that assembling ``jobs`` needs and this object does not have: the reference (the first of
-        ``jobs`` unless one was set) and, for each config group option among ``jobs`` that is not the reference's,
-        the reference with only that option changed; in ``jobs``' order, each once. Composed elsewhere (in parallel)
-        and given back with :meth:`add_composed`, they spare every later :meth:`config` a composition. The reference
-        is composed here when it is needed to tell groups from values (its ``hydra.runtime.choices``)."""
+        """The configs that assembling ``jobs`` needs and this object does not have: the reference of each shape of
+        overrides (the first job of that shape) but the first job's, and, for each config group option of a job
+        that is not its reference's, the reference with only that option changed; in ``jobs``' order, each once.
+        Composed elsewhere (in parallel) and given back with :meth:`add_composed`, they spare every later
+        :meth:`config` a composition. The first job's config is composed here: its ``hydra.runtime.choices`` tell
+        config groups from values (for every shape here; :meth:`config` uses each job's own reference's)."""
         keys = [tuple(j) for j in jobs]
         if not keys:
             return []
-        if self._reference is None:
-            self._reference = (keys[0], self._parse(keys[0]))
-        ref_key = self._reference[0]
+        choices = self._full(self._reference_of(keys[0])[0]).hydra.runtime.choices
         wanted: list[tuple[str, ...]] = []
         for key in keys:
-            match = self._match(key)
-            if match is not None:  # (else composed whole where it is needed, as :meth:`config` would)
-                wanted.extend(_varied_key(ref_key, i, o) for i, o in match[0])
+            ref_key, ref_parsed = self._reference_of(key)
+            wanted.append(ref_key)
+            differences = _differences(self._parse(key), ref_parsed, choices)
+            if differences is not None:  # (else composed whole where it is needed, as :meth:`config` would)
+                wanted.extend(_varied_key(ref_key, i, o) for i, o in differences[0])
         have = set(self._composed) | set(self._pickled)
         return [k for k in dict.fromkeys(wanted) if k not in have]
+
+    def _reference_of(self, key: tuple[str, ...]) -> tuple[tuple[str, ...], list[Override]]:
+        """(overrides, parsed) of the reference of ``key``'s shape: the first job seen with the same keys in the
+        same order (a sweep has one shape; a dataset's variants may set different keys)."""
+        parsed = self._parse(key)
+        shape = tuple(o.get_key_element() for o in parsed)
+        reference = self._references.get(shape)
+        if reference is None:
+            reference = self._references[shape] = (key, list(parsed))
+        return reference
 
     def _fresh(self, key: tuple[str, ...]) -> DictConfig:
         """A new copy of the composed config of ``key``: unpickled from its bytes, pickled once (a quarter of a
@@ -144,41 +157,17 @@ class JobConfigs:
         return self._parsed[1]
 
     def _match(self, key: tuple[str, ...]) -> tuple[list[tuple[int, Override]], list[Override]] | None:
-        """How the job of ``key`` differs from the reference, where assembling it is the same as composing it: (its
-        config group options that are not the reference's, each with its place among the overrides; its value
-        overrides). None where it is composed whole: other keys than the reference's, an override that is not plain,
-        a group given a non-string value, or a mapping value other than the reference's."""
-        assert self._reference is not None
-        ref_key, ref_parsed = self._reference
-        parsed = self._parse(key)
-        if [o.get_key_element() for o in parsed] != [o.get_key_element() for o in ref_parsed]:
-            return None
-        choices = self._full(ref_key).hydra.runtime.choices
-        groups: list[tuple[int, Override]] = []
-        values: list[Override] = []
-        for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
-            if not _plain(o) or not _plain(r):
-                return None
-            if o.key_or_group in choices:
-                if not isinstance(o.value(), str):
-                    return None
-                if o.value() != r.value():
-                    groups.append((i, o))
-            elif isinstance(o.value(), dict) and o.value() != r.value():
-                # Hydra merges a mapping onto the composed default; here it would merge onto the reference's own
-                # mapping (scenario.params={n:4}, then ={max_steps:100}: n stayed 4)
-                return None
-            else:
-                values.append(o)
-        return groups, values
+        """How the job of ``key`` differs from its reference, where assembling it is the same as composing it
+        (:func:`_differences`, with the reference's config groups)."""
+        ref_key, ref_parsed = self._reference_of(key)
+        return _differences(self._parse(key), ref_parsed, self._full(ref_key).hydra.runtime.choices)
 
     def _assemble(self, key: tuple[str, ...]) -> DictConfig | None:
         match = self._match(key)
         if match is None:
             return None
         groups, values = match
-        assert self._reference is not None
-        ref_key = self._reference[0]
+        ref_key = self._reference_of(key)[0]
         deltas = []
         touched: set[str] = set()
         for i, o in groups:
@@ -197,15 +186,14 @@ class JobConfigs:
             OmegaConf.update(config, o.key_or_group, o.value(), merge=True)
         with read_write(config), open_dict(config):
             config.hydra.overrides.task = list(key)
-            config.hydra.job.override_dirname = self._override_dirname(key)
+            config.hydra.job.override_dirname = self._override_dirname(key, ref_key)
         OmegaConf.copy_cache(from_config=self._master, to_config=config)
         return config
 
-    def _override_dirname(self, key: tuple[str, ...]) -> str:
+    def _override_dirname(self, key: tuple[str, ...], ref_key: tuple[str, ...]) -> str:
         """``hydra.job.override_dirname`` as Hydra's documentation defines it: the job's overrides but the excluded
         keys, sorted, joined by ``item_sep``, each ``=`` written as ``kv_sep``."""
-        assert self._reference is not None
-        od = self._full(self._reference[0]).hydra.job.config.override_dirname
+        od = self._full(ref_key).hydra.job.config.override_dirname
         excluded = set(od.exclude_keys)
         lines = sorted(o.input_line or "" for o in self._parse(key) if o.key_or_group not in excluded)
         return str(od.item_sep).join(lines).replace("=", str(od.kv_sep))
@@ -214,10 +202,9 @@ class JobConfigs:
         """What choosing ``override``'s option of its group changes against the reference: the top-level nodes
         (outside Hydra's) that differ, or None where it changes anything else of Hydra's node than the choice."""
         group, option = override.key_or_group, str(override.value())
-        if (group, option) in self._deltas:
-            return self._deltas[(group, option)]
-        assert self._reference is not None
-        reference = self._full(self._reference[0])
+        if (ref_key, group, option) in self._deltas:
+            return self._deltas[(ref_key, group, option)]
+        reference = self._full(ref_key)
         varied = self._full(_varied_key(ref_key, index, override))
         delta: dict[str, Any] | None = {"group": group, "choice": varied.hydra.runtime.choices.get(group),
                                         "nodes": {}}
@@ -232,8 +219,34 @@ class JobConfigs:
                     delta["nodes"][name] = varied[name]
             if _hydra_without_task(ref_plain["hydra"], group) != _hydra_without_task(var_plain["hydra"], group):
                 delta = None
-        self._deltas[(group, option)] = delta
+        self._deltas[(ref_key, group, option)] = delta
         return delta
+
+
+def _differences(parsed: list[Override], ref_parsed: list[Override], choices: Any
+                 ) -> tuple[list[tuple[int, Override]], list[Override]] | None:
+    """How a job's overrides differ from its reference's (the same keys in the same order), where assembling it is
+    the same as composing it: (its config group options that are not the reference's, each with its place among the
+    overrides; its value overrides). ``choices``: the reference's ``hydra.runtime.choices`` (its config groups).
+    None where it is composed whole: an override that is not plain, a group given a non-string value, or a mapping
+    value other than the reference's."""
+    groups: list[tuple[int, Override]] = []
+    values: list[Override] = []
+    for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
+        if not _plain(o) or not _plain(r):
+            return None
+        if o.key_or_group in choices:
+            if not isinstance(o.value(), str):
+                return None
+            if o.value() != r.value():
+                groups.append((i, o))
+        elif isinstance(o.value(), dict) and o.value() != r.value():
+            # Hydra merges a mapping onto the composed default; here it would merge onto the reference's own
+            # mapping (scenario.params={n:4}, then ={max_steps:100}: n stayed 4)
+            return None
+        else:
+            values.append(o)
+    return groups, values
 
 
 def _varied_key(ref_key: tuple[str, ...], index: int, override: Override) -> tuple[str, ...]:
