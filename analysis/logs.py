@@ -217,8 +217,8 @@ class LogFile:
         """The ``fuzzynav.run`` metadata record (exactly one)."""
         records = [m for name, m in self._content.metadata if name == RUN_METADATA]
         if not records and not self.complete:  # the writer puts the metadata first: a cut copy of a fuzzynav log
-            raise LogError(f"{self.path}: truncated: the file ends before its '{RUN_METADATA}' metadata (a killed "
-                           "run or a cut copy; no step readable)", "truncated")
+            raise LogError(f"{self.path}: truncated: the file ends before the MCAP summary, with no '{RUN_METADATA}' "
+                           "metadata before that (a fuzzynav log cut short, or not a fuzzynav log)", "truncated")
         if not records:
             raise LogError(f"{self.path}: no '{RUN_METADATA}' metadata (not a fuzzynav log)", "metadata")
         if len(records) > 1:

@@ -75,7 +75,8 @@ def test_a_log_cut_before_its_metadata_is_truncated_not_a_foreign_file(good, tmp
         df, left_out = metrics_table([log])
         assert df.empty and list(left_out["kind"]) == ["truncated"], cut
         reason = left_out["reason"].iloc[0]
-        assert reason.startswith(f"{log}: truncated: the file ends before its 'fuzzynav.run' metadata"), reason
+        assert reason.startswith(f"{log}: truncated: the file ends before the MCAP summary, with no 'fuzzynav.run' "
+                                 "metadata"), reason
         assert replay.main([str(log), "--verify"]) == 2
         assert one_error_line(capsys.readouterr().err) == f"error: {reason}"
 
@@ -83,7 +84,7 @@ def test_a_log_cut_before_its_metadata_is_truncated_not_a_foreign_file(good, tmp
 @pytest.mark.parametrize("field, edit", [
     ("collide[1][0]", lambda t: t["collide"][1].__setitem__(0, not t["collide"][1][0])),
     ("obstacles_cm[2][0]", lambda t: t["obstacles_cm"][2][0].__setitem__(0, t["obstacles_cm"][2][0][0] + 0.5)),
-    ("robot_cm[1]", lambda t: t["robot_cm"][1].__setitem__(1, t["robot_cm"][1][1] + 1e-9)),
+    ("robot_cm[1]", lambda t: t["robot_cm"][1].__setitem__(1, t["robot_cm"][1][1] + 1e-4)),
 ])
 def test_a_tpt_that_is_not_what_its_first_row_makes_is_left_out(field, edit, good, tmp_path):
     """A table's rows and marks follow from its first row (fuzzynav.numerics.prediction.table_rows); an edited flag or
@@ -103,6 +104,101 @@ def test_a_tpt_that_is_not_what_its_first_row_makes_is_left_out(field, edit, goo
     assert f"/tpt step {edited[0]} {field}: " in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
     df, left_out = metrics_table([rewrite(good, tmp_path / "same.mcap")])  # the same log, re-written unedited
     assert len(df) == 1 and left_out.empty
+
+
+@pytest.mark.parametrize("field, edit, expect", [
+    ("n_traj", None, "/tpt step {step} n_traj: 3, the config's planner.n_traj is 9"),
+    ("safety_margin_cm", None, "/tpt step {step} safety_margin_cm: 40.0, the config's planner.safety_margin_cm is 10"),
+    ("robot_radius_cm", None, "/tpt step {step} robot_radius_cm: 60.0, the robot's radius is 20.0"),
+    ("robot_cm", None, "/tpt step {step} robot_cm[0]: "),
+])
+def test_a_tpt_consistent_in_itself_but_not_with_its_run_is_left_out(field, edit, expect, good, tmp_path):
+    """An edit that keeps the table consistent with its first row (every row and mark recomputed) changed the
+    metrics: the table's n_traj and margin are the config's, its robot the logged robot's at that step."""
+    import numpy as np
+
+    from fuzzynav.numerics.prediction import table_rows
+
+    edited = []
+
+    def change(topic, i, msg):
+        if topic != "/tpt" or edited or not msg["obstacle_ids"]:
+            return msg
+        t = dict(msg, **{"n_traj": 3} if field == "n_traj" else {},
+                 **{"safety_margin_cm": 40.0} if field == "safety_margin_cm" else {},
+                 **{"robot_radius_cm": 60.0} if field == "robot_radius_cm" else {})
+        start = np.array(t["robot_cm"][0]) + (50.0 if field == "robot_cm" else 0.0)
+        k = len(t["obstacle_ids"])
+        rows, columns, marks = table_rows(start, (1100.0, 250.0), t["robot_speed_cm_s"],
+                                          np.array(t["obstacles_cm"][0]), np.array(t["obstacle_velocities_cm_s"]),
+                                          np.array(t["obstacle_radii_cm"]), t["robot_radius_cm"], t["n_traj"],
+                                          t["dt_s"], t["safety_margin_cm"], True)
+        t.update(robot_cm=rows.tolist(), obstacles_cm=columns.reshape(-1, k, 2).tolist(), collide=marks.tolist())
+        edited.append(msg["step"])
+        return t
+
+    log = rewrite(good, tmp_path / "edited.mcap", message=change)
+    df, left_out = metrics_table([log])
+    assert df.empty and list(left_out["kind"]) == ["episode"], left_out["reason"].tolist()
+    assert expect.format(step=edited[0]) in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+
+
+@pytest.fixture(scope="module")
+def generated_log(tmp_path_factory) -> Path:
+    """A log of a scenario generated per seed (a small crowd)."""
+    out = tmp_path_factory.mktemp("generated")
+    res = subprocess.run([sys.executable, "-m", "runners.run", "scenario=crowd_crossing", "scenario.params.n=3",
+                          "scenario.params.max_steps=6", "episodes=1", f"hydra.run.dir={out}"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    (log,) = out.glob("*.mcap")
+    return log
+
+
+@pytest.mark.parametrize("world", [None, "", "robot: [\n", "- 1\n", "robot: null\n"])
+def test_a_generated_scenarios_log_without_its_world_is_left_out(world, generated_log, tmp_path):
+    """Every run logs the world its generator made (metadata scenario_yaml); without it the checks against the
+    scenario (start, goal, outcome, the TPTs) were skipped, and a cleared collision mark went unnoticed."""
+    log = generated_log
+    assert len(metrics_table([log])[0]) == 1
+
+    def without_world(meta):
+        if world is None:
+            return {k: v for k, v in meta.items() if k != "scenario_yaml"}
+        return dict(meta, scenario_yaml=world)
+
+    edited = rewrite(log, tmp_path / "edited.mcap", metadata=without_world)
+    df, left_out = metrics_table([edited])
+    assert df.empty and list(left_out["kind"]) == ["episode"]
+    assert "metadata scenario_yaml: missing or not a scenario, but the config's scenario is made by generator " \
+           "'crowd_crossing'" in left_out["reason"].iloc[0], left_out["reason"].iloc[0]
+
+
+def test_tables_of_fuzzynav_before_the_present_marked_step_1_are_accepted():
+    """Before 752785e a pass that started inside the margin (row 0 marked) did not mark step 1; logs of that code
+    (still version 0.2.0) are checked against that rule too, and any other mark is still refused."""
+    import numpy as np
+
+    from analysis.episode_check import _check_tpt_prediction
+    from analysis.json_checks import CheckError
+    from fuzzynav.numerics.prediction import table_rows
+
+    # the robot 25 cm from an obstacle (within radii + margin, 40 cm) that leaves at 100 cm/s
+    args = ((0.0, 0.0), (1000.0, 0.0), 40.0, np.array([[25.0, 0.0]]), np.array([[0.0, 100.0]]), np.array([10.0]),
+            20.0, 9, 1.0, 10.0)
+    rows, columns, marks = table_rows(*args, True)
+    sampled = table_rows(*args, False)[2]
+    assert marks[0, 0] and marks[1, 0] and not sampled[1, 0]  # step 1 marked by the present's pass alone
+    table = {"n_traj": 9, "dt_s": 1.0, "robot_speed_cm_s": 40.0, "robot_radius_cm": 20.0, "safety_margin_cm": 10.0,
+             "obstacle_ids": [1], "obstacle_radii_cm": [10.0], "obstacle_velocities_cm_s": [[0.0, 100.0]],
+             "robot_cm": rows.tolist(), "obstacles_cm": columns.tolist(), "collide": marks.tolist()}
+    _check_tpt_prediction(table, (1000.0, 0.0), (True,))
+    earlier = marks.copy()
+    earlier[1, 0] = False
+    _check_tpt_prediction(dict(table, collide=earlier.tolist()), (1000.0, 0.0), (True,))
+    earlier[5, 0] = True
+    with pytest.raises(CheckError, match=r"collide\[5\]\[0\]"):
+        _check_tpt_prediction(dict(table, collide=earlier.tolist()), (1000.0, 0.0), (True,))
 
 
 @pytest.mark.parametrize("schema, expect", [
