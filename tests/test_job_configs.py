@@ -184,7 +184,26 @@ def test_every_policy_with_its_own_planner_default(hydra_loader):
     _check(master, composed, jobs)
 
 
+def test_an_option_that_is_not_separable_is_composed_once_then_its_seeds_assembled(hydra_loader):
+    """A navigator chooses its planner too (its delta is more than its own nodes): its first job is composed, and
+    jobs with the same options that differ in plain values are made from that one. A mapping value other than the
+    composed job's is composed (merged onto the other's, it would keep that one's keys)."""
+    master, composed = hydra_loader
+    jobs = [[f"navigator={n}", f"scenario={s}", f"seed={k}"] for n in ("fuzzy_tpt", "dwa", "orca")
+            for s in ("head_on", "corridor") for k in (0, 1, 2)]
+    configs = _check(master, composed, jobs)
+    # the reference, corridor's delta, the first job of each other navigator and scenario; the rest assembled
+    assert configs.composed == 1 + 1 + 2 * 2 and configs.assembled == len(jobs) - 1 - 2 * 2
+    crowd = [["navigator=fuzzy_tpt", "scenario=crowd_crossing", "scenario.params={n:4}", "seed=0"],
+             ["navigator=dwa", "scenario=crowd_crossing", "scenario.params={n:4}", "seed=0"],
+             ["navigator=dwa", "scenario=crowd_crossing", "scenario.params={n:4}", "seed=1"],
+             ["navigator=dwa", "scenario=crowd_crossing", "scenario.params={max_steps:9}", "seed=2"]]
+    configs = _check(master, composed, crowd)
+    assert configs.composed == 3 and configs.assembled == 1
+
+
 GROUPS = {g: _options(g) for g in ("scenario", "planner", "controller", "perception", "robot")}
+GROUPS["navigator"] = [n for n in _options("navigator") if n != "custom"]  # (custom needs a policy of the user's)
 VALUES = {"seed": st.integers(0, 10**6), "episodes": st.integers(1, 9),
           "planner.safety_margin_cm": st.floats(0, 50, allow_nan=False).map(lambda x: round(x, 3)),
           "planner.h_wait": st.integers(0, 6), "dt": st.sampled_from([0.5, 1.0, 1]),

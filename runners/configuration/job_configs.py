@@ -56,6 +56,8 @@ class JobConfigs:
         self._references: dict[tuple[Any, ...], tuple[tuple[str, ...], list[Override]]] = {}
         # (reference, group, option) -> delta, or None where it is not separable
         self._deltas: dict[tuple[tuple[str, ...], str, str], dict[str, Any] | None] = {}
+        # a composed config's overrides -> (their shape, their config group options) (:meth:`_sibling`)
+        self._signatures: dict[tuple[str, ...], tuple[tuple[Any, ...], tuple[Any, ...]]] = {}
         self.composed = 0  # how many configs Hydra composed (for the log and the tests)
         self.assembled = 0
 
@@ -77,6 +79,7 @@ class JobConfigs:
         state = self.__dict__.copy()
         state["_composed"] = {k: v for k, v in self._composed.items() if k not in self._pickled}
         state["_parsed"] = (None, [])
+        state["_signatures"] = {}  # (remade where needed)
         return state
 
     def config(self, overrides: Sequence[str]) -> DictConfig:
@@ -167,16 +170,22 @@ class JobConfigs:
         if match is None:
             return None
         groups, values = match
-        ref_key = self._reference_of(key)[0]
-        deltas = []
+        base = self._reference_of(key)[0]
+        deltas: list[dict[str, Any]] | None = []
         touched: set[str] = set()
         for i, o in groups:
-            delta = self._delta(ref_key, i, o)
+            delta = self._delta(base, i, o)
             if delta is None or touched & set(delta["nodes"]):
-                return None
+                deltas = None
+                break
             touched |= set(delta["nodes"])
             deltas.append(delta)
-        config = self._fresh(ref_key)
+        if deltas is None:  # an option that changes more than its own nodes (a navigator choosing the planner)
+            sibling = self._sibling(key)
+            if sibling is None:
+                return None
+            base, deltas = sibling, []
+        config = self._fresh(base)
         with read_write(config), open_dict(config):
             for delta in deltas:
                 for name, node in delta["nodes"].items():
@@ -186,9 +195,36 @@ class JobConfigs:
             OmegaConf.update(config, o.key_or_group, o.value(), merge=True)
         with read_write(config), open_dict(config):
             config.hydra.overrides.task = list(key)
-            config.hydra.job.override_dirname = self._override_dirname(key, ref_key)
+            config.hydra.job.override_dirname = self._override_dirname(key, base)
         OmegaConf.copy_cache(from_config=self._master, to_config=config)
         return config
+
+    def _sibling(self, key: tuple[str, ...]) -> tuple[str, ...] | None:
+        """A composed config whose overrides have ``key``'s shape and config group options and differ from it in
+        plain values only, each mapping value the same (Hydra merges a mapping onto the composed default): the
+        job is that config with its own values applied. None where there is none yet."""
+        wanted = self._signature(key)
+        parsed = self._parse(key)
+        for other in [*self._composed, *self._pickled]:
+            if other != key and self._signature(other) == wanted:
+                choices = self._full(other).hydra.runtime.choices
+                differences = _differences(parsed, self._parser.parse_overrides(list(other)), choices)
+                if differences is not None and not differences[0]:
+                    return other
+        return None
+
+    def _signature(self, key: tuple[str, ...]) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
+        """(shape, config group options) of ``key``: its keys in order, and the value of each override that chooses
+        a config group (by its shape's reference's groups; None for a value)."""
+        signature = self._signatures.get(key)
+        if signature is None:
+            parsed = self._parser.parse_overrides(list(key))
+            shape = tuple(o.get_key_element() for o in parsed)
+            reference = self._references.get(shape)
+            choices = self._full(reference[0]).hydra.runtime.choices if reference is not None else {}
+            signature = self._signatures[key] = (shape, tuple(str(o.value()) if o.key_or_group in choices else None
+                                                              for o in parsed))
+        return signature
 
     def _override_dirname(self, key: tuple[str, ...], ref_key: tuple[str, ...]) -> str:
         """``hydra.job.override_dirname`` as Hydra's documentation defines it: the job's overrides but the excluded
