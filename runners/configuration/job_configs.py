@@ -20,9 +20,11 @@ same keys in the same order:
 * ``hydra.overrides.task`` and ``hydra.job.override_dirname`` are the job's, as Hydra computes them.
 
 Assembly is used only where it is the same as composing: every override a plain ``key=value`` (no ``+``, ``~``,
-``@package``), and the deltas of the swept groups in different top-level
-nodes and nowhere else in Hydra's node. Anything else (or any error while assembling) is composed by Hydra, which
-also reports a bad value in its own words. ``tests/test_job_configs.py`` compares assembled and composed configs
+``@package``), and the deltas of the swept groups in different top-level nodes and nowhere else in Hydra's node. An
+option whose delta is more than its own nodes (a navigator also chooses the planner group) is composed once: a job
+with the same options that differs in plain values is made from that composition (its *sibling*), its values
+applied as above. Anything else (or any error while assembling) is composed by Hydra, which also reports a bad value
+in its own words. ``tests/test_job_configs.py`` compares assembled and composed configs
 over the sweep presets and random products of every config group's options.
 """
 
