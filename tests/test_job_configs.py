@@ -202,6 +202,33 @@ def test_an_option_that_is_not_separable_is_composed_once_then_its_seeds_assembl
     assert configs.composed == 3 and configs.assembled == 1
 
 
+def test_a_key_set_twice_and_keys_of_hydras_node_are_composed(hydra_loader):
+    """Found by a hostile test: the delta of a group set twice was taken for the wrong place (Hydra keeps the last:
+    [planner=auto, planner=wait] came out auto), and a ``hydra.*`` key was filed under the task's overrides and in
+    the folder name (Hydra files it under hydra.overrides.hydra)."""
+    master, composed = hydra_loader
+    twice = [["planner=auto", "planner=auto"], ["planner=wait", "planner=auto"], ["planner=auto", "planner=wait"],
+             ["scenario=head_on", "scenario=corridor"], ["scenario=corridor", "scenario=head_on"]]
+    _check(master, composed, twice)
+    hydra_keys = [["seed=0", "hydra.job.chdir=false"], ["seed=1", "hydra.job.chdir=true"],
+                  ["seed=2", "hydra.job.chdir=false"]]
+    assert _check(master, composed, hydra_keys).assembled == 0
+
+
+def test_a_mapping_in_another_key_order_is_composed():
+    """Filling a null node, Hydra keeps the job's key order (and the config's text, hence its hash, follows it):
+    {start, goal} and {goal, start} are not the same override."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from runners.configuration.job_configs import _differences
+
+    parse = OverridesParser.create().parse_overrides
+    a = parse(["scenario.robot={start: [100, 250], goal: [1100, 250]}"])
+    b = parse(["scenario.robot={goal: [1100, 250], start: [100, 250]}"])
+    assert _differences(a, a, {}) == ([], a)
+    assert _differences(b, a, {}) is None
+
+
 GROUPS = {g: _options(g) for g in ("scenario", "planner", "controller", "perception", "robot")}
 GROUPS["navigator"] = [n for n in _options("navigator") if n != "custom"]  # (custom needs a policy of the user's)
 VALUES = {"seed": st.integers(0, 10**6), "episodes": st.integers(1, 9),

@@ -266,8 +266,13 @@ def _differences(parsed: list[Override], ref_parsed: list[Override], choices: An
     """How a job's overrides differ from its reference's (the same keys in the same order), where assembling it is
     the same as composing it: (its config group options that are not the reference's, each with its place among the
     overrides; its value overrides). ``choices``: the reference's ``hydra.runtime.choices`` (its config groups).
-    None where it is composed whole: an override that is not plain, a group given a non-string value, or a mapping
-    value other than the reference's."""
+    None where it is composed whole: an override that is not plain, a key set twice (Hydra keeps the last; a delta
+    is one option at one place), a key of Hydra's own node (Hydra files it under ``hydra.overrides.hydra``, not the
+    task's), a group given a non-string value, or a mapping value other than the reference's (key order included:
+    filling a null node, Hydra keeps the job's order)."""
+    keys = [o.key_or_group for o in parsed]
+    if len(set(keys)) != len(keys) or any(k == "hydra" or k.startswith(("hydra.", "hydra/")) for k in keys):
+        return None
     groups: list[tuple[int, Override]] = []
     values: list[Override] = []
     for i, (o, r) in enumerate(zip(parsed, ref_parsed, strict=True)):
@@ -278,7 +283,7 @@ def _differences(parsed: list[Override], ref_parsed: list[Override], choices: An
                 return None
             if o.value() != r.value():
                 groups.append((i, o))
-        elif isinstance(o.value(), dict) and o.value() != r.value():
+        elif isinstance(o.value(), dict) and repr(o.value()) != repr(r.value()):
             # Hydra merges a mapping onto the composed default; here it would merge onto the reference's own
             # mapping (scenario.params={n:4}, then ={max_steps:100}: n stayed 4)
             return None
