@@ -9,7 +9,8 @@ https://mcap.dev/spec.
 
 A file that ends with the closing magic must be complete and intact to the last byte. A file that does not is
 a killed run's log: its records are read up to the first one that runs past the end of the file (the chunk
-being written when the run stopped); a record that does fit in the file but is damaged is still an error.
+being written when the run stopped), or up to a last chunk that ends the file but cannot be read (the chunk
+whose sizes the writer was filling in); any other record that fits in the file but is damaged is still an error.
 
 Sizes are in bytes, times in nanoseconds.
 """
@@ -147,7 +148,15 @@ def read_mcap(data: bytes, topics: Collection[str] | None = None) -> McapContent
             _check_footer(data, pos, body, length)
             pos = body + length
             break
-        reader.record(opcode, pos, body, body + length)
+        try:
+            reader.record(opcode, pos, body, body + length)
+        except McapError:
+            # the writer fills in a chunk's sizes once its records are written: a run killed in between leaves
+            # its last chunk whole in length but not yet readable, at the very end of the file
+            if closed or opcode != CHUNK or body + length != len(data):
+                raise
+            out.stopped_at = pos
+            return out
         pos = body + length
     if footer_at < 0:
         if closed:
