@@ -3,7 +3,8 @@ one message per step and topic, numbered from 0; log times at step * dt (ns); th
 the robot starts at the scenario's start pose and each step's ``distance_to_goal_cm`` is the distance from the
 position after the move to the goal (when the log carries its scenario); the robot's and the moving obstacles'
 positions continue from one step to the next (each step's ``next_*`` is the following step's position); scans and
-their moving beams agree; TPTs have the episode's step length and plans their table; the decisions' strategy,
+their moving beams agree; TPTs have the episode's step length, the config's horizon and margin, their step's
+robot, and are the tables their own first rows make; plans have their table; the decisions' strategy,
 policy and h_wait are the metadata's; a finished episode has every step and the time ``/episode`` reports. Raises
 :class:`CheckError`."""
 
