@@ -21,6 +21,7 @@ import yaml
 
 from analysis.json_checks import CheckError, accepts_all, array, number, obj, points
 from analysis.log_check import FINISHED, MAX_CONFIG_BYTES, POSITIVE_CM, TIME_TOLERANCE_NS, YAML_LOADER
+from fuzzynav.numerics.prediction import table_rows
 from fuzzynav.params.names import DEFAULT_POLICY, ROBOT_DEFAULTS, SCENARIO_DEFAULTS
 
 if TYPE_CHECKING:
@@ -396,8 +397,6 @@ def _check_tpt_prediction(t: dict[str, Any], goal: tuple[float, float], sweeps: 
     marks, without, or either). An edited row or flag changed ``tpt_ade_cm`` and ``tpt_collisions_predicted``
     without a word. Shapes were checked with the message (:func:`check_tpt`); ``inputs_checked``: the fields only
     this check reads were, too (over the whole episode at once)."""
-    from fuzzynav.numerics.prediction import table_rows
-
     if not inputs_checked:
         _TPT_INPUTS(t)
     n, k = t["n_traj"], len(t["obstacle_ids"])
@@ -409,7 +408,8 @@ def _check_tpt_prediction(t: dict[str, Any], goal: tuple[float, float], sweeps: 
     vel = np.array(t["obstacle_velocities_cm_s"], dtype=float).reshape(k, 2)
     radii = np.array(t["obstacle_radii_cm"], dtype=float)
 
-    def made(swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    @functools.cache
+    def made(swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # (each at most once)
         return table_rows(robot[0], goal, t["robot_speed_cm_s"], obstacles[0], vel, radii, t["robot_radius_cm"], n,
                           t["dt_s"], t["safety_margin_cm"], swept)
 
@@ -428,8 +428,7 @@ def _check_tpt_prediction(t: dict[str, Any], goal: tuple[float, float], sweeps: 
         return
     alternatives = [made(swept)[2] for swept in sweeps[1:]]
     if True in sweeps:  # before 752785e a pass that starts inside the margin (row 0 marked) did not mark step 1
-        sampled = made(False)[2]
-        swept_marks = marks if sweeps[0] else made(True)[2]
+        sampled, swept_marks = made(False)[2], made(True)[2]
         earlier = swept_marks.copy()
         earlier[1] = sampled[1] | (swept_marks[1] & ~sampled[0])
         alternatives.append(earlier)

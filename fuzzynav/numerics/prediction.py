@@ -17,7 +17,8 @@ from fuzzynav.numerics.portable_math import hypot, norm2
 
 def predict_robot(position: Sequence[float], goal: Sequence[float], speed: float, dt: float,
                   n: int) -> np.ndarray:
-    """Positions (n+1, 2) cm of a robot moving straight to ``goal`` at ``speed`` cm/s, stopping on it."""
+    """Positions (n+1, 2) cm of a robot at ``position`` (cm) moving straight to ``goal`` (cm) at ``speed`` cm/s,
+    stopping on it, sampled every ``dt`` s."""
     p = np.asarray(position, dtype=float)
     g = np.asarray(goal, dtype=float)
     d = g - p
@@ -31,9 +32,11 @@ def predict_robot(position: Sequence[float], goal: Sequence[float], speed: float
 def table_rows(position: Sequence[float], goal: Sequence[float], speed: float, pos0: np.ndarray,
                vel: np.ndarray, radii: np.ndarray, robot_radius: float, n_traj: int, dt: float,
                safety_margin: float, swept: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The table's robot rows (n+1, 2) cm, obstacle rows (n+1, J, 2) cm and collision marks (n+1, J), by numpy,
-    from the tracks' positions ``pos0`` (J, 2) cm, velocities ``vel`` (J, 2) cm/s and ``radii`` (J,) cm, with ``dt``
-    in s. The analysis recomputes a logged table with it (:mod:`analysis.episode_check`)."""
+    """The table's robot rows (n+1, 2) cm, obstacle rows (n+1, J, 2) cm and collision marks (n+1, J), by numpy: the
+    robot from ``position`` to ``goal`` (cm) at ``speed`` cm/s (:func:`predict_robot`), the tracks from their
+    positions ``pos0`` (J, 2) cm at velocities ``vel`` (J, 2) cm/s, marked where closer than ``robot_radius`` +
+    ``radii`` (J,) + ``safety_margin`` (cm; between two rows too with ``swept``), every ``dt`` s. The analysis
+    recomputes a logged table with it (:mod:`analysis.episode_check`)."""
     robot = predict_robot(position, goal, speed, dt, n_traj)
     k = np.arange(n_traj + 1)[:, None, None] * dt
     obstacles = pos0[None, :, :] + vel[None, :, :] * k

@@ -90,7 +90,7 @@ def build_tpt(position: Sequence[float], goal: Sequence[float], speed: float, tr
     vel = np.array([[t.vx, t.vy] for t in tracks], dtype=float).reshape(j, 2)
     radii = np.array([t.radius for t in tracks], dtype=float)
     robot, obstacles, collide = table_rows(position, goal, speed, pos0, vel, radii, robot_radius, n_traj, dt,
-                                              safety_margin, swept)
+                                           safety_margin, swept)
     return TrajectoryPredictionTable(
         robot=robot, obstacles=obstacles, collide=collide, obstacle_ids=tuple(t.id for t in tracks),
         obstacle_radii=radii, obstacle_velocities=vel, robot_speed=float(speed),

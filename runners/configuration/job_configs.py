@@ -58,8 +58,8 @@ class JobConfigs:
         self._references: dict[tuple[Any, ...], tuple[tuple[str, ...], list[Override]]] = {}
         # (reference, group, option) -> delta, or None where it is not separable
         self._deltas: dict[tuple[tuple[str, ...], str, str], dict[str, Any] | None] = {}
-        # a composed config's overrides -> (their shape, their config group options) (:meth:`_sibling`)
-        self._signatures: dict[tuple[str, ...], tuple[tuple[Any, ...], tuple[Any, ...]]] = {}
+        # a composed config's overrides -> ((their shape, their config group options), parsed) (:meth:`_sibling`)
+        self._signatures: dict[tuple[str, ...], tuple[tuple[Any, ...], list[Override]]] = {}
         self.composed = 0  # how many configs Hydra composed (for the log and the tests)
         self.assembled = 0
 
@@ -205,28 +205,29 @@ class JobConfigs:
         """A composed config whose overrides have ``key``'s shape and config group options and differ from it in
         plain values only, each mapping value the same (Hydra merges a mapping onto the composed default): the
         job is that config with its own values applied. None where there is none yet."""
-        wanted = self._signature(key)
+        wanted = self._signature(key)[0]
         parsed = self._parse(key)
         for other in [*self._composed, *self._pickled]:
-            if other != key and self._signature(other) == wanted:
+            signature, other_parsed = self._signature(other)
+            if other != key and signature == wanted:
                 choices = self._full(other).hydra.runtime.choices
-                differences = _differences(parsed, self._parser.parse_overrides(list(other)), choices)
+                differences = _differences(parsed, other_parsed, choices)
                 if differences is not None and not differences[0]:
                     return other
         return None
 
-    def _signature(self, key: tuple[str, ...]) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
-        """(shape, config group options) of ``key``: its keys in order, and the value of each override that chooses
-        a config group (by its shape's reference's groups; None for a value)."""
-        signature = self._signatures.get(key)
-        if signature is None:
+    def _signature(self, key: tuple[str, ...]) -> tuple[tuple[Any, ...], list[Override]]:
+        """((shape, config group options), parsed overrides) of ``key``: its keys in order, and the value of each
+        override that chooses a config group (by its shape's reference's groups; None for a value)."""
+        known = self._signatures.get(key)
+        if known is None:
             parsed = self._parser.parse_overrides(list(key))
             shape = tuple(o.get_key_element() for o in parsed)
             reference = self._references.get(shape)
             choices = self._full(reference[0]).hydra.runtime.choices if reference is not None else {}
-            signature = self._signatures[key] = (shape, tuple(str(o.value()) if o.key_or_group in choices else None
-                                                              for o in parsed))
-        return signature
+            options = tuple(str(o.value()) if o.key_or_group in choices else None for o in parsed)
+            known = self._signatures[key] = ((shape, options), parsed)
+        return known
 
     def _override_dirname(self, key: tuple[str, ...], ref_key: tuple[str, ...]) -> str:
         """``hydra.job.override_dirname`` as Hydra's documentation defines it: the job's overrides but the excluded
