@@ -156,7 +156,8 @@ def test_ctrl_c_cancels_the_array_and_a_rerun_completes(slurm: Cluster, tmp_path
     assert proc.returncode == 130 and len(lines) == 1 and "Traceback" not in stderr, stderr[-3000:]
     assert re.fullmatch(r"interrupted: the Slurm job array \d+ is cancelled; its trials in flight are marked "
                         r"interrupted; re-run the command to resume", lines[0]), lines
-    assert slurm.idle(), slurm.jobs()  # the command waited for the cancelled tasks to end
+    # the command waited for the cancelled tasks to end: squeue lists none (not even completing)
+    assert slurm.idle(), (slurm.run("squeue", "--noheader", "--format=%i %T").stdout, slurm.jobs())
     trials = trials_of(out, "journal")
     assert not [t for t in trials if t.state.name == "RUNNING"], [(t.number, t.state.name) for t in trials]
     interrupted = [t for t in trials if t.user_attrs.get(INTERRUPTED)]

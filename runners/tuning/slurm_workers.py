@@ -169,16 +169,24 @@ def refuse_live_array(study_dir: Path) -> None:
         return
     if not array.isdigit():
         return
+    tasks = listed_tasks(array)
+    if tasks:
+        raise SlurmWorkersError(f"{study_dir}: the Slurm job array {array} of an earlier command still runs this "
+                                f"study's workers ({len(tasks)} task(s) pending or running): wait for "
+                                f"it to end or cancel it (scancel {array}), then re-run")
+    path.unlink(missing_ok=True)
+
+
+def listed_tasks(array: str) -> list[str]:
+    """The array's tasks ``squeue`` lists as not ended (pending, running, or completing: a cancelled task whose
+    processes have not exited yet, which ``sacct`` and Submitit already call CANCELLED); empty where ``squeue``
+    does not answer or no longer knows the array."""
     try:
         done = subprocess.run(["squeue", "--noheader", f"--jobs={array}", "--format=%i"], capture_output=True,
                               text=True, timeout=60)
     except (OSError, subprocess.TimeoutExpired):
-        return
-    if done.returncode == 0 and done.stdout.strip():
-        raise SlurmWorkersError(f"{study_dir}: the Slurm job array {array} of an earlier command still runs this "
-                                f"study's workers ({len(done.stdout.split())} task(s) pending or running): wait for "
-                                f"it to end or cancel it (scancel {array}), then re-run")
-    path.unlink(missing_ok=True)
+        return []
+    return done.stdout.split() if done.returncode == 0 else []
 
 
 def pending(jobs: list[Any], force: bool) -> list[Any]:
@@ -294,7 +302,8 @@ def cancel(jobs: list[Any], signum: int, study_dir: Path) -> int:
     end = time.monotonic() + CANCEL_WAIT_S
     previous = {s: signal.signal(s, _raise_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        while pending(jobs, force=True):
+        # a task is ended when Slurm no longer lists it: one still completing may be writing its trial's end
+        while pending(jobs, force=True) or listed_tasks(array):
             if time.monotonic() > end:
                 break
             time.sleep(POLL_S)
