@@ -191,6 +191,23 @@ def test_numpy_values_are_valid_fields():
     assert episode.step().decision.fields["ok"]
 
 
+@pytest.mark.parametrize("kind", [np.float16, np.float32, np.longdouble, np.int8, int])
+def test_a_command_of_any_numeric_type_moves_the_robot_as_the_same_float64_command(kind):
+    """The robot executes, and the log holds, the checked value as a Python float: a float16 command once carried
+    float16 into the robot's position (overflowing in 60 steps), a longdouble one stopped the episode in shapely."""
+
+    def run(dtheta, v, value) -> list:
+        policy = _Returns(Action("go", dtheta, v, {"x": value}))
+        episode = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0, policy=policy)
+        return [(r.next_state.x, r.next_state.y, r.next_state.heading, r.decision.v_cm_s, r.decision.fields["x"])
+                for r in episode.run()]
+
+    got = run(kind(3), kind(10), kind(2))
+    assert got == run(3.0, 10.0, float(kind(2))) and len(got) > 30
+    assert all(type(value) is float for row in got for value in row[:4])
+    assert type(got[0][4]) is (int if issubclass(kind, int | np.integer) else float)
+
+
 def test_an_injected_policy_is_reset_with_the_episodes_seed():
     seen = []
 

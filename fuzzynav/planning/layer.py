@@ -216,6 +216,7 @@ def checked_action(action: Any, policy: str) -> Action:
                           f"letters, digits, _; not one of the plan modes {', '.join(PLAN_MODES)})")
     bounds = (("dtheta_deg", action.dtheta_deg, -MAX_DTHETA_DEG, MAX_DTHETA_DEG),
               ("v_cm_s", action.v_cm_s, 0.0, limits.MAX_SPEED_CM_S))
+    numbers = []
     for name, value, lo, hi in bounds:
         number = _finite(value)
         if number is None:
@@ -223,11 +224,13 @@ def checked_action(action: Any, policy: str) -> Action:
         if not lo <= number <= hi:
             raise PolicyError(f"policy {policy}: {name} = {number:g} is outside [{lo:g}, {hi:g}]"
                               + (" (0 = stand still)" if name == "v_cm_s" else ""))
+        numbers.append(number)
     if not isinstance(action.fields, Mapping):
         raise PolicyError(f"policy {policy}: fields is {type(action.fields).__name__}, not a mapping")
     if len(action.fields) > limits.MAX_POLICY_FIELDS:
         raise PolicyError(f"policy {policy}: {len(action.fields):,} fields, more than the limit of "
                           f"{limits.MAX_POLICY_FIELDS} (they are logged at every step)")
+    fields: dict[str, float | int | bool | str] = {}
     for key, value in action.fields.items():
         if not isinstance(key, str) or not _utf8(key) or not key:
             raise PolicyError(f"policy {policy}: field name {str(key)[:40]!r} is not a (UTF-8) string")
@@ -236,11 +239,18 @@ def checked_action(action: Any, policy: str) -> Action:
                 raise PolicyError(f"policy {policy}: field {key[:40]!r}: {what} of {len(text):,} characters, more "
                                   f"than the limit of {limits.MAX_POLICY_FIELD_CHARS}")
         if isinstance(value, bool | np.bool_) or (isinstance(value, str) and _utf8(value)):
+            fields[key] = bool(value) if isinstance(value, np.bool_) else value
             continue
-        if isinstance(value, bool | str) or _finite(value) is None:
+        if isinstance(value, bool | str) or (number := _finite(value)) is None:
             raise PolicyError(f"policy {policy}: field {key[:40]!r} = {str(value)[:40]!r} is not a finite number, "
                               "a boolean or a (UTF-8) string")
-    return action
+        fields[key] = int(value) if isinstance(value, int | np.integer) else number
+    # the robot moves by, and the log holds, the values checked as Python floats: a numpy float32, float16 or
+    # longdouble command would otherwise carry its precision into the robot's state (float16 positions overflow)
+    if type(action.dtheta_deg) is float and type(action.v_cm_s) is float and all(
+            type(value) is type(fields[key]) for key, value in action.fields.items()):
+        return action
+    return Action(action.mode, numbers[0], numbers[1], fields)
 
 
 def _finite(value: Any) -> float | None:
