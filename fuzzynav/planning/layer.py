@@ -207,7 +207,9 @@ def checked_action(action: Any, policy: str) -> Action:
     :data:`MAX_DTHETA_DEG`) and a speed in [0, ``limits.MAX_SPEED_CM_S``] (cm/s), and fields named by strings
     holding finite numbers, booleans or (UTF-8) strings. A policy that returns anything else (NaN from a division
     by zero, a negative speed, 1e308) stops the episode with a :class:`PolicyError` naming the policy and the
-    field, instead of moving the robot by a wrong amount or writing a log no reader accepts."""
+    field, instead of moving the robot by a wrong amount or writing a log no reader accepts. Returned with its
+    numbers as Python ``float`` (``int`` and ``bool`` fields as such): numpy scalars of any precision move the robot
+    and fill the log as the same command in float64."""
     if not isinstance(action, Action):
         raise PolicyError(f"policy {policy}: act() returned {type(action).__name__}, not a "
                           "fuzzynav.policies.base.Action")
