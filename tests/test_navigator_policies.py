@@ -5,6 +5,7 @@ side by side (end to end, through the real commands)."""
 
 from __future__ import annotations
 
+import enum
 import math
 import subprocess
 import sys
@@ -139,18 +140,18 @@ class _Returns:
     (Action("go", 0.0, -5.0), "policy broken: v_cm_s = -5 is outside [0, 1000] (0 = stand still)"),
     (Action("go", 1e308, 20.0), "policy broken: dtheta_deg = 1e+308 is outside [-1e+06, 1e+06]"),
     (Action("go", 0.0, 1e308), "policy broken: v_cm_s = 1e+308 is outside [0, 1000]"),
-    (Action("go", "0", 10.0), "policy broken: dtheta_deg = 0 is not a finite number"),
-    (Action("go", 0.0, 10.0, {"x": 10**400}), "policy broken: field 'x' = '1000000000000000000000000000000000000"),
+    (Action("go", "0", 10.0), "policy broken: dtheta_deg = '0' is not a finite number"),
+    (Action("go", 0.0, 10.0, {"x": 10**400}), "policy broken: field 'x' = 1000000000000000000000000000000000000"),
     (Action("go", 0.0, 10.0, {"x": "\ud800"}), "policy broken: field 'x' = "),
-    (Action("go", 0.0, 10.0, {5: 1.0}), "policy broken: field name '5' is not a (UTF-8) string"),
+    (Action("go", 0.0, 10.0, {5: 1.0}), "policy broken: field name 5 is not a (UTF-8) string"),
     (Action("go", 0.0, 10.0, [1, 2]), "policy broken: fields is list, not a mapping"),
     (Action("wait", 0.0, 0.0), "policy broken: mode 'wait' is not a mode name"),
     (Action("Go Left", 0.0, 10.0), "policy broken: mode 'Go Left' is not a mode name"),
-    (Action("go", 0.0, 10.0, {"x": math.nan}), "policy broken: field 'x' = 'nan' is not a finite number"),
-    (Action("go", 0.0, 10.0, {"x": [1, 2]}), "policy broken: field 'x' = '[1, 2]' is not a finite number"),
+    (Action("go", 0.0, 10.0, {"x": math.nan}), "policy broken: field 'x' = nan is not a finite number"),
+    (Action("go", 0.0, 10.0, {"x": [1, 2]}), "policy broken: field 'x' = [1, 2] is not a finite number"),
     ((0.0, 10.0), "policy broken: act() returned tuple, not a fuzzynav.policies.base.Action"),
     (Action("go", True, 10.0), "policy broken: dtheta_deg = True is not a finite number"),
-    (Action("go", 0.0, 10.0, {f"f{k}": 1.0 for k in range(65)}), "policy broken: 65 fields, more than the limit of 64"),
+    (Action("go", 0.0, 10.0, {f"f{k}": 1.0 for k in range(65)}), "policy broken: more than the limit of 64 fields"),
     (Action("go", 0.0, 10.0, {"x" * 257: 1.0}), "policy broken: field 'xxxx"),
     (Action("go", 0.0, 10.0, {"x": "y" * 10**6}), "policy broken: field 'x': value of 1,000,000 characters, more than"),
 ])
@@ -206,6 +207,50 @@ def test_a_command_of_any_numeric_type_moves_the_robot_as_the_same_float64_comma
     assert got == run(3.0, 10.0, float(kind(2))) and len(got) > 30
     assert all(type(value) is float for row in got for value in row[:4])
     assert type(got[0][4]) is (int if issubclass(kind, int | np.integer) else float)
+
+
+class _Flips(Action):
+    """An Action whose speed answers 20 at the check's read and 1e9 at the next (it drove at 1e9 cm/s, logged as
+    such, and the report counted a success)."""
+
+    reads = 0
+
+    @property  # type: ignore[override]
+    def v_cm_s(self) -> float:
+        type(self).reads += 1
+        return 20.0 if type(self).reads % 2 else 1e9
+
+    @v_cm_s.setter
+    def v_cm_s(self, value: float) -> None:
+        pass
+
+
+class _Mode(str, enum.Enum):  # noqa: UP042 -- not StrEnum: its str() is "_Mode.GO", not the value
+    GO = "go"
+
+
+class _Lies(dict):
+    """A mapping that says it is small."""
+
+    def __len__(self) -> int:
+        return 1
+
+
+def test_the_robot_executes_the_values_checked_whatever_the_action_answers_later():
+    _Flips.reads = 0
+    record = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                     policy=_Returns(_Flips("go", 0.0, 20.0))).step()
+    assert (record.decision.v_cm_s, record.next_state.v, _Flips.reads) == (20.0, 20.0, 1)
+
+
+def test_a_str_enum_mode_is_its_value_and_a_mapping_cannot_hide_its_fields():
+    record = Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                     policy=_Returns(Action(_Mode.GO, 0.0, 10.0))).step()
+    assert record.decision.mode == "go" and type(record.decision.mode) is str
+    many = _Lies({f"f{k}": 1.0 for k in range(100)})
+    with pytest.raises(ValueError, match=r"^policy broken: more than the limit of 64 fields"):
+        Episode(load_scenario("head_on"), load_controller("table1"), EpisodeConfig(), seed=0,
+                policy=_Returns(Action("go", 0.0, 10.0, many))).step()
 
 
 def test_an_injected_policy_is_reset_with_the_episodes_seed():

@@ -23,6 +23,7 @@ Units: cm, s, degrees (dtheta positive = counter-clockwise = to the left), cm/s.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -207,63 +208,103 @@ def checked_action(action: Any, policy: str) -> Action:
     :data:`MAX_DTHETA_DEG`) and a speed in [0, ``limits.MAX_SPEED_CM_S``] (cm/s), and fields named by strings
     holding finite numbers, booleans or (UTF-8) strings. A policy that returns anything else (NaN from a division
     by zero, a negative speed, 1e308) stops the episode with a :class:`PolicyError` naming the policy and the
-    field, instead of moving the robot by a wrong amount or writing a log no reader accepts. Returned with its
-    numbers as Python ``float`` (``int`` and ``bool`` fields as such): numpy scalars of any precision move the robot
-    and fill the log as the same command in float64."""
+    field, instead of moving the robot by a wrong amount or writing a log no reader accepts.
+
+    Returned as a new plain :class:`Action` of the values read once here and checked, as Python ``str``, ``float``
+    (``int`` and ``bool`` fields as such): numpy scalars of any precision move the robot and fill the log as the
+    same command in float64, and a subclass (a property, a mapping of its own) cannot answer a later read with
+    another value."""
     if not isinstance(action, Action):
         raise PolicyError(f"policy {policy}: act() returned {type(action).__name__}, not a "
                           "fuzzynav.policies.base.Action")
-    if not isinstance(action.mode, str) or not MODE_NAME.fullmatch(action.mode) or action.mode in PLAN_MODES:
-        raise PolicyError(f"policy {policy}: mode {str(action.mode)[:40]!r} is not a mode name (lowercase "
+    mode = _plain_str(action.mode)
+    if mode is None or not MODE_NAME.fullmatch(mode) or mode in PLAN_MODES:
+        raise PolicyError(f"policy {policy}: mode {_shown(action.mode)} is not a mode name (lowercase "
                           f"letters, digits, _; not one of the plan modes {', '.join(PLAN_MODES)})")
     bounds = (("dtheta_deg", action.dtheta_deg, -MAX_DTHETA_DEG, MAX_DTHETA_DEG),
               ("v_cm_s", action.v_cm_s, 0.0, limits.MAX_SPEED_CM_S))
     numbers = []
     for name, value, lo, hi in bounds:
-        number = _finite(value)
+        number = _plain_number(value)
         if number is None:
-            raise PolicyError(f"policy {policy}: {name} = {str(value)[:40]} is not a finite number")
+            raise PolicyError(f"policy {policy}: {name} = {_shown(value)} is not a finite number")
         if not lo <= number <= hi:
             raise PolicyError(f"policy {policy}: {name} = {number:g} is outside [{lo:g}, {hi:g}]"
                               + (" (0 = stand still)" if name == "v_cm_s" else ""))
-        numbers.append(number)
-    if not isinstance(action.fields, Mapping):
-        raise PolicyError(f"policy {policy}: fields is {type(action.fields).__name__}, not a mapping")
-    if len(action.fields) > limits.MAX_POLICY_FIELDS:
-        raise PolicyError(f"policy {policy}: {len(action.fields):,} fields, more than the limit of "
-                          f"{limits.MAX_POLICY_FIELDS} (they are logged at every step)")
+        numbers.append(float(number))
+    given = action.fields
+    if not isinstance(given, Mapping):
+        raise PolicyError(f"policy {policy}: fields is {type(given).__name__}, not a mapping")
+    # read once, at most one past the limit (a mapping of its own may say any len())
+    items = list(itertools.islice(given.items(), limits.MAX_POLICY_FIELDS + 1))
+    if len(items) > limits.MAX_POLICY_FIELDS:
+        raise PolicyError(f"policy {policy}: more than the limit of {limits.MAX_POLICY_FIELDS} fields (they are "
+                          "logged at every step)")
     fields: dict[str, float | int | bool | str] = {}
-    for key, value in action.fields.items():
-        if not isinstance(key, str) or not _utf8(key) or not key:
-            raise PolicyError(f"policy {policy}: field name {str(key)[:40]!r} is not a (UTF-8) string")
+    for raw_key, raw_value in items:
+        key = _plain_str(raw_key)
+        if key is None or not key:
+            raise PolicyError(f"policy {policy}: field name {_shown(raw_key)} is not a (UTF-8) string")
+        value: float | int | bool | str | None
+        if isinstance(raw_value, bool | np.bool_):
+            value = bool(raw_value)
+        elif isinstance(raw_value, str):
+            value = _plain_str(raw_value)
+            if value is None:
+                raise PolicyError(f"policy {policy}: field {key[:40]!r} = {_shown(raw_value)} is not a (UTF-8) "
+                                  "string")
+        else:
+            value = _plain_number(raw_value)
+            if value is None:
+                raise PolicyError(f"policy {policy}: field {key[:40]!r} = {_shown(raw_value)} is not a finite "
+                                  "number, a boolean or a (UTF-8) string")
         for what, text in (("name", key), ("value", value)):
             if isinstance(text, str) and len(text) > limits.MAX_POLICY_FIELD_CHARS:
                 raise PolicyError(f"policy {policy}: field {key[:40]!r}: {what} of {len(text):,} characters, more "
                                   f"than the limit of {limits.MAX_POLICY_FIELD_CHARS}")
-        if isinstance(value, bool | np.bool_) or (isinstance(value, str) and _utf8(value)):
-            fields[key] = bool(value) if isinstance(value, np.bool_) else value
-            continue
-        if isinstance(value, bool | str) or (number := _finite(value)) is None:
-            raise PolicyError(f"policy {policy}: field {key[:40]!r} = {str(value)[:40]!r} is not a finite number, "
-                              "a boolean or a (UTF-8) string")
-        fields[key] = int(value) if isinstance(value, int | np.integer) else number
-    # the robot moves by, and the log holds, the values checked as Python floats: a numpy float32, float16 or
-    # longdouble command would otherwise carry its precision into the robot's state (float16 positions overflow)
-    if type(action.dtheta_deg) is float and type(action.v_cm_s) is float and all(
-            type(value) is type(fields[key]) for key, value in action.fields.items()):
-        return action
-    return Action(action.mode, numbers[0], numbers[1], fields)
+        fields[key] = value
+    return Action(mode, numbers[0], numbers[1], fields)
 
 
-def _finite(value: Any) -> float | None:
-    """``value`` as a float if it is a real number (not a boolean) with a finite float value, else None."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.integer | np.floating):
+def _plain_str(value: Any) -> str | None:
+    """``value``'s text as a plain ``str`` (a subclass's own value: a ``str``-valued enum gives its value), or None
+    if it is no string or holds a lone surrogate (no log can hold it)."""
+    if not isinstance(value, str):
+        return None
+    text = str.__str__(value)
+    return text if _utf8(text) else None
+
+
+def _plain_number(value: Any) -> float | int | None:
+    """``value`` as a plain Python ``int`` (integers) or ``float`` if it is a real number (not a boolean) whose float
+    value is finite, else None. A subclass of ``int`` or ``float`` gives its own value, whatever its ``__int__`` or
+    ``__float__`` say."""
+    if isinstance(value, bool | np.bool_):
+        return None
+    number: float | int
+    if isinstance(value, int):
+        number = int.__int__(value)
+    elif isinstance(value, float):
+        number = float.__float__(value)
+    elif isinstance(value, np.integer):
+        number = int(value)
+    elif isinstance(value, np.floating):
+        number = float(value)
+    else:
         return None
     try:
-        number = float(value)
+        return number if math.isfinite(float(number)) else None
     except OverflowError:  # an int beyond float range
         return None
-    return number if math.isfinite(number) else None
+
+
+def _shown(value: Any) -> str:
+    """``value`` in an error line: a string quoted, anything else as it prints, at most 40 characters."""
+    try:
+        text = repr(str.__str__(value)) if isinstance(value, str) else str(value)
+    except Exception:  # a value whose __str__ fails: named by its type
+        text = f"<{type(value).__name__}>"
+    return text[:40]
 
 
 def _utf8(text: str) -> bool:
