@@ -235,7 +235,8 @@ class NavigationEnv(gymnasium.Env):
     def command(self, action: Any) -> tuple[float, float]:
         """The command ``(dtheta_deg, v_cm_s)`` an action stands for: two real numbers (not text, booleans or
         complex numbers), finite, clamped to the action space and, when normalised, scaled from [-1, 1]."""
-        if isinstance(action, str | bytes):
+        if isinstance(action, str | bytes) or (isinstance(action, list | tuple) and any(
+                isinstance(x, bool | np.bool_) for x in action)):  # numpy reads [True, 20] as the numbers [1, 20]
             arr = None
         else:
             try:
@@ -259,8 +260,9 @@ class NavigationEnv(gymnasium.Env):
         :attr:`observation`), its mode, fields and ``policy_name`` recorded as ``runners.run`` records them."""
         if not isinstance(policy_name, str) or not is_policy_id(policy_name):
             raise ValueError(f"policy_name: expected the policy's name, got {str(policy_name)[:40]!r}")
-        checked_action(action, policy_name)  # before the step: a bad action leaves the episode (and its log) as is
-        return self._advance(action, policy_name)
+        # before the step (a bad action leaves the episode and its log as they are); the values checked are the
+        # ones the robot executes
+        return self._advance(checked_action(action, policy_name), policy_name)
 
     def render(self) -> str | None:
         """``ansi``: one line: step, pose (cm, degrees), speed (cm/s), distance to the goal (cm), last mode."""

@@ -322,6 +322,8 @@ def test_bad_kwargs_are_one_line_value_errors(kwargs: dict, field: str) -> None:
     (["1", "20"], "2 real numbers"),  # numpy would read text as numbers
     ([1j, 20.0], "2 real numbers"),
     ([True, False], "2 real numbers"),
+    ([True, 20.0], "2 real numbers"),  # numpy would read [1.0, 20.0]
+    ((0.0, np.bool_(True)), "2 real numbers"),
 ])
 def test_bad_actions_are_value_errors(env: NavigationEnv, action, field: str) -> None:
     env.reset(seed=0)
