@@ -59,6 +59,9 @@ PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_
 BOX_METRICS = ["time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "wait_steps"]
 #: the share of episodes of a group ending in each other outcome than the goal, beside ``success``
 RATES = {"collision_rate": "collision", "timeout_rate": "timeout"}
+ROUNDING = 1e-9
+"""Paired values whose difference is at most this share of the larger one are equal (floating-point rounding of
+the same quantity computed along another path), so their difference counts as zero."""
 PAIR_KEY = "seed"  # episodes of one scenario group with the same seed face the same world and obstacles
 
 
@@ -136,7 +139,12 @@ def paired_table(df: pd.DataFrame, grouping: Grouping) -> pd.DataFrame:
             common, at_a, at_b = np.intersect1d(seeds_a, seeds_b, assume_unique=True, return_indices=True)
             if len(common) == 0:
                 continue
-            diffs = left[at_a] - right[at_b]  # a row per common seed, ascending
+            a_values, b_values = left[at_a], right[at_b]  # a row per common seed, ascending
+            diffs = a_values - b_values
+            # equal up to rounding (a straight path of 999.9999999999989 cm against 1000 cm) is no difference: such
+            # a pair of a few ulps on one side of zero made an interval [-4, -7e-13] "exclude zero"
+            with np.errstate(invalid="ignore"):
+                diffs[np.abs(diffs) <= ROUNDING * np.maximum(np.abs(a_values), np.abs(b_values))] = 0.0
             for j, metric in enumerate(PAIRED_METRICS):
                 diff = diffs[:, j]
                 mean, lo, hi = bootstrap_mean(diff)

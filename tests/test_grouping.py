@@ -296,6 +296,28 @@ def test_paired_differences_are_those_of_each_seeds_mean(tmp_path):
     assert clearance["mean_a_minus_b"] == pytest.approx(((30 - 80) + ((30 + 50) / 2 - 70)) / 2)
 
 
+def test_a_difference_of_rounding_alone_is_no_difference(tmp_path):
+    """Four seeds whose path lengths differ by a few ulps (999.9999999999989 against 1000: the same straight path
+    summed another way) and one by 4 cm: the interval of the mean difference ends at 0, which it includes (it
+    was [-4, -7e-13], "excluding zero", in the default sweep's report)."""
+    from analysis.report import paired_table
+
+    poses = [(0.0, 0.0, 0.0), (50.0, 0.0, 0.0), (100.0, 0.0, 0.0)]
+    for seed in range(5):
+        for margin in (5.0, 30.0):
+            write_log(tmp_path / f"m{margin:g}_s{seed}.mcap", poses, goal=(100.0, 0.0), obstacles=[[], []],
+                      meta=meta(setter("planner.safety_margin_cm", margin), seed=seed))
+    analysis = analyse_logs([tmp_path])
+    df = analysis.episodes.copy()
+    a, _ = pd.unique(df["variant"])
+    at_a = df["variant"] == a
+    df.loc[at_a, "path_length_cm"] = [999.9999999999989 if s else 996.0 for s in df.loc[at_a, "seed"]]
+    df.loc[~at_a, "path_length_cm"] = 1000.0
+    row = paired_table(df, analysis.grouping).set_index("metric").loc["path_length_cm"]
+    assert row["ci_low"] < 0 and row["ci_high"] == 0.0 and not row["excludes_zero"]
+    assert row["mean_a_minus_b"] == pytest.approx(-0.8)
+
+
 def test_summary_and_metrics_agree_on_success(tmp_path):
     """Logs where the two former definitions disagreed: a goal outcome with a contact seen only in the geometry
     (the simulator's flags and /episode say none), and a goal outcome whose positions never reach the goal."""
