@@ -33,7 +33,8 @@ from analysis.episode_log import load_episode
 from analysis.file_names import is_utf8
 from analysis.logs import RUN_METADATA, LogError, LogFile, RejectedLog, file_kind
 from analysis.mcap_verify import peek_metadata
-from fuzzynav.episode_identity import episode_key_of
+from fuzzynav.episode_identity import counted_key_of
+from fuzzynav.params.names import reads_h_wait
 
 _BATCHING_METADATA = ("config", "config_hash")  # depend on the seed batching: the episode key stands for them
 
@@ -43,6 +44,8 @@ def is_provenance_key(key: str) -> bool:
     return key in ("fuzzynav_version", "git_commit") or key.endswith("_version")
 
 _COMPUTE_TIME = re.compile(rb'"compute_time_us":[-+0-9.eE]+')  # the one field no re-run reproduces
+_H_WAIT_SAID = re.compile(rb"h_wait [^,\")]*|hWait=[^,\")]*")  # in a /log line: "h_wait 2", "hWait=2"
+_H_WAIT_PLANNED = re.compile(rb'"h_wait":[-+0-9.eE]+')  # in a plan of /planner/decision
 
 
 def find_logs(paths: Iterable[str | Path]) -> list[Path]:
@@ -112,7 +115,7 @@ def _identity(path: Path) -> tuple[tuple[str, ...], str] | None:
             meta = peek_metadata(f, RUN_METADATA)
     except OSError:
         return None
-    key = episode_key_of(meta)
+    key = counted_key_of(meta)
     if meta is None or key is None:
         return None
     return (key, *sorted(f"{k}={v}" for k, v in meta.items() if is_provenance_key(k))), meta["seed"]
@@ -130,13 +133,21 @@ def _content_digest(path: Path) -> str | None:
             return None
         digest = hashlib.sha256()
         meta = log.metadata()
-        digest.update(f"episode={episode_key_of(meta)}\0".encode())
+        digest.update(f"episode={counted_key_of(meta)}\0".encode())
+        off = () if reads_h_wait(meta.get("strategy")) else ("h_wait",)  # as in the key: a setting not read
         for key, value in sorted(meta.items()):
-            if key not in _BATCHING_METADATA:
+            if key not in _BATCHING_METADATA and key not in off:
                 digest.update(f"{key}={value}\0".encode())
         for topic, log_time, data in log.raw_messages():
             digest.update(f"{topic}@{log_time}\0".encode())
-            digest.update(_COMPUTE_TIME.sub(b'"compute_time_us":0', data) if topic == "/planner/decision" else data)
+            # a setting not read is still named where the episode starts ("..., h_wait 2, seed 0") and in each plan
+            if topic == "/planner/decision":
+                data = _COMPUTE_TIME.sub(b'"compute_time_us":0', data)
+                if off:
+                    data = _H_WAIT_PLANNED.sub(b'"h_wait":null', data)
+            elif topic == "/log" and off:
+                data = _H_WAIT_SAID.sub(b"h_wait", data)
+            digest.update(data)
     except LogError:
         return None
     return digest.hexdigest()

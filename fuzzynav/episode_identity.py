@@ -19,6 +19,8 @@ import hashlib
 from collections.abc import Mapping
 from typing import Any
 
+from fuzzynav.params.names import PLANNER_OFF, reads_h_wait
+
 BATCHING_KEYS = ("seed", "episodes", "resume")  # top-level config keys that do not change an episode
 HASH_IGNORED_KEYS = ("resume",)  # what the logged config_hash leaves out (unchanged: logs must stay the same)
 IDENTITY_FIELDS = ("config", "seed", "fuzzynav_version")  # the metadata fields the identity is computed from
@@ -56,6 +58,41 @@ def episode_key_of(meta: Mapping[str, Any] | None) -> str | None:
         return None
     return episode_key(meta["config"], meta["seed"], meta["fuzzynav_version"], str(meta.get(POLICY_SOURCE, "")),
                        str(meta.get(RECORDING, "")))
+
+
+def without_parts_off(config_yaml: str) -> str:
+    """The resolved config (YAML text, as runners write it: a block per top-level key, indented by two spaces)
+    without the settings of a planner part that is off: ``planner.h_wait`` where the strategy does not read it
+    (:func:`fuzzynav.params.names.reads_h_wait`), and every planner setting but the strategy under strategy
+    ``none``. Episodes that differ there only are the same bits (tests/test_parameters_off.py), and the analysis
+    groups them without those settings (:mod:`analysis.run_parameters`), so it must count them once. The text is
+    returned unchanged where it has no such planner block."""
+    lines = config_yaml.splitlines()
+    try:
+        start = lines.index("planner:")
+    except ValueError:
+        return config_yaml
+    end = next((i for i in range(start + 1, len(lines)) if lines[i] and not lines[i].startswith(" ")), len(lines))
+    block = lines[start + 1:end]
+    strategies = [line.removeprefix("  strategy: ") for line in block if line.startswith("  strategy: ")]
+    if len(strategies) != 1:
+        return config_yaml
+    strategy = strategies[0].strip().strip("'\"")
+    if strategy == PLANNER_OFF:
+        kept = [f"  strategy: {strategies[0]}"]
+    elif not reads_h_wait(strategy):
+        kept = [line for line in block if not line.startswith("  h_wait:")]
+    else:
+        return config_yaml
+    return "\n".join([*lines[:start + 1], *kept, *lines[end:]]) + ("\n" if config_yaml.endswith("\n") else "")
+
+
+def counted_key_of(meta: Mapping[str, Any] | None) -> str | None:
+    """:func:`episode_key_of` of the config :func:`without_parts_off`: the identity under which the analysis counts
+    an episode once (``planner=wait planner.h_wait=1,2,3`` runs one episode per seed three times)."""
+    if not meta or not isinstance(meta.get("config"), str):
+        return episode_key_of(meta)
+    return episode_key_of({**meta, "config": without_parts_off(meta["config"])})
 
 
 def same_episode_config(config_a: str, config_b: str) -> bool:

@@ -82,7 +82,7 @@ def write_log(path: Path, poses, *, radius: float = 20.0, statics=(), obstacles=
              "next_y_cm": qy} for oid, ox, oy, qx, qy, r in obs]})
         put("/planner/decision", k, {"step": k, "mode": modes[k], "new_plan": False, "left_cm": 130, "front_cm": 130,
                                      "right_cm": 130, "angle_deg": 90, "dtheta_deg": 0, "v_cm_s": speeds[k],
-                                     "strategy": "auto", "planning": None, "compute_time_us": 10.0 + k})
+                                     "strategy": metadata["strategy"], "planning": None, "compute_time_us": 10.0 + k})
         if truncate and k == n // 2:
             w._Writer__stream.flush()
             return path

@@ -318,6 +318,28 @@ def test_a_difference_of_rounding_alone_is_no_difference(tmp_path):
     assert row["mean_a_minus_b"] == pytest.approx(-0.8)
 
 
+@pytest.mark.parametrize(("strategy", "setting", "values", "counted"), [
+    ("wait", "planner.h_wait", (1, 2, 3), 1),  # wait does not read h_wait: one episode run three times
+    ("none", "planner.safety_margin_cm", (5.0, 15.0), 1),  # the planner is off: none of its settings counts
+    ("auto", "planner.h_wait", (1, 2, 3), 3),  # three episodes
+])
+def test_an_episode_run_again_with_a_setting_it_does_not_read_is_counted_once(tmp_path, strategy, setting, values,
+                                                                              counted):
+    """``planner=wait planner.h_wait=1,2,3`` ran each seed's episode three times: the groups leave h_wait out for
+    wait, so they held 15 episodes of 5 (a Wilson interval of 15)."""
+    poses = [(0.0, 0.0, 0.0), (50.0, 0.0, 0.0), (100.0, 0.0, 0.0)]
+    for value in values:
+        def edit(config, value=value):
+            config["planner"]["strategy"] = strategy
+            setter(setting, value)(config)
+
+        write_log(tmp_path / f"{strategy}_{value}.mcap", poses, goal=(100.0, 0.0), obstacles=[[], []],
+                  meta=meta(edit, seed=3))
+    analysis = analyse_logs([tmp_path])
+    assert len(analysis.episodes) == counted, analysis.excluded[["log", "kind", "reason"]].to_string()
+    assert list(analysis.excluded["kind"]) == ["duplicate"] * (len(values) - counted)
+
+
 def test_summary_and_metrics_agree_on_success(tmp_path):
     """Logs where the two former definitions disagreed: a goal outcome with a contact seen only in the geometry
     (the simulator's flags and /episode say none), and a goal outcome whose positions never reach the goal."""
