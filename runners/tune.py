@@ -11,10 +11,11 @@
 The study file names the search space (Hydra's override grammar), the objectives (metrics of the analysis),
 the scenarios and the training and held-out seeds (:mod:`runners.tuning.study_file`). The study lives in Optuna's
 storage in the study folder; re-running the command resumes it (the trials a stopped command left in flight run
-again). After the trials the best trial (each evaluated Pareto trial for two objectives) and the default are run
-on the held-out seeds, and ``<study>/report/`` gets the study report with its figures
-(:mod:`runners.tuning.report`). Exit status: 0 done, 1 no trial completed or a run failed, 2 bad input,
-130/143 stopped.
+again), if the study file still describes the stored study: a file changed in what scores a trial is refused in
+one line (:mod:`runners.tuning.study_record`). After the trials the best trial (each evaluated Pareto trial for
+two objectives) and the default are run on the held-out seeds, and ``<study>/report/`` gets the study report
+with its figures (:mod:`runners.tuning.report`). Exit status: 0 done, 1 no trial completed or a run failed,
+2 bad input, 130/143 stopped.
 """
 
 from __future__ import annotations
@@ -171,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.launcher == "slurm":
             slurm_workers.storage_kind(kind, study_dir, args.study)
         check_space(spec)
-        study = create_or_load(spec, open_storage(study_dir, kind))
+        study = create_or_load(spec, open_storage(study_dir, kind), study_dir=study_dir)
     except (StudyFileError, StorageError, ValueError) as err:
         print(f"error: {' '.join(str(err).split())}"[:600], file=sys.stderr)
         return EXIT_INPUT

@@ -85,7 +85,7 @@ def check_before_trials(comparison: Comparison, out: Path, storage: str | None, 
             if storage not in (None, kind):
                 raise StorageError(f"{out / spec.name}: the study is stored in {kind}; --storage {storage} would "
                                    "start another one")
-            create_or_load(spec, open_storage(out / spec.name, kind))
+            create_or_load(spec, open_storage(out / spec.name, kind), study_dir=out / spec.name)
         except (StudyFileError, StorageError, ValueError) as err:
             raise ComparisonFileError(f"{err} (comparison {comparison.path})") from None
 
@@ -186,7 +186,7 @@ def heldout_results(spec: StudySpec, study_dir: Path) -> tuple[StudySpec, Any, l
               file=sys.stderr)
         raise ComparisonStopped(EXIT_INPUT) from None
     try:
-        study = create_or_load(spec, open_storage(study_dir, existing_kind(study_dir) or "sqlite"))
+        study = create_or_load(spec, open_storage(study_dir, existing_kind(study_dir) or "sqlite"), study_dir=study_dir)
         chosen = [t.number for t in chosen_trials(study)]
         previous = _read_back(spec, study, study_dir, chosen)
         if previous is not None:

@@ -27,6 +27,13 @@ FILES = {"sqlite": "study.db", "journal": "study.journal"}
 SQLITE_TIMEOUT_S = 60.0
 SQLITE_MAGIC = b"SQLite format 3\x00"
 
+TRIALS_DIR = "trials"  # <study>/trials/<number>/: each trial's episode logs
+
+
+def trial_dir(study_dir: Path, number: int) -> Path:
+    """The folder of trial ``number``'s episode logs."""
+    return study_dir / TRIALS_DIR / f"{number:05d}"
+
 
 class StorageError(Exception):
     """The study's storage cannot be opened or used (the message names the file)."""

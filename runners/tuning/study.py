@@ -32,7 +32,9 @@ from analysis.objectives import objective_value, undefined
 from runners.tuning import controller_space, rule_space
 from runners.tuning.episodes import ConfigurationError, hydra_conf, run_configuration
 from runners.tuning.space import Parameter, overrides_of, suggest
+from runners.tuning.storage import trial_dir
 from runners.tuning.study_file import StudySpec
+from runners.tuning.study_record import DEFINITION, StudyChangedError, check_resumed, definition
 
 FAIL_REASON = "fail_reason"
 INTERRUPTED = "interrupted"
@@ -40,13 +42,8 @@ SURPLUS = "surplus"
 OVERRIDES = "overrides"
 WORKER = "worker"
 METRICS = "metrics"
-TRIALS_DIR = "trials"
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)  # the command prints one line per trial of its own
-
-
-def trial_dir(study_dir: Path, number: int) -> Path:
-    return study_dir / TRIALS_DIR / f"{number:05d}"
 
 
 def make_sampler(spec: StudySpec, worker: int = 0, trials_before: int = 0) -> optuna.samplers.BaseSampler:
@@ -133,31 +130,47 @@ def default_values(spec: StudySpec) -> dict[str, Any] | None:
             **rule_space.start_values(rule_outputs(spec))}
 
 
-def create_or_load(spec: StudySpec, storage: Any, worker: int = 0) -> optuna.Study:
-    """The study named in the file, created with its directions (and the default enqueued) or loaded as it is;
-    a study of the same name with other directions or another space is refused."""
+def create_or_load(spec: StudySpec, storage: Any, worker: int = 0, study_dir: Path | None = None) -> optuna.Study:
+    """The study named in the file, created with its directions and its record (the default enqueued), or loaded
+    if the file still describes it (:mod:`runners.tuning.study_record`). Refused (:class:`StudyChangedError`,
+    one line): a file whose scenarios, seeds, objectives, base or space differ from the stored study's, and a
+    new name in a folder that holds another study, whose trial folders (``trials/00000`` …) the new study's
+    trials would share. ``study_dir`` names the folder in the messages, and holds the logs that confirm a study
+    stored before records existed."""
+    where = str(study_dir) if study_dir is not None else "the study folder"
     try:
         study = optuna.load_study(study_name=spec.name, storage=storage)
     except KeyError:
+        others = [s.study_name for s in storage.get_all_studies()]
+        if others:
+            raise StudyChangedError(
+                f"{spec.path}: name: {others[0]!r} → {spec.name!r}: {where} holds the study {others[0]!r}, whose "
+                "trial folders a new study would share: restore the file's name, or use another --out for the "
+                "new study") from None
         study = optuna.create_study(study_name=spec.name, storage=storage, sampler=make_sampler(spec, worker),
                                     directions=spec.directions, load_if_exists=True)
         if not study.user_attrs:
             study.set_user_attr("space", [p.text for p in all_parameters(spec)])
             study.set_user_attr("objectives", [o.name for o in spec.objectives])
             study.set_user_attr("base", list(spec.base))
+            study.set_user_attr(DEFINITION, definition(spec))
             defaults = default_values(spec)
             if defaults is not None:
                 study.enqueue_trial(defaults, user_attrs={"default": True})
         return study
     study.sampler = make_sampler(spec, worker, len(study.get_trials(deepcopy=False)))
+    record = check_resumed(spec, study, study_dir)  # first: it names every field of the file that changed
     directions = [d.name.lower() for d in study.directions]
     if directions != spec.directions:
-        raise ValueError(f"{spec.path}: objectives: the stored study {spec.name!r} has directions {directions}, the "
-                         f"file {spec.directions}: name a new study (name:) or a new folder")
+        raise StudyChangedError(f"{spec.path}: objectives: the stored study {spec.name!r} in {where} has directions "
+                                f"{directions}, the file {spec.directions}: restore the file, or use another --out")
     stored = study.user_attrs.get("space")
     if stored is not None and stored != [p.text for p in all_parameters(spec)]:
-        raise ValueError(f"{spec.path}: space: differs from the stored study {spec.name!r} ({'; '.join(stored)[:120]}):"
-                         " name a new study (name:) or a new folder")
+        # also what the file's controller_space/controller_rules resolve to in conf/'s base controller
+        raise StudyChangedError(f"{spec.path}: space: differs from the stored study {spec.name!r} in {where} "
+                                f"({'; '.join(stored)[:120]}): restore the file, or use another --out")
+    if record:
+        study.set_user_attr(DEFINITION, definition(spec))
     return study
 
 

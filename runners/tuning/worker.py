@@ -19,7 +19,7 @@ def worker(study_file: str, study_dir: str, kind: str, budget: int, index: int) 
     process_tree.exit_with_parent()
     stop.install(None)
     spec = load_study_file(Path(study_file))
-    study = create_or_load(spec, open_storage(Path(study_dir), kind), index)
+    study = create_or_load(spec, open_storage(Path(study_dir), kind), index, Path(study_dir))
     try:
         run_trials(study, spec, Path(study_dir), budget, print_trial(spec))
     except (KeyboardInterrupt, Interrupted):
