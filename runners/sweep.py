@@ -259,10 +259,13 @@ class SweepProgress(Callback):
                     print(f"resume: skipped {line}")
             else:
                 sweep_resume.restore(sweep_dir)
-                existing = sum(1 for p in job_logs(sweep_dir) if is_complete(p))
+                found = {str(p): sweep_control.log_fingerprint(p) for p in job_logs(sweep_dir)}
+                run.found = {path: mark for path, mark in found.items() if mark is not None}
+                existing = sum(1 for p in found if is_complete(Path(p)))
                 if existing:
-                    print(f"warning: {sweep_dir} already holds {existing} complete logs; without resume=true they "
-                          "are re-run and overwritten", file=sys.stderr)
+                    print(f"warning: {sweep_dir} already holds {existing} complete logs; without resume=true those "
+                          "of this sweep's episodes are run again and overwritten, and the others are left out of "
+                          "its summary and report", file=sys.stderr)
         except Exception as err:  # Hydra would turn it into a warning and run the sweep anyway
             if sweep_control.debug_requested():
                 raise

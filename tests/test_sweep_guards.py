@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from omegaconf import OmegaConf
 
@@ -240,8 +241,13 @@ def test_an_episode_is_the_same_whatever_the_seed_batching():
     assert key(config.format(first=0, n=4, resume="false"), 2, "1.0") != same
     assert key(config.format(first=0, n=4, resume="false"), 3, "1.1") != same
     import analysis.log_inputs
+    from fuzzynav import episode_identity
 
-    assert analysis.log_inputs.episode_key_of is sweep_resume.episode_key_of  # one identity: resume and analysis
+    # one identity, defined once: the resume's, and the analysis' that leaves out the settings of a part that is off
+    assert sweep_resume.episode_key_of is episode_identity.episode_key_of
+    assert analysis.log_inputs.counted_key_of is episode_identity.counted_key_of
+    meta = {"config": config.format(first=0, n=4, resume="false"), "seed": "3", "fuzzynav_version": "1.0"}
+    assert episode_identity.counted_key_of(meta) == episode_identity.episode_key_of(meta) == same
 
 
 def test_resume_never_opens_a_fifo_named_like_a_log(tmp_path):
@@ -358,3 +364,27 @@ def test_a_resume_into_a_folder_holding_other_sweeps_and_runs_leaves_them_whole(
     assert "0 complete episode(s) kept, 2 run" in res.stdout and "2 episode logs in" in res.stdout
     assert [p.relative_to(parent).parts[0] for p in job_logs(parent)] == ["0", "1"]
     assert not is_other_output(parent / "0") and is_other_output(parent / "old") and is_other_output(parent / "run")
+
+
+def test_a_sweep_into_the_folder_of_an_earlier_one_summarises_its_own_episodes_only(tmp_path):
+    """A sweep of 2 seeds into the folder of a sweep of 3 (without resume, then with it): the summary held the
+    earlier sweep's seed 2 (and, without resume, its other groups) as this sweep's episodes."""
+    def sweep(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "runners.sweep", "scenario=head_on", *args,
+                               f"hydra.sweep.dir={tmp_path}", "hydra.launcher.n_jobs=1"], cwd=ROOT,
+                              capture_output=True, text=True, timeout=600)
+
+    assert sweep("planner=auto,wait", "episodes=3").returncode == 0
+    res = sweep("planner=wait", "episodes=2")
+    assert res.returncode == 0, res.stderr
+    # the earlier sweep's 6 logs: job 0 was its auto, job 1 its wait; this sweep's job 0 (wait) writes others
+    assert "6 log(s) of episodes outside this sweep" in res.stdout and "2 episode logs in" in res.stdout, res.stdout
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert sorted(summary["seed"]) == [0, 1] and set(summary["strategy"]) == {"wait"}
+    res = sweep("planner=auto,wait", "episodes=2", "resume=true")
+    assert res.returncode == 0, res.stderr
+    # kept: seeds 0, 1 of both (the second sweep's wait copies removed); outside: the first sweep's seeds 2
+    assert "2 log(s) of episodes outside this sweep left in the directory, not in this summary" in res.stdout, \
+        res.stdout
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert sorted(summary["seed"]) == [0, 0, 1, 1] and len(list(tmp_path.rglob("*.mcap"))) == 6

@@ -40,13 +40,16 @@ from runners.sweeping.paths import partial_logs, stop_file
 class SweepRun:
     """One sweep, in its launching process. ``started``: wall-clock time (s since the epoch) when it began, to tell
     the logs it wrote from older ones; ``signum``: the stop signal received, if any; ``errors``: one line per
-    failure; ``removed_partials``: partial logs of killed episodes of an earlier sweep, removed at the start."""
+    failure; ``removed_partials``: partial logs of killed episodes of an earlier sweep, removed at the start;
+    ``found``: the logs the directory held when a sweep without resume began (path -> :func:`log_fingerprint`),
+    which are not this sweep's unless it writes them again."""
 
     sweep_dir: Path
     started: float
     signum: int | None = None
     errors: list[str] = field(default_factory=list)
     removed_partials: int = 0
+    found: dict[str, tuple[int, int]] = field(default_factory=dict)
 
     def fail(self, line: str) -> None:
         """Note a failure (once per distinct line) and ask the jobs still running to stop."""
@@ -63,6 +66,16 @@ class SweepRun:
             return self.signum
         request = stop.read_sweep_stop(stop_file(self.sweep_dir))
         return request[0] if request and request[0] in interrupts.SIGNAL_NAMES else None
+
+
+def log_fingerprint(path: Path) -> tuple[int, int] | None:
+    """(inode, modification time in ns) of a log, or None where it cannot be read: a log written again (a new file
+    put in its place) has another, whatever the file system's clock resolution."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns
 
 
 _CURRENT: list[SweepRun] = []

@@ -38,13 +38,18 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
 
     sweep_dir = run.sweep_dir
     kept = plan.kept - sweep_resume.held_count(sweep_dir) if plan is not None else 0  # taken back by the jobs
+    # this sweep's logs: before the resume's leftovers go back, every log but those found at the start and not
+    # written again (a sweep into a folder of an earlier one counted the earlier one's other episodes as its own)
+    ours = [p for p in job_logs(sweep_dir)
+            if str(p) not in run.found or sweep_control.log_fingerprint(p) != run.found[str(p)]]
     in_place, earlier, superseded = sweep_resume.restore(sweep_dir)  # episodes this sweep does not include
     if plan is not None:
         fresh = [p for p in job_logs(sweep_dir) if _written_since(p, run.started)]
         print(f"resume: {kept} complete episode(s) kept, {len(fresh)} run (incomplete, missing or changed)")
         if plan.rerun or plan.removed or in_place or earlier:
             print(f"resume: {plan.rerun} failed or damaged log(s) run again, {plan.removed} extra copies of an "
-                  f"episode removed, {in_place + earlier} log(s) of episodes outside this sweep left in the directory"
+                  f"episode removed, {in_place + earlier} log(s) of episodes outside this sweep left in the "
+                  "directory, not in this summary and report"
                   + (f" ({earlier} moved to {sweep_dir / sweep_resume.EARLIER}: their name is taken)" if earlier
                      else ""))
         if superseded:
@@ -58,8 +63,14 @@ def end_of_sweep(config: DictConfig, run: sweep_control.SweepRun, plan: sweep_re
     # a complete sweep gets its report: matplotlib (~0.3 s) is imported while the forked readers read, so that the
     # figures' workers, forked after it, do not each import it again
     report_next = run.stop_signal() is None and not run.errors
-    # another sweep's or run's folder inside this one is not this sweep's: its logs stay out of the summary
-    sources = job_logs(sweep_dir) if other_outputs(sweep_dir) else [sweep_dir]
+    # another sweep's or run's folder inside this one is not this sweep's: its logs stay out of the summary, as do
+    # the logs of other episodes an earlier sweep left in this one
+    others = len(job_logs(sweep_dir)) - len(ours)
+    if others and plan is None:  # (a resume said so above)
+        print(f"{others} log(s) of episodes outside this sweep (of an earlier run into {sweep_dir}) left where they "
+              f"are, not in this summary and report (python -m analysis.report {shlex.quote(str(sweep_dir))} reads "
+              "every log)")
+    sources = ours if others or other_outputs(sweep_dir) else [sweep_dir]
     analysis = analyse_logs(sources, jobs=-1, traces=True, meanwhile=plots.pyplot if report_next else None)
     signum = run.stop_signal()
     lost = partial_logs(sweep_dir)
