@@ -7,7 +7,9 @@ Each tutorial's fenced code blocks run in order in a fresh temporary working dir
 - a ```bash``` block is run by bash with ``set -euo pipefail``;
 - a ```python``` block without a title is run by ``python -`` (so the working directory is on ``sys.path``, as in
   an interactive session); its ``assert``s are the tutorial's own checks;
-- a ```text``` block is expected output, shown and not run.
+- a ```text``` block is expected output, shown and not run: right after a command, each of its lines must be a
+  line that command printed (stdout or stderr), where ``...`` stands for any text and ``<name>`` for any word (a
+  date, a time); a line of ``...`` alone marks lines left out.
 
 In both kinds of command ``python`` is this test's interpreter (a folder with a ``python`` that runs
 ``sys.executable`` comes first on ``PATH``). A block of any other kind fails the test, so that nothing in a
@@ -61,6 +63,17 @@ def blocks(markdown: str) -> list[Block]:
     return found
 
 
+def shown_in(line: str, printed: list[str]) -> bool:
+    """Whether a line of a tutorial's expected output is one of the ``printed`` lines (``...``: any text; ``<name>``:
+    any word; a line of ``...`` alone, or an empty one, stands for lines left out)."""
+    text = line.rstrip()
+    if text.strip() in ("", "..."):
+        return True
+    pattern = "".join(".*?" if part == "..." else r"[^\s/]+?" if part.startswith("<") else re.escape(part)
+                      for part in re.split(r"(\.\.\.|<[a-z_]+>)", text))
+    return any(re.fullmatch(pattern, out) for out in printed)
+
+
 def tutorials() -> list[Path]:
     return sorted(p for p in TUTORIALS.glob("*.md") if p.name != "index.md")
 
@@ -96,6 +109,7 @@ def test_tutorial_runs_as_written(path: Path, tmp_path: Path):
     env["PATH"] = os.pathsep.join([str(bin_dir), str(Path(sys.executable).parent), env.get("PATH", "")])
     env["MPLBACKEND"] = "Agg"
     start = time.monotonic()
+    printed: list[str] | None = None  # the lines the last command printed, for the text block after it
     for block in blocks(path.read_text()):
         where = f"{path.name}:{block.line}"
         if block.kind == "file":
@@ -105,7 +119,13 @@ def test_tutorial_runs_as_written(path: Path, tmp_path: Path):
             target.write_text(block.body)
             continue
         if block.kind == "text":
+            if printed is not None:
+                missing = [line for line in block.body.splitlines() if not shown_in(line, printed)]
+                assert not missing, (f"{where}: the tutorial shows lines the command did not print:\n"
+                                     + "\n".join(missing) + "\n--- printed:\n" + "\n".join(printed)[-4000:])
+            printed = None
             continue
+        printed = None
         if block.kind == "bash":
             cmd, stdin = ["bash", "-c", "set -euo pipefail\n" + block.body], None
         else:
@@ -114,6 +134,18 @@ def test_tutorial_runs_as_written(path: Path, tmp_path: Path):
                               timeout=BLOCK_TIMEOUT_S)
         assert proc.returncode == 0, (f"{where}: exit {proc.returncode}\n--- block:\n{block.body}\n--- stdout:\n"
                                       f"{proc.stdout[-4000:]}\n--- stderr:\n{proc.stderr[-4000:]}")
+        printed = [line.rstrip() for line in (proc.stdout + "\n" + proc.stderr).splitlines()]
     print(f"{path.name}: {time.monotonic() - start:.1f} s")
     # the commands wrote only inside the working directory (Hydra's outputs included)
     assert not (ROOT / "docs" / "tutorials" / "outputs").exists()
+
+
+def test_expected_output_lines_match_printed_lines_with_placeholders_only():
+    printed = ["gap policy=fuzzy seed=0: goal after 42 steps (42 s)  log: /tmp/x/outputs/2026-12-08/00-01-02/a.mcap",
+               "     gap auto(h=2)         3          1.00     3       41.00"]
+    assert shown_in("gap policy=fuzzy seed=0: goal after 42 steps (42 s)  log: .../outputs/<date>/<time>/a.mcap",
+                    printed)
+    assert shown_in("     gap auto(h=2)         3          1.00     3       41.00", printed)
+    assert shown_in("...", printed) and shown_in("", printed)
+    assert not shown_in("     gap auto(h=2)         3          1.00     3       40.67", printed)
+    assert not shown_in("gap policy=fuzzy seed=0: goal after 41 steps (41 s)  log: .../<date>/<time>/a.mcap", printed)
