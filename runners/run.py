@@ -36,7 +36,7 @@ from fuzzynav.conf import CONF_DIR
 from fuzzynav.controller.fuzzy_fast import FastEvaluator
 from fuzzynav.episode import Episode, EpisodeConfig
 from fuzzynav.params.names import DEFAULT_POLICY, reads_h_wait
-from fuzzynav.pedestrians.base import model_source_digest
+from fuzzynav.pedestrians.base import MODEL_NOTE, model_source_digest
 from fuzzynav.planning.layer import POLICY_NOTE, PolicyError
 from fuzzynav.policies.base import policy_source_digest, split_navigator_section
 from fuzzynav.scenarios.generator import generator_source_digest
@@ -436,8 +436,10 @@ def cli(on_config: Callable[[DictConfig], None] | None = None, sweep: bool = Fal
 
 def raised_by_code(err: KeyboardInterrupt) -> str:
     """The reason an episode failed whose code raised ``KeyboardInterrupt`` itself (no signal): named by the
-    policy when it came from one (the note :mod:`fuzzynav.planning.layer` adds), else by the innermost frame."""
-    where = next((note for note in getattr(err, "__notes__", []) if note.startswith(POLICY_NOTE)), None)
+    policy or the pedestrian model it came from (the notes :mod:`fuzzynav.planning.layer` and
+    :func:`fuzzynav.pedestrians.base.call_model` add), else by the innermost frame."""
+    where = next((note for note in getattr(err, "__notes__", []) if note.startswith((POLICY_NOTE, MODEL_NOTE))),
+                 None)
     if where is None:
         frames = traceback.extract_tb(err.__traceback__)
         where = f"{frames[-1].filename}:{frames[-1].lineno}" if frames else "the episode's code"

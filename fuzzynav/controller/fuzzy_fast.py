@@ -26,7 +26,8 @@ import bisect
 import math
 import operator
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from types import MappingProxyType
 
 import numpy as np
 
@@ -47,10 +48,10 @@ class _Output:
     fallback: float
     term_rules: tuple[tuple[int, ...], ...]  # rules naming each term (scalar path)
     weights: np.ndarray  # (2, G): area and first moment of the grid polyline = sum(weights[i] * y)
-    rising: tuple[list[float], ...]  # per term: samples up to the first maximum (non-decreasing)
-    falling_neg: tuple[list[float], ...]  # per term: negated samples from the last maximum (non-decreasing)
-    mf_rows: tuple[list[float], ...]  # per term: the sampled membership as a plain list (scalar path)
-    grid_list: list[float]  # the grid as a plain list (scalar path)
+    rising: tuple[tuple[float, ...], ...]  # per term: samples up to the first maximum (non-decreasing)
+    falling_neg: tuple[tuple[float, ...], ...]  # per term: negated samples from the last maximum (non-decreasing)
+    mf_rows: tuple[tuple[float, ...], ...]  # per term: the sampled membership as plain floats (scalar path)
+    grid_list: tuple[float, ...]  # the grid as plain floats (scalar path)
     support: tuple[tuple[int, int], ...]  # per term: grid slice [lo, hi) outside which the membership is 0
 
 
@@ -59,7 +60,27 @@ class FastEvaluator:
 
     ``evaluate(inputs)`` takes a mapping from input-variable name to a scalar or 1-D array (variable units)
     and returns ``(dtheta_deg, v_cm_s)`` as floats or arrays.
+
+    Immutable once built: one evaluator serves every episode of a worker process (and every policy, as
+    ``context.controller``), so an attribute cannot be set or deleted (``AttributeError``), its tables are tuples
+    and read-only arrays, and a policy cannot change what the controller computes for the next episode.
     """
+
+    _built = False  # set (on the instance) at the end of __init__: from then on no attribute can change
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if self._built:
+            raise AttributeError(f"FastEvaluator is read-only (shared by every episode): cannot set {name!r}")
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name: str) -> None:
+        if self._built:
+            raise AttributeError(f"FastEvaluator is read-only (shared by every episode): cannot delete {name!r}")
+        object.__delattr__(self, name)
+
+    def __reduce__(self) -> tuple:
+        """Pickled (and copied) as its definition: built again from it on loading."""
+        return type(self), (self.spec,)
 
     def __init__(self, spec: ControllerSpec) -> None:
         self.spec = spec
@@ -98,9 +119,9 @@ class FastEvaluator:
                 rule_mask=mask, fallback=fallback,
                 term_rules=tuple(tuple(int(r) for r in np.nonzero(row)[0]) for row in mask),
                 weights=np.stack(_grid_weights(var.grid)),
-                rising=tuple(mfs[t, : rising_end[t] + 1].tolist() for t in range(len(var.terms))),
-                falling_neg=tuple((-mfs[t, falling_start[t]:]).tolist() for t in range(len(var.terms))),
-                mf_rows=tuple(mfs.tolist()), grid_list=var.grid.tolist(),
+                rising=tuple(tuple(mfs[t, : rising_end[t] + 1].tolist()) for t in range(len(var.terms))),
+                falling_neg=tuple(tuple((-mfs[t, falling_start[t]:]).tolist()) for t in range(len(var.terms))),
+                mf_rows=tuple(tuple(row) for row in mfs.tolist()), grid_list=tuple(var.grid.tolist()),
                 support=tuple(_support(row) for row in mfs))
         self._build_scalar_tables()
         # batch work buffers, allocated once: a fresh (grid x chunk) array per block would be a fresh mmap
@@ -108,6 +129,32 @@ class FastEvaluator:
         # per thread for concurrent batches)
         self._grid_work = {role: np.empty((len(o.grid), _CHUNK)) for role, o in self._outputs.items()}
         self._term_work = np.empty((max(hi - lo for o in self._outputs.values() for lo, hi in o.support), _CHUNK))
+        self._freeze()
+
+    def _freeze(self) -> None:
+        """Make every table read-only (tuples, read-only mappings and arrays), then refuse attribute assignment.
+        The batch work buffers stay writable: each block fills them before it reads them."""
+        self._inputs = tuple(self._inputs)
+        for _, mfs, _ in self._inputs:
+            mfs.flags.writeable = False
+        for out in self._outputs.values():
+            for f in fields(out):
+                value = getattr(out, f.name)
+                if isinstance(value, np.ndarray):
+                    value.flags.writeable = False
+        self._outputs = MappingProxyType(self._outputs)
+        self._grid_work = MappingProxyType(self._grid_work)
+        for array in (self._antecedents, self._stacked_mfs, self._stacked_weights, self._sum_rows):
+            array.flags.writeable = False
+        self._scalar_inputs = tuple(self._scalar_inputs)
+        self._mu_zero = tuple(self._mu_zero)
+        self._outs = tuple(self._outs)
+        self._term_offset = tuple(self._term_offset)
+        self._block_start = tuple(self._block_start)
+        self._scalar_rules = tuple(self._scalar_rules)
+        self._cross_tables = tuple(self._cross_tables)
+        self._term_window = tuple(self._term_window)
+        self._built = True
 
     # -- public API -------------------------------------------------------------------------------------
     def evaluate(self, inputs: Mapping[str, float | np.ndarray]) -> tuple:
@@ -295,7 +342,7 @@ class FastEvaluator:
                              for b, out in enumerate(self._outs) for lo, hi in out.support]
 
     def _evaluate_scalar(self, inputs: Mapping[str, float]) -> tuple[float, float]:
-        mu = self._mu_zero.copy()
+        mu = list(self._mu_zero)
         alive = self._all_rules
         for name, lo, hi, step, crisp, table, _ in self._scalar_inputs:
             x = min(max(float(inputs[name]), lo), hi)

@@ -44,7 +44,7 @@ import numpy as np
 from fuzzynav.numerics.portable_math import sin_cos_deg
 from fuzzynav.params.checks import check_key, key_text, show
 from fuzzynav.params.names import NAME
-from fuzzynav.registry import load_plugins, source_digest
+from fuzzynav.registry import load_plugins, one_line, source_digest
 
 if TYPE_CHECKING:
     from fuzzynav.kinematics import RobotState
@@ -53,6 +53,45 @@ if TYPE_CHECKING:
 
 MAX_ABS = 1e15  # a parameter's absolute value before its own range is checked
 
+#: start of the note a KeyboardInterrupt gets when it comes out of a model's code: "pedestrian model 'x': step()"
+MODEL_NOTE = "pedestrian model "
+
+
+class ObstacleModelError(ValueError):
+    """A pedestrian model's own code failed (its construction, ``reset``, ``step``, ``presence``), or returned what
+    no obstacle can be: the episode ends as ``error`` with this message, which names the model."""
+
+
+def call_model(name: str, what: str, function: Callable[..., Any], *args: Any) -> Any:
+    """``function(*args)``, a call into model ``name``'s own code (``what``: "step()", "reset(rng)" ...): whatever
+    it raises (``SystemExit`` included: a model must not end a run or a whole sweep with exit status 0) is an
+    :class:`ObstacleModelError` "pedestrian model 'name': what failed: Type: message". ``KeyboardInterrupt`` (a
+    signal's, or the model's own) goes on with a note naming the model, for the runner to tell them apart, as a
+    policy's does (:mod:`fuzzynav.planning.layer`)."""
+    try:
+        return function(*args)
+    except KeyboardInterrupt as err:
+        err.add_note(f"{MODEL_NOTE}{name!r}: {what}")
+        raise
+    except BaseException as err:
+        # already named: the framework's own check, or a ValueError of fuzzynav's own models ("recorded: ...")
+        if isinstance(err, ObstacleModelError) or (isinstance(err, ValueError) and _own_model(name)):
+            raise
+        raise ObstacleModelError(f"pedestrian model {name!r}: {what} failed: {one_line(err)}") from err
+
+
+def _own_model(name: str) -> bool:
+    """Whether model ``name`` is one of fuzzynav's own (its factory defined in a module of fuzzynav)."""
+    module = getattr(MODELS.get(name), "__module__", None)
+    return isinstance(module, str) and module.startswith("fuzzynav.")
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """``array`` itself, made read-only (``flags.writeable = False``): what a model is given to read (the
+    :class:`CrowdView`) raises when written to, instead of changing the other obstacles and the log."""
+    array.flags.writeable = False
+    return array
+
 
 @dataclass(frozen=True)
 class CrowdView:
@@ -60,7 +99,9 @@ class CrowdView:
 
     ``positions``/``velocities`` (N, 2) and ``radii`` (N,) are all moving obstacles (cm, cm/s) in the
     scenario's order; ``robot`` the robot's pose and last speed (cm, degrees, cm/s), ``robot_radius`` cm;
-    ``present`` (N,) bool which of them are in the world now (None: all of them)."""
+    ``present`` (N,) bool which of them are in the world now (None: all of them). The arrays are read-only
+    (a model that writes into them fails with an error naming it): a model returns its obstacles' new state,
+    it does not change anyone's current one."""
 
     world: World
     robot: RobotState
@@ -112,9 +153,9 @@ def model_presence(model: Any, step: int, n: int, name: str) -> np.ndarray | Non
     presence = getattr(model, "presence", None)
     if presence is None:
         return None
-    value = np.asarray(presence(step))
+    value = np.asarray(call_model(name, "presence(step)", presence, step))
     if value.shape != (n,) or value.dtype != bool:
-        raise ValueError(f"pedestrian model {name!r}: presence returned {value.dtype} of shape {value.shape}, "
+        raise ObstacleModelError(f"pedestrian model {name!r}: presence returned {value.dtype} of shape {value.shape}, "
                          f"expected ({n},) booleans")
     return value
 
@@ -191,6 +232,10 @@ def model_config(name: str, params: Any, field: str) -> Any:
         return config_class(**kwargs)
     except ValueError as err:  # the config classes name the parameter first: "relaxation_s: must be ..."
         raise ValueError(f"{field}.{err}") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException as err:  # another package's config class (its __post_init__), SystemExit included
+        raise ValueError(f"{field}: model {name!r}: its config_class failed: {one_line(err)}") from None
 
 
 def _coerce(hint: Any, value: Any, where: str) -> Any:

@@ -59,13 +59,23 @@ from fuzzynav.sensing.tracking import Track
 @dataclass(frozen=True)
 class Observation:
     """What the robot knows at one step: its own state (odometry), the goal (cm), sonar readings
-    (left, front, right; cm), perceived moving obstacles and static laser points (P, 2; cm)."""
+    (left, front, right; cm), perceived moving obstacles and static laser points (P, 2; cm).
+
+    ``static_points`` is a read-only view (writing raises): the wait/detour layer reads the same observation
+    after the policy, and the log records it, so a policy must not change it (copy it to work on it)."""
 
     state: RobotState
     goal: tuple[float, float]
     sonar: tuple[float, float, float]
     tracks: tuple[Track, ...]
     static_points: np.ndarray
+
+    def __post_init__(self) -> None:
+        points = self.static_points
+        if isinstance(points, np.ndarray) and points.flags.writeable:
+            points = points.view()  # the caller's own array stays as it was
+            points.flags.writeable = False
+            object.__setattr__(self, "static_points", points)
 
 
 @dataclass(frozen=True)

@@ -13,13 +13,14 @@ The generator's random stream is ``numpy.random.default_rng((seed, 7))``, indepe
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
 from fuzzynav.params import limits
 from fuzzynav.params.checks import check_count, check_key, check_name, key_text, show
-from fuzzynav.registry import load_plugins, source_digest
+from fuzzynav.registry import load_plugins, one_line, source_digest
 from fuzzynav.scenarios.scenario import ScenarioError, scenario_from_dict
 
 ROBOT_RADIUS = 20.0
@@ -118,5 +119,26 @@ def generate(data: Mapping[str, Any], seed: int):
     if not isinstance(params, Mapping):
         raise ScenarioError("params: expected a mapping")
     name = check_name(data.get("name", kind), "name", ScenarioError)
-    plain = generators[kind](params, seed, name)
+    plain = _call_generator(kind, generators[kind], params, seed, name)
+    if not isinstance(plain, Mapping):
+        raise ScenarioError(f"generator {kind!r}: returned {type(plain).__name__}, expected the scenario's data "
+                            "(a mapping, as in a scenario file)")
     return scenario_from_dict(plain), plain
+
+
+def _call_generator(kind: str, function: Generator, params: Mapping[str, Any], seed: int, name: str) -> Any:
+    """``function(params, seed, name)``, a call into generator ``kind``'s code, given its own copy of the
+    parameters (a generator that changes them changes no other seed's scenario). Whatever it raises
+    (``SystemExit`` included: a generator must not end a run or a sweep with exit status 0) is a
+    :class:`ScenarioError` "generator 'kind': failed: Type: message"; a ``ScenarioError`` it raises itself
+    (:func:`param`: "params.n: ...") already names the field and goes on as it is. ``KeyboardInterrupt`` goes on
+    with a note naming the generator (a signal's stop request, or the code's own: the runner tells them apart)."""
+    try:
+        return function(copy.deepcopy(dict(params)), seed, name)
+    except KeyboardInterrupt as err:
+        err.add_note(f"generator {kind!r}: {kind}(params, seed, name)")
+        raise
+    except ScenarioError:
+        raise
+    except BaseException as err:
+        raise ScenarioError(f"generator {kind!r}: failed: {one_line(err)}") from err
