@@ -57,8 +57,6 @@ METRICS = ["time_to_goal_s", "path_length_cm", "path_efficiency", "turn_count", 
 MAIN_METRICS = ["time_to_goal_s", "path_length_cm", "turn_count", "min_clearance_dynamic_cm", "wait_steps"]
 PAIRED_METRICS = ["success", "time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "turn_count"]
 BOX_METRICS = ["time_to_goal_s", "path_length_cm", "min_clearance_dynamic_cm", "wait_steps"]
-#: the share of episodes of a group ending in each other outcome than the goal, beside ``success``
-RATES = {"collision_rate": "collision", "timeout_rate": "timeout"}
 ROUNDING = 1e-9
 """Paired values whose difference is at most this share of the larger one are equal (floating-point rounding of
 the same quantity computed along another path), so their difference counts as zero."""
@@ -91,8 +89,11 @@ def group_table(df: pd.DataFrame, grouping: Grouping) -> tuple[pd.DataFrame, pd.
         row = {"scenario": scenario, "variant": variant, "episodes": n}
         keys = {c: g[c].iloc[0] for c in constant}
         outcomes = g["outcome"].to_numpy()
-        for metric, k in (("success", int(g["success"].sum())), *((rate, int((outcomes == outcome).sum()))
-                                                                   for rate, outcome in RATES.items())):
+        # the collision rate counts every episode with a contact: with terminate_on_collision=false one that reached
+        # the goal through an obstacle ended as "goal", and the rate read 0 beside a success rate of 0
+        ended = {"collision_rate": int(((outcomes == "collision") | touched(g)).sum()),
+                 "timeout_rate": int((outcomes == "timeout").sum())}
+        for metric, k in (("success", int(g["success"].sum())), *ended.items()):
             p, lo, hi = wilson(k, n)
             row[f"{metric.replace('_', ' ')}{'' if metric.endswith('rate') else ' rate'} [95% Wilson]"] = \
                 f"{p:.2f} [{lo:.2f}, {hi:.2f}]"
@@ -210,6 +211,12 @@ def warnings(df: pd.DataFrame, analysis: Analysis) -> list[str]:
     return out
 
 
+def touched(g: pd.DataFrame) -> np.ndarray:
+    """Per episode, whether the robot touched anything (the contacts recomputed from the logged geometry, as
+    ``success`` counts them)."""
+    return (np.asarray(g["collisions_static"], dtype=float) + np.asarray(g["collisions_dynamic"], dtype=float)) > 0
+
+
 def who_reaches_the_goal(scenario: str, sub: pd.DataFrame) -> str:
     """One plain sentence for a scenario: how often each group reached the goal (groups with the same count
     together, best first), how the others ended, and whether the best and the worst group are told apart by
@@ -218,23 +225,25 @@ def who_reaches_the_goal(scenario: str, sub: pd.DataFrame) -> str:
     for variant, g in sub.groupby("variant", sort=False):
         outcomes = g["outcome"].to_numpy()
         counts.append((variant, int(g["success"].sum()), len(g), int((outcomes == "collision").sum()),
-                       int((outcomes == "timeout").sum())))
+                       int((outcomes == "timeout").sum()), int(((outcomes == "goal") & touched(g)).sum())))
     by_count: dict[tuple[int, int], list[str]] = {}
-    for variant, k, n, _, _ in sorted(counts, key=lambda c: -c[1] / c[2]):
+    for variant, k, n, *_ in sorted(counts, key=lambda c: -c[1] / c[2]):
         by_count.setdefault((k, n), []).append(variant)
     parts = [f"{k}/{n} by {', '.join(vs[:-1]) + ' and ' + vs[-1] if len(vs) > 1 else vs[0]}"
              for (k, n), vs in by_count.items()]
-    collisions, timeouts = sum(c[3] for c in counts), sum(c[4] for c in counts)
+    collisions, timeouts, touched_goals = (sum(c[i] for c in counts) for i in (3, 4, 5))
     ended = [f"{collisions} collision{'s' if collisions != 1 else ''}" if collisions else "",
+             f"{touched_goals} goal{'s' if touched_goals != 1 else ''} after a contact" if touched_goals else "",
              f"{timeouts} timeout{'s' if timeouts != 1 else ''}" if timeouts else ""]
     ended_text = f" (failures: {', '.join(e for e in ended if e)})" if any(ended) else ""
-    text = f"{scenario}: goal reached {'; '.join(parts)}{ended_text}."
+    # "without a contact" only where some goal came after one (terminate_on_collision=false): else it is the same
+    text = f"{scenario}: goal reached{' without a contact' if touched_goals else ''} {'; '.join(parts)}{ended_text}."
     if len(by_count) < 2:
         return text + (" No group differs from another." if len(counts) > 1 else "")
     (best_k, best_n), (worst_k, worst_n) = next(iter(by_count)), list(by_count)[-1]
     _, best_lo, _ = wilson(best_k, best_n)
     _, _, worst_hi = wilson(worst_k, worst_n)
-    episodes = min(n for _, _, n, _, _ in counts)
+    episodes = min(c[2] for c in counts)
     if best_lo > worst_hi:
         return text + " The best and the worst differ clearly (their 95 % intervals do not overlap)."
     return text + (f" The best and the worst are not separable with {episodes} episode{'s' if episodes != 1 else ''}"
@@ -291,7 +300,7 @@ def findings(df: pd.DataFrame, paired: pd.DataFrame) -> list[str]:
         best = [v for v in rates.index if rates[v] == best_rate]
         out.append(who_reaches_the_goal(scenario, sub))
         ttg = sub[sub["variant"].isin(best)].groupby("variant", sort=False)["time_to_goal_s"].mean().dropna()
-        if not ttg.empty:
+        if not ttg.empty and best_rate > 0:  # no group succeeded: none is "the best" (goals after a contact)
             fastest = ttg.idxmin()
             line = (f"{scenario}: among the best, the shortest mean time-to-goal is {ttg.min():.1f} s with {fastest}")
             others = paired[(paired["scenario"] == scenario) & (paired["metric"] == "time_to_goal_s")

@@ -241,8 +241,10 @@ def test_what_the_data_says_leads_with_who_reaches_the_goal():
     """It read like machine output ("highest 1.00 with auto(h=1), ..., none (lowest 1.00 with ...)")."""
     from analysis.report import who_reaches_the_goal
 
-    def episodes(variant, outcomes):
-        return [{"variant": variant, "outcome": o, "success": o == "goal"} for o in outcomes]
+    def episodes(variant, outcomes, contacts=None):
+        return [{"variant": variant, "outcome": o, "success": o == "goal" and not c,
+                 "collisions_static": 0, "collisions_dynamic": int(c or o == "collision")}
+                for o, c in zip(outcomes, contacts or [0] * len(outcomes), strict=True)]
 
     rows = (episodes("detour", ["goal"] * 10) + episodes("auto(h=2)", ["goal"] * 10)
             + episodes("wait", ["collision"] * 9 + ["timeout"]))
@@ -255,6 +257,20 @@ def test_what_the_data_says_leads_with_who_reaches_the_goal():
         "separable with 2 episodes per group (their 95 % intervals overlap).")
     same = pd.DataFrame(episodes("a", ["goal"]) + episodes("b", ["goal"]))
     assert who_reaches_the_goal("y", same) == "y: goal reached 1/1 by a and b. No group differs from another."
+    # terminate_on_collision=false: the robot went on through the obstacle to the goal
+    through = pd.DataFrame(episodes("none", ["goal"] * 3, [1, 1, 1]) + episodes("auto", ["goal"] * 3))
+    assert who_reaches_the_goal("z", through) == (
+        "z: goal reached without a contact 3/3 by auto; 0/3 by none (failures: 3 goals after a contact). The best "
+        "and the worst are not separable with 3 episodes per group (their 95 % intervals overlap).")
+
+
+def test_the_collision_rate_counts_every_episode_with_a_contact():
+    """With terminate_on_collision=false episodes that touched the obstacle end as "goal": the collision rate read
+    0.00 beside a success rate of 0.00."""
+    from analysis.report import touched
+
+    g = pd.DataFrame({"collisions_static": [0, 0, 2], "collisions_dynamic": [1, 0, 0]})
+    assert list(touched(g)) == [True, False, True]
 
 
 def test_a_swept_parameter_that_changed_no_episode_is_said():
