@@ -348,10 +348,18 @@ def find_grouping(runs: Sequence[Mapping[str, Any]], split_provenance: bool = Fa
 def provenance_warning(grouping: Grouping, runs: Sequence[Mapping[str, Any]]) -> str | None:
     """One sentence when logs from different code are pooled: each differing provenance key with its values
     and episode counts (``runs``: one parameter dict per episode)."""
-    if not grouping.pooled_provenance:
+    # a key whose values each stay in groups of their own is not pooled (a _target_ policy's source digest beside
+    # fuzzynav's own policies, in groups of their own: the warning said they were pooled)
+    groups: dict[tuple[str, str], dict[str, set]] = {}
+    for run in runs:
+        seen = groups.setdefault((grouping.scenario_label(run), grouping.variant_label(run)), {})
+        for key in grouping.pooled_provenance:
+            seen.setdefault(key, set()).add(grouping.value_label(run, key))
+    pooled = [key for key in grouping.pooled_provenance if any(len(seen.get(key, ())) > 1 for seen in groups.values())]
+    if not pooled:
         return None
     parts = []
-    for key in grouping.pooled_provenance:
+    for key in pooled:
         counts = Counter(grouping.value_label(run, key) for run in runs)
         parts.append(f"{key} " + ", ".join(f"{value} ({n} episodes)" for value, n in sorted(counts.items())))
     return ("warning: these logs were written by different code — " + "; ".join(parts) + ". They are pooled in "

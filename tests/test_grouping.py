@@ -148,6 +148,16 @@ def test_provenance_is_pooled_with_a_warning_unless_split():
     assert len({split.variant_label(r) for r in logs}) == 2
 
 
+def test_provenance_that_differs_only_between_groups_is_not_said_to_be_pooled():
+    """A _target_ policy's source digest beside fuzzynav's own policies: each value in groups of its own (the policy
+    tutorial's sweep warned that they were pooled)."""
+    logs = runs(meta(setter("planner.safety_margin_cm", 5.0), policy_source_sha256="ab" * 32),
+                meta(setter("planner.safety_margin_cm", 30.0)))
+    grouping = find_grouping(logs)
+    assert grouping.pooled_provenance == ("policy_source_sha256",)
+    assert provenance_warning(grouping, logs) is None
+
+
 def test_a_parameter_of_a_part_that_is_off_is_no_dimension():
     """h_wait is read by auto only, and planner=none reads no planner parameter: logs that differ only there are
     one group (tests/test_parameters_off.py shows their episodes are the same bits); auto's h_wait still splits."""
