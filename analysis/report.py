@@ -786,8 +786,9 @@ def _move_in(tmp: Path, names: list[str], out: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("paths", nargs="+", help="sweep directories and/or .mcap files")
-    parser.add_argument("--out", help="output directory (default: the first path if it is a directory, "
-                                      "else ./report)")
+    parser.add_argument("--out", help="output directory (default: <path>/report for one directory, such as a "
+                                      "sweep's; else ./report, so that a report of several sweeps does not replace "
+                                      "the first one's own)")
     parser.add_argument("--turn-threshold-deg", type=number_in(0.0, 180.0, "degrees", lo_open=True), default=5.0,
                         help="heading change counted as a turn (degrees per step, in (0, 180])")
     parser.add_argument("--near-miss-cm", type=number_in(0.0, 10_000.0, "cm", lo_open=True), default=20.0,
@@ -810,7 +811,8 @@ def main(argv: list[str] | None = None) -> int:
     first = Path(args.paths[0])
     if args.out is not None and not args.out.strip():  # "" is no directory: it wrote ./report instead
         parser.error("--out: an empty path; give the report's directory")
-    out = Path(args.out) if args.out else (first / "report" if first.is_dir() else Path("report"))
+    out = Path(args.out) if args.out else (first / "report" if first.is_dir() and len(args.paths) == 1
+                                           else Path("report"))
     existed = out.exists()
     problem = unwritable_dir(out)  # before the analysis, not after it
     if problem:
