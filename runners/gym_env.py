@@ -211,6 +211,8 @@ class NavigationEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         """A new episode with ``seed`` (an integer in [0, 2^53 - 1]; None: drawn from ``self.np_random``)."""
         if seed is not None:  # checked first: Gymnasium's own reset and checker keep a refused seed otherwise
+            if isinstance(seed, np.integer):  # a seed drawn with numpy (Gymnasium's own reset takes Python ints)
+                seed = int(seed)
             seed = int(check_number(seed, "seed", limits.FIELD_RANGES["seed"]))
         if options is not None and not (isinstance(options, Mapping) and len(options) == 0):
             what = f"unknown key(s) {sorted(map(str, options))[:5]}" if isinstance(options, Mapping) else \

@@ -298,7 +298,7 @@ def task(cfg: DictConfig) -> list[dict[str, Any]]:
         for r in results:
             h_wait = f" h_wait={r['h_wait']}" if reads_h_wait(r["strategy"]) else ""
             print(f"{r['scenario']} policy={r['policy']} strategy={r['strategy']}{h_wait} "
-                  f"seed={r['seed']}: {r['outcome']} after {r['steps']} steps ({r['time_s']:.0f} s), "
+                  f"seed={r['seed']}: {r['outcome']} after {r['steps']} steps ({r['time_s']:.6g} s), "
                   f"contacts={r['contacts']}  log: {r['log']}" + (" (complete: kept)" if r.get("kept") else ""))
         failed = [r for r in results if r["outcome"] == "error"]
         if failed:  # an episode that raised (a policy's code, a bug) is no result: say why, exit non-zero

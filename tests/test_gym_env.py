@@ -311,6 +311,12 @@ def test_bad_kwargs_are_one_line_value_errors(kwargs: dict, field: str) -> None:
     assert time.perf_counter() - started < 30
 
 
+def test_a_numpy_integer_seed_is_the_same_seed(env: NavigationEnv) -> None:
+    first, _ = env.reset(seed=np.int64(3))
+    again, _ = env.reset(seed=3)
+    assert all(np.array_equal(first[k], again[k]) for k in first)
+
+
 @pytest.mark.parametrize(("action", "field"), [
     ([math.nan, 10.0], "finite"),
     ([0.0, math.inf], "finite"),
