@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import importlib
 import os
 import signal
 import sys
@@ -60,6 +61,27 @@ def interrupt_in_chain(err: BaseException | None) -> BaseException | None:
     return None
 
 
+UNINTERRUPTIBLE_IMPORTS = ("orjson",)
+"""Extension modules whose initialisation crashes the process when an interrupt is raised inside it: orjson 3's
+(it imports Python modules from Rust and does not check the result), SIGSEGV with no word, about 1 run in 100 of
+``python -m runners.replay`` sent SIGINT 0.2 s after its start (CI's test_interrupts met one)."""
+
+
+def _import_uninterrupted(names: tuple[str, ...]) -> None:
+    """Import ``names`` with SIGINT and SIGTERM held back (blocked, not lost): a signal that arrives meanwhile is
+    delivered once the imports are done, where raising is safe. A module that is not installed is left to its
+    importer's own error."""
+    block = getattr(signal, "pthread_sigmask", None)  # POSIX only
+    held = block(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM}) if block is not None else None
+    try:
+        for name in names:
+            with contextlib.suppress(ImportError):
+                importlib.import_module(name)
+    finally:
+        if block is not None and held is not None:
+            block(signal.SIG_SETMASK, held)
+
+
 def guard_startup() -> None:
     """For ``python -m runners.<entry>`` and ``python -m analysis.report``, from their package's import on: a
     SIGINT or SIGTERM raises :class:`Interrupted` (later handlers, such as :func:`install` during a job or the
@@ -69,6 +91,7 @@ def guard_startup() -> None:
     if _GUARDED:
         return
     _GUARDED.append(True)
+    _import_uninterrupted(UNINTERRUPTIBLE_IMPORTS)
     for signum in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(ValueError):  # not the main thread: signals act as before
             signal.signal(signum, _raise_interrupted)

@@ -174,3 +174,28 @@ def test_an_error_after_an_interrupt_that_was_swallowed_still_exits_as_interrupt
             "    pass  # a library that swallowed it\n"
             "raise AttributeError(\"module 'pyarrow' has no attribute 'large_string'\")\n")
     ends_as_interrupted(code)
+
+
+def test_the_extension_modules_whose_start_crashes_when_interrupted_are_imported_with_signals_held(monkeypatch):
+    """orjson's initialisation crashed the process (SIGSEGV, no word) when SIGINT arrived inside it (CI: replay
+    sent SIGINT 0.2 s after its start; 3 runs in 300 here): the guard imports it with SIGINT and SIGTERM blocked,
+    so that a signal meanwhile is delivered after the import, where it raises."""
+    from analysis import interrupts
+
+    masks = []
+    real = signal.pthread_sigmask
+
+    def recording(how, mask):
+        masks.append((how, set(mask)))
+        return real(how, mask)
+
+    monkeypatch.setattr(signal, "pthread_sigmask", recording)
+    seen = []
+    monkeypatch.setattr(interrupts.importlib, "import_module",
+                        lambda name: seen.append((name, set(real(signal.SIG_BLOCK, set())))))
+    interrupts._import_uninterrupted(interrupts.UNINTERRUPTIBLE_IMPORTS)
+    assert "orjson" in interrupts.UNINTERRUPTIBLE_IMPORTS
+    assert [name for name, _ in seen] == list(interrupts.UNINTERRUPTIBLE_IMPORTS)
+    assert all({signal.SIGINT, signal.SIGTERM} <= blocked for _, blocked in seen)  # held during each import
+    assert masks[0] == (signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM}) and masks[-1][0] == signal.SIG_SETMASK
+    assert signal.SIGINT not in real(signal.SIG_BLOCK, set())  # and delivered again after
