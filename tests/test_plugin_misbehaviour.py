@@ -44,21 +44,31 @@ def _scene(model: str) -> object:
                                "max_steps": 50})
 
 
-@pytest.fixture
-def model_of():
-    """Register a model class under a fresh name for one test: ``model_of(cls) -> name``."""
-    names = []
+def _registered_for_a_test(register_as, registry: dict, prefix: str):
+    """A fixture's body: ``register(plugin) -> name`` registers under a fresh name, removed after the test."""
+    names: list[str] = []
 
-    def register(cls: type) -> str:
-        name = f"test_misbehaving_{len(names)}_{cls.__name__.lower()}"
-        cls.config_class = _NoConfig
-        register_obstacle_model(name)(cls)
+    def register(plugin) -> str:
+        name = f"{prefix}_{len(names)}"
+        register_as(name)(plugin)
         names.append(name)
         return name
 
     yield register
     for name in names:
-        MODELS.pop(name, None)
+        registry.pop(name, None)
+
+
+@pytest.fixture
+def model_of():
+    """Register a model class under a fresh name for one test: ``model_of(cls) -> name``."""
+    def register_as(name: str):
+        def register(cls: type) -> type:
+            cls.config_class = _NoConfig
+            return register_obstacle_model(name)(cls)
+        return register
+
+    yield from _registered_for_a_test(register_as, MODELS, "test_misbehaving_model")
 
 
 class _Walker:
@@ -270,17 +280,7 @@ def test_an_observation_does_not_change_its_callers_array():
 
 @pytest.fixture
 def generator_of():
-    names = []
-
-    def register(function) -> str:
-        name = f"test_misbehaving_gen_{len(names)}"
-        register_generator(name)(function)
-        names.append(name)
-        return name
-
-    yield register
-    for name in names:
-        GENERATORS.pop(name, None)
+    yield from _registered_for_a_test(register_generator, GENERATORS, "test_misbehaving_gen")
 
 
 @pytest.mark.parametrize("error, shown", [(KeyError("gen boom"), "KeyError: 'gen boom'"),
